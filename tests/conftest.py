@@ -1,0 +1,43 @@
+import dataclasses
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import warp as wp
+
+wp.config.log_level = wp.LOG_ERROR
+wp.init()
+
+import warp_cloth as wc  # noqa: E402
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def pytest_collection_modifyitems(config, items):
+    if wp.is_cuda_available():
+        return
+    skip = pytest.mark.skip(reason="needs a CUDA GPU")
+    for item in items:
+        if "cuda" in item.keywords:
+            item.add_marker(skip)
+
+
+def with_simulation(scene: wc.Scene, **changes) -> wc.Scene:
+    """The scene with some [simulation] settings changed."""
+    return dataclasses.replace(scene, simulation=dataclasses.replace(scene.simulation, **changes))
+
+
+def spring_strains(sim: wc.Simulator, positions: np.ndarray | None = None) -> np.ndarray:
+    x = sim.positions() if positions is None else positions
+    springs = sim.model.springs
+    lengths = np.linalg.norm(x[springs.pairs[:, 0]] - x[springs.pairs[:, 1]], axis=1)
+    return lengths / springs.rest - 1.0
+
+
+def run_cli(*args: str, cwd: Path, timeout: float = 300) -> subprocess.CompletedProcess:
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    return subprocess.run([sys.executable, "-m", "warp_cloth", *args], cwd=cwd, env=env, capture_output=True,
+                          text=True, timeout=timeout)

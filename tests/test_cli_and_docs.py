@@ -1,0 +1,77 @@
+"""The command line, the README's example, and the built wheel's contents."""
+
+import re
+import subprocess
+import sys
+import zipfile
+
+import pytest
+from pxr import Usd
+
+import warp_cloth as wc
+from conftest import REPO, run_cli
+
+
+def test_scenes_lists_every_builtin_with_its_description(tmp_path):
+    result = run_cli("scenes", cwd=tmp_path)
+    assert result.returncode == 0
+    lines = result.stdout.strip().splitlines()
+    assert [line.split()[0] for line in lines] == wc.builtin_scene_names()
+    assert all(len(line.split(maxsplit=1)) == 2 for line in lines)
+
+
+@pytest.mark.parametrize("args", [["--help"], ["run", "--help"], ["scenes", "--help"]])
+def test_help_everywhere(tmp_path, args):
+    result = run_cli(*args, cwd=tmp_path)
+    assert result.returncode == 0 and "usage:" in result.stdout
+
+
+def test_run_writes_usd_and_poly_and_prints_one_summary_line(tmp_path):
+    result = run_cli("run", "sphere_push", "--frames", "5", "--substeps", "6", "--integrator", "symplectic",
+                     "--device", "cpu", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    lines = result.stdout.strip().splitlines()
+    assert len(lines) == 1
+    assert re.match(r"sphere_push: 5 frames \(30 substeps of 6.94 ms, symplectic\) of 121 particles on cpu", lines[0])
+    stage = Usd.Stage.Open(str(tmp_path / "out" / "sphere_push.usdc"))
+    assert stage.GetEndTimeCode() == 5
+    assert len(list((tmp_path / "out" / "sphere_push" / "poly").glob("cloth.*.poly"))) == 6
+
+
+def test_run_output_options(tmp_path):
+    result = run_cli("run", "hanging", "--frames", "2", "--usd", "shots/h.usdc", "--no-poly", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert (tmp_path / "shots" / "h.usdc").is_file()
+    assert not (tmp_path / "out").exists()
+    result = run_cli("run", "hanging", "--frames", "2", "--no-usd", "--poly", "p", "--out", "o", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert len(list((tmp_path / "p").iterdir())) == 3 and not (tmp_path / "o").exists()
+
+
+def test_readme_python_example_runs(tmp_path, monkeypatch):
+    text = (REPO / "README.md").read_text()
+    example = re.search(r"## From Python\n\n```python\n(.*?)```", text, re.S).group(1)
+    monkeypatch.chdir(tmp_path)
+    exec(compile(example, "README.md", "exec"), {})
+    assert (tmp_path / "out" / "hanging_1s.usdc").is_file()
+
+
+def test_readme_starts_with_the_install_and_test_commands():
+    text = (REPO / "README.md").read_text()
+    blocks = re.findall(r"```\n(.*?)\n```", text, re.S)
+    assert "pip install -e '.[test]'" in blocks[0] and "warp-cloth run hanging" in blocks[0]
+    assert blocks[1] == "python -m pytest -q"
+    ci = (REPO / ".ci" / "run").read_text()
+    assert blocks[1] in ci
+
+
+def test_wheel_contains_kernels_and_scenes(tmp_path):
+    subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q", "-w",
+                    str(tmp_path), str(REPO)], check=True, capture_output=True)
+    wheel = next(tmp_path.glob("warp_cloth-*.whl"))
+    names = set(zipfile.ZipFile(wheel).namelist())
+    for module in ("springs", "integration", "limits", "pins", "colliders", "motion"):
+        assert f"warp_cloth/kernels/{module}.py" in names
+    for scene in wc.builtin_scene_names():
+        assert f"warp_cloth/scenes/{scene}.toml" in names
+    assert "warp_cloth/cli.py" in names

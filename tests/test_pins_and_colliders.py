@@ -1,0 +1,81 @@
+"""Pins follow their formula; colliders keep particles out; friction decelerates at mu g."""
+
+import math
+
+import numpy as np
+import pytest
+
+import warp_cloth as wc
+from conftest import with_simulation
+
+OFF = wc.SpringKind(enabled=False)
+
+
+def test_oscillating_pins_follow_their_formula_every_frame():
+    scene = wc.load_scene("oscillating_pins")
+    sim = wc.Simulator(scene, device="cpu")
+    pins = sim.model.pins
+    cloth = scene.cloths[0]
+    motions = [p.motion for p in cloth.pins]
+    for frame in range(1, 73):
+        sim.step()
+        t = frame / scene.simulation.fps
+        x, v = sim.positions(), sim.velocities()
+        for k, motion in enumerate(motions):
+            i = pins.index[k]
+            np.testing.assert_allclose(x[i], pins.anchor[k] + np.array(motion.offset(t)), atol=2e-5)
+            np.testing.assert_allclose(v[i], motion.velocity(t), atol=2e-4)
+
+
+def test_oscillating_pins_start_on_their_path():
+    motion = wc.Oscillation(axis=(0.0, 2.0, 0.0), amplitude=0.5, frequency=2.0, phase=1.0)
+    cloth = wc.Cloth(resolution=(2, 2), size=(1.0, 1.0), pins=(wc.Pin(indices=(0,), motion=motion),))
+    sim = wc.Simulator(wc.Scene(cloths=(cloth,)), device="cpu")
+    np.testing.assert_allclose(sim.positions()[0], [0.0, 0.5 * math.sin(1.0), 0.0], atol=1e-6)
+    np.testing.assert_allclose(sim.velocities()[0], [0.0, 0.5 * 4 * math.pi * math.cos(1.0), 0.0], atol=1e-5)
+
+
+@pytest.mark.parametrize("name", ["drape", "sphere_push"])
+def test_no_particle_ends_a_frame_inside_a_sphere_or_under_the_ground(name):
+    scene = with_simulation(wc.load_scene(name), frames=96)
+    sim = wc.Simulator(scene, device="cpu")
+    radii = np.array([s.radius for s in scene.spheres])
+    contact_frames = 0
+    for _ in range(96):
+        sim.step()
+        x = sim.positions()
+        centers = sim.sphere_centers()
+        distance = np.linalg.norm(x[:, None, :] - centers[None, :, :], axis=2)
+        assert (distance >= radii * (1 - 1e-5)).all()
+        contact_frames += bool((distance <= radii * (1 + 1e-3)).any())
+        if scene.ground is not None:
+            assert x[:, 1].min() >= scene.ground.height - 1e-6
+    assert contact_frames > 10, "the scene should bring cloth and sphere into contact"
+
+
+def test_moving_sphere_follows_its_motion():
+    scene = wc.load_scene("sphere_push")
+    sim = wc.Simulator(scene, device="cpu")
+    sphere = scene.spheres[0]
+    for frame in range(1, 25):
+        sim.step()
+        expected = np.add(sphere.center, sphere.motion.offset(frame / scene.simulation.fps))
+        np.testing.assert_allclose(sim.sphere_centers()[0], expected, atol=1e-5)
+
+
+@pytest.mark.parametrize("mu", [0.2, 0.5])
+def test_ground_friction_stops_a_sliding_cloth_after_v0_squared_over_2_mu_g(mu):
+    v0, g = 3.0, 9.81
+    cloth = wc.Cloth(resolution=(1, 1), size=(0.2, 0.2), orientation="horizontal", origin=(0.0, 0.0, 0.0),
+                     velocity=(v0, 0.0, 0.0), structural=OFF, shear=OFF, bend=OFF)
+    scene = wc.Scene(cloths=(cloth,), ground=wc.Ground(friction=mu),
+                     simulation=wc.Simulation(fps=24, substeps=40, integrator="symplectic"))
+    sim = wc.Simulator(scene, device="cpu")
+    x0 = sim.positions()[:, 0].copy()
+    sim.run(48)
+    travelled = sim.positions()[:, 0] - x0
+    expected = v0 * v0 / (2 * mu * g)
+    # Each substep's contact removes g h of normal speed and mu g h of tangential speed: the discrete
+    # stopping distance differs from the analytic one by O(v0 h).
+    np.testing.assert_allclose(travelled, expected, atol=v0 * sim.dt)
+    assert np.abs(sim.velocities()).max() < 1e-6

@@ -1,0 +1,66 @@
+"""A scene pays only for the effects it declares: the kernels one substep launches, counted."""
+
+from collections import Counter
+
+import pytest
+import warp as wp
+
+import warp_cloth as wc
+from conftest import with_simulation
+
+OFF = wc.SpringKind(enabled=False)
+
+
+@pytest.fixture
+def launches(monkeypatch):
+    counted: Counter = Counter()
+    real_launch = wp.launch
+
+    def counting_launch(kernel, *args, **kwargs):
+        counted[kernel.key] += 1
+        return real_launch(kernel, *args, **kwargs)
+
+    monkeypatch.setattr(wp, "launch", counting_launch)
+    return counted
+
+
+LIMIT_ITERATIONS = 4
+EXPECTED = {
+    "hanging": {"euler_step": 1, "hold_pins": 1, "project_strain_limits": LIMIT_ITERATIONS},
+    "ground": {"euler_step": 1, "project_strain_limits": LIMIT_ITERATIONS, "collide_ground": 1},
+    "drape": {"euler_step": 1, "project_strain_limits": LIMIT_ITERATIONS, "collide_ground": 1,
+              "collide_spheres": 1},
+    "sphere_push": {"euler_step": 1, "hold_pins": 1, "project_strain_limits": LIMIT_ITERATIONS,
+                    "move_spheres": 1, "collide_spheres": 1, "advance_clock": 1},
+    "oscillating_pins": {"euler_step": 1, "drive_pins": 1, "project_strain_limits": LIMIT_ITERATIONS,
+                         "advance_clock": 1},
+}
+
+
+@pytest.mark.parametrize("name", sorted(EXPECTED))
+def test_substep_launches_only_declared_effects(name, launches):
+    scene = wc.load_scene(name)
+    assert scene.simulation.limit_iterations == LIMIT_ITERATIONS
+    sim = wc.Simulator(scene, device="cpu")
+    launches.clear()
+    sim.substep()
+    assert dict(launches) == EXPECTED[name]
+
+
+def test_bare_cloth_launches_one_kernel_and_holds_no_effect_arrays(launches):
+    cloth = wc.Cloth(resolution=(3, 3), structural=OFF, shear=OFF, bend=OFF)
+    sim = wc.Simulator(wc.Scene(cloths=(cloth,)), device="cpu")
+    model = sim.model
+    assert (model.springs, model.limits, model.pins, model.spheres) == (None, None, None, None)
+    launches.clear()
+    sim.substep()
+    assert dict(launches) == {"euler_step": 1}
+
+
+def test_limit_iterations_and_integrator_change_the_launches(launches):
+    scene = with_simulation(wc.load_scene("hanging"), limit_iterations=7, integrator="symplectic")
+    sim = wc.Simulator(scene, device="cpu")
+    assert sim.stage_names == ["integrate:symplectic", "pins:fixed", "limits:7"]
+    launches.clear()
+    sim.substep()
+    assert launches["project_strain_limits"] == 7

@@ -1,0 +1,34 @@
+"""Errors a user can act on: bad scene input, an unstable run."""
+
+from __future__ import annotations
+
+
+class SceneError(ValueError):
+    """A scene (file or object) that cannot be simulated.
+
+    ``key`` is the dotted path of the offending value (``cloth[0].resolution``), ``expected`` says what
+    would have been accepted, ``source`` names the file when there is one.
+    """
+
+    def __init__(self, key: str, expected: str, got: object = None, source: str | None = None,
+                 has_got: bool = True) -> None:
+        self.key = key
+        self.expected = expected
+        self.got = got
+        self.has_got = has_got
+        self.source = source
+        super().__init__(self._message())
+
+    def _message(self) -> str:
+        where = f"{self.source}: " if self.source else ""
+        key = f"{self.key}: " if self.key else ""
+        got = f", got {self.got!r}" if self.has_got else ""
+        return f"{where}{key}expected {self.expected}{got}"
+
+    def within(self, prefix: str) -> "SceneError":
+        """The same error with ``prefix`` put in front of its key path."""
+        key = prefix if not self.key else (f"{prefix}{self.key}" if self.key.startswith("[") else f"{prefix}.{self.key}")
+        return SceneError(key, self.expected, self.got, self.source, self.has_got)
+
+    def in_file(self, source: str) -> "SceneError":
+        return SceneError(self.key, self.expected, self.got, source, self.has_got)

@@ -1,0 +1,231 @@
+"""A scene's cloths packed into one particle buffer (with a cloth id), as host arrays ready to upload.
+
+Only what the scene declares is built: no pin arrays without pins, no limit lists without limits.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .cloth_grid import BEND, SHEAR, STRUCTURAL, ClothGrid, build_grid, grid_positions, pinned_indices
+from .errors import SceneError
+from .scene import Scene, SpringKind
+
+FLAG_ELASTIC_TENSION, FLAG_ELASTIC_COMPRESSION, FLAG_DAMPING_TENSION, FLAG_DAMPING_COMPRESSION = 1, 2, 4, 8
+
+
+def regime_flags(kind: SpringKind) -> int:
+    """The kernel's regime bits for a spring kind (see ``kernels/springs.py``)."""
+    elastic = {"tension": FLAG_ELASTIC_TENSION, "compression": FLAG_ELASTIC_COMPRESSION,
+               "both": FLAG_ELASTIC_TENSION | FLAG_ELASTIC_COMPRESSION}[kind.acts]
+    damping = {"tension": FLAG_DAMPING_TENSION, "compression": FLAG_DAMPING_COMPRESSION,
+               "both": FLAG_DAMPING_TENSION | FLAG_DAMPING_COMPRESSION}[kind.damping_acts]
+    return elastic | damping
+
+
+@dataclass(frozen=True)
+class Adjacency:
+    """Per-particle incidence lists (CSR): particle i's entries are ``offsets[i]:offsets[i+1]``."""
+
+    offsets: np.ndarray  # (n + 1,) int32
+    other: np.ndarray  # (2 s,) int32: the particle at the other end
+    spring: np.ndarray  # (2 s,) int32: the spring's index
+
+    @staticmethod
+    def of(pairs: np.ndarray, particle_count: int) -> "Adjacency":
+        s = len(pairs)
+        owner = np.concatenate([pairs[:, 0], pairs[:, 1]])
+        other = np.concatenate([pairs[:, 1], pairs[:, 0]])
+        spring = np.concatenate([np.arange(s), np.arange(s)])
+        order = np.lexsort((other, owner))
+        counts = np.bincount(owner, minlength=particle_count)
+        offsets = np.zeros(particle_count + 1, dtype=np.int32)
+        np.cumsum(counts, out=offsets[1:])
+        return Adjacency(offsets, other[order].astype(np.int32), spring[order].astype(np.int32))
+
+
+@dataclass(frozen=True)
+class Springs:
+    pairs: np.ndarray  # (s, 2)
+    rest: np.ndarray  # (s,) float32
+    stiffness: np.ndarray
+    damping: np.ndarray
+    flags: np.ndarray  # (s,) int32
+    limit_min: np.ndarray  # (s,) shortest allowed length, 0 where the spring is not limited
+    limit_max: np.ndarray  # (s,) longest allowed length, inf where not limited
+    adjacency: Adjacency
+
+
+@dataclass(frozen=True)
+class Pins:
+    index: np.ndarray  # (p,) int32 particle
+    anchor: np.ndarray  # (p, 3) rest position
+    amplitude: np.ndarray  # (p, 3) amplitude * unit axis, zero for fixed pins
+    frequency: np.ndarray
+    phase: np.ndarray
+    moving: bool
+
+
+@dataclass(frozen=True)
+class StrainLimits:
+    """Limited (structural and shear) springs as incidence lists with allowed length ranges."""
+
+    offsets: np.ndarray
+    other: np.ndarray
+    min_length: np.ndarray
+    max_length: np.ndarray
+
+
+@dataclass(frozen=True)
+class Spheres:
+    center: np.ndarray  # (k, 3) centre of the motion
+    initial_center: np.ndarray  # (k, 3) where the sphere is at t = 0
+    radius: np.ndarray
+    friction: np.ndarray
+    amplitude: np.ndarray  # (k, 3)
+    frequency: np.ndarray
+    phase: np.ndarray
+    moving: bool
+
+
+@dataclass(frozen=True)
+class Model:
+    scene: Scene
+    grids: tuple[ClothGrid, ...]
+    offsets: tuple[int, ...]  # first particle of each cloth, plus the total at the end
+    positions: np.ndarray  # (n, 3) float32
+    velocities: np.ndarray
+    masses: np.ndarray
+    inv_mass: np.ndarray  # 0 for pinned particles
+    cloth_id: np.ndarray  # (n,) int32
+    springs: Springs | None
+    limits: StrainLimits | None
+    pins: Pins | None
+    spheres: Spheres | None
+
+    @property
+    def particle_count(self) -> int:
+        return self.offsets[-1]
+
+    def cloth_slice(self, c: int) -> slice:
+        return slice(self.offsets[c], self.offsets[c + 1])
+
+
+def build_model(scene: Scene) -> Model:
+    grids = tuple(build_grid(c) for c in scene.cloths)
+    offsets = [0]
+    for g in grids:
+        offsets.append(offsets[-1] + len(g.positions))
+    n = offsets[-1]
+    positions = np.concatenate([g.positions for g in grids]).astype(np.float32)
+    velocities = np.concatenate([np.tile(np.asarray(c.velocity, dtype=np.float32), (len(g.positions), 1))
+                                 for c, g in zip(scene.cloths, grids)])
+    masses = np.concatenate([g.masses for g in grids]).astype(np.float32)
+    cloth_id = np.concatenate([np.full(len(g.positions), c, dtype=np.int32) for c, g in enumerate(grids)])
+    pins = _pins(scene, grids, offsets)
+    inv_mass = (1.0 / masses).astype(np.float32)
+    if pins is not None:
+        inv_mass[pins.index] = 0.0
+        # A driven pin starts where its motion puts it at t = 0, with that motion's velocity.
+        omega = 2.0 * np.pi * pins.frequency[:, None]
+        positions[pins.index] = pins.anchor + pins.amplitude * np.sin(pins.phase)[:, None]
+        velocities[pins.index] = pins.amplitude * omega * np.cos(pins.phase)[:, None]
+    springs = _springs(scene, grids, offsets, n)
+    return Model(scene, grids, tuple(offsets), positions, velocities, masses, inv_mass, cloth_id, springs,
+                 _limits(springs, n), pins, _spheres(scene))
+
+
+def _springs(scene: Scene, grids, offsets, n: int) -> Springs | None:
+    parts: dict[str, list[np.ndarray]] = {k: [] for k in ("pairs", "rest", "k", "b", "flags", "lo", "hi")}
+    for c, (cloth, grid) in enumerate(zip(scene.cloths, grids)):
+        for kind_id, kind in ((STRUCTURAL, cloth.structural), (SHEAR, cloth.shear), (BEND, cloth.bend)):
+            if not kind.enabled:
+                continue
+            sel = grid.spring_kind == kind_id
+            count = int(sel.sum())
+            rest = grid.rest_lengths[sel]
+            parts["pairs"].append(grid.springs[sel] + offsets[c])
+            parts["rest"].append(rest)
+            parts["k"].append(np.full(count, kind.stiffness))
+            parts["b"].append(np.full(count, kind.damping))
+            parts["flags"].append(np.full(count, regime_flags(kind), dtype=np.int32))
+            limited = cloth.limit is not None and kind_id in (STRUCTURAL, SHEAR)
+            parts["lo"].append(rest * (1.0 - cloth.limit.compression) if limited else np.zeros(count))
+            parts["hi"].append(rest * (1.0 + cloth.limit.stretch) if limited else np.full(count, np.inf))
+    if not parts["pairs"]:
+        return None
+    pairs = np.concatenate(parts["pairs"])
+    f32 = lambda key: np.concatenate(parts[key]).astype(np.float32)  # noqa: E731
+    return Springs(pairs, f32("rest"), f32("k"), f32("b"), np.concatenate(parts["flags"]), f32("lo"), f32("hi"),
+                   Adjacency.of(pairs, n))
+
+
+def _limits(springs: Springs | None, n: int) -> StrainLimits | None:
+    if springs is None:
+        return None
+    limited = np.isfinite(springs.limit_max)
+    if not limited.any():
+        return None
+    adjacency = Adjacency.of(springs.pairs[limited], n)
+    chosen = np.nonzero(limited)[0][adjacency.spring]
+    return StrainLimits(adjacency.offsets, adjacency.other, springs.limit_min[chosen], springs.limit_max[chosen])
+
+
+def select_pins(scene: Scene) -> list[list[np.ndarray]]:
+    """Per cloth, per pin, the particles it selects (cloth-local indices); a SceneError if a pin selects
+    nothing, an index out of range, or a particle another pin already holds."""
+    selections = []
+    for c, cloth in enumerate(scene.cloths):
+        if not cloth.pins:
+            selections.append([])
+            continue
+        positions = grid_positions(cloth)
+        owner: dict[int, str] = {}
+        chosen_per_pin = []
+        for p, pin in enumerate(cloth.pins):
+            key = f"cloth[{c}].pins[{p}]"
+            chosen = pinned_indices(cloth, pin, positions, key)
+            for i in chosen.tolist():
+                if i in owner:
+                    raise SceneError(key, f"pins that select each particle once (particle {i} is also pinned "
+                                          f"by {owner[i]})", has_got=False)
+                owner[i] = key
+            chosen_per_pin.append(chosen)
+        selections.append(chosen_per_pin)
+    return selections
+
+
+def _pins(scene: Scene, grids, offsets) -> Pins | None:
+    index, amplitude, frequency, phase = [], [], [], []
+    for c, (cloth, chosen_per_pin) in enumerate(zip(scene.cloths, select_pins(scene))):
+        for pin, chosen in zip(cloth.pins, chosen_per_pin):
+            motion = pin.motion
+            amp = np.zeros(3) if motion is None else np.asarray(motion.unit_axis()) * motion.amplitude
+            index.append(chosen + offsets[c])
+            amplitude.append(np.tile(amp, (len(chosen), 1)))
+            frequency.append(np.full(len(chosen), 0.0 if motion is None else motion.frequency))
+            phase.append(np.full(len(chosen), 0.0 if motion is None else motion.phase))
+    if not index:
+        return None
+    idx = np.concatenate(index).astype(np.int32)
+    positions = np.concatenate([g.positions for g in grids])
+    amplitude_all = np.concatenate(amplitude).astype(np.float32)
+    return Pins(idx, positions[idx].astype(np.float32), amplitude_all,
+                np.concatenate(frequency).astype(np.float32), np.concatenate(phase).astype(np.float32),
+                moving=bool(np.any(amplitude_all != 0.0)))
+
+
+def _spheres(scene: Scene) -> Spheres | None:
+    if not scene.spheres:
+        return None
+    amp = [np.zeros(3) if s.motion is None else np.asarray(s.motion.unit_axis()) * s.motion.amplitude
+           for s in scene.spheres]
+    f32 = lambda xs: np.asarray(xs, dtype=np.float32)  # noqa: E731
+    initial = [s.center if s.motion is None else np.add(s.center, s.motion.offset(0.0)) for s in scene.spheres]
+    return Spheres(f32([s.center for s in scene.spheres]), f32(initial), f32([s.radius for s in scene.spheres]),
+                   f32([s.friction for s in scene.spheres]), f32(amp),
+                   f32([0.0 if s.motion is None else s.motion.frequency for s in scene.spheres]),
+                   f32([0.0 if s.motion is None else s.motion.phase for s in scene.spheres]),
+                   moving=any(s.motion is not None and s.motion.amplitude > 0 for s in scene.spheres))

@@ -1,0 +1,313 @@
+"""What a scene declares: cloths, their springs, limits and pins, colliders, time stepping, outputs.
+
+Plain frozen dataclasses. A scene file (TOML) maps one to one onto them (see ``scene_file``); a scene built
+in Python is checked by the same ``__post_init__`` rules. Every effect that a scene leaves out (``None``
+or an empty tuple) costs the simulation nothing.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Literal
+
+from .errors import SceneError
+
+Vec3 = tuple[float, float, float]
+
+SpringRegime = Literal["tension", "compression", "both"]
+Corner = Literal["bottom-left", "bottom-right", "top-left", "top-right"]
+Edge = Literal["bottom", "top", "left", "right"]
+Integrator = Literal["explicit", "symplectic"]
+INTEGRATORS: tuple[str, ...] = ("explicit", "symplectic")
+
+# Particle count above which a scene is refused before any memory is asked for: indices are int32 and
+# a cloth of this size already needs gigabytes. The simulator checks the device's free memory as well.
+MAX_PARTICLES = 64 * 1024 * 1024
+
+
+def _require(ok: bool, key: str, expected: str, got: object) -> None:
+    if not ok:
+        raise SceneError(key, expected, got)
+
+
+def _positive(value: float, key: str) -> None:
+    _require(value > 0, key, "a number > 0", value)
+
+
+def _non_negative(value: float, key: str) -> None:
+    _require(value >= 0, key, "a number >= 0", value)
+
+
+def _unit_length(axis: Vec3, key: str) -> None:
+    _require(math.hypot(*axis) > 1e-9, key, "a non-zero direction [x, y, z]", list(axis))
+
+
+@dataclass(frozen=True)
+class Oscillation:
+    """Motion ``offset(t) = amplitude * sin(2 pi frequency t + phase) * axis`` (axis normalised)."""
+
+    axis: Vec3 = (1.0, 0.0, 0.0)
+    amplitude: float = 1.0
+    frequency: float = 1.0
+    phase: float = 0.0
+
+    def __post_init__(self) -> None:
+        _unit_length(self.axis, "axis")
+        _non_negative(self.amplitude, "amplitude")
+        _non_negative(self.frequency, "frequency")
+
+    def unit_axis(self) -> Vec3:
+        norm = math.hypot(*self.axis)
+        return (self.axis[0] / norm, self.axis[1] / norm, self.axis[2] / norm)
+
+    def offset(self, t: float) -> Vec3:
+        s = self.amplitude * math.sin(2.0 * math.pi * self.frequency * t + self.phase)
+        ax = self.unit_axis()
+        return (s * ax[0], s * ax[1], s * ax[2])
+
+    def velocity(self, t: float) -> Vec3:
+        w = 2.0 * math.pi * self.frequency
+        s = self.amplitude * w * math.cos(w * t + self.phase)
+        ax = self.unit_axis()
+        return (s * ax[0], s * ax[1], s * ax[2])
+
+
+@dataclass(frozen=True)
+class SpringKind:
+    """One family of springs (structural, shear or bend).
+
+    Force on particle 1 of a spring 1-2: ``-stiffness (l/L0 - 1) n - damping (n . v12) n``. The elastic
+    part acts only in the regime ``acts`` names and the dashpot only in ``damping_acts``: the seed's
+    structural and shear springs pull but never push (``acts = "tension"``) while their damping always
+    acts; its bend springs push back only when compressed.
+    """
+
+    stiffness: float = 10.0
+    damping: float = 1.0
+    acts: SpringRegime = "tension"
+    damping_acts: SpringRegime = "both"
+    enabled: bool = True
+
+    def __post_init__(self) -> None:
+        _positive(self.stiffness, "stiffness")
+        _non_negative(self.damping, "damping")
+
+
+SEED_STRUCTURAL = SpringKind(10.0, 1.0, "tension", "both")
+SEED_SHEAR = SpringKind(10.0, 1.0, "tension", "both")
+SEED_BEND = SpringKind(10.0, 1.0, "compression", "compression")
+
+
+@dataclass(frozen=True)
+class Limit:
+    """Provot-style strain limit on structural and shear springs, as fractions of the rest length."""
+
+    stretch: float = 0.10
+    compression: float = 0.10
+
+    def __post_init__(self) -> None:
+        _require(0 < self.stretch <= 10, "stretch", "a fraction in (0, 10]", self.stretch)
+        _require(0 < self.compression < 1, "compression", "a fraction in (0, 1)", self.compression)
+
+
+@dataclass(frozen=True)
+class Box:
+    """An axis-aligned box in world space (of the cloth's initial pose)."""
+
+    min: Vec3
+    max: Vec3
+
+    def __post_init__(self) -> None:
+        _require(all(a <= b for a, b in zip(self.min, self.max)), "max", "every component >= min's",
+                 list(self.max))
+
+
+@dataclass(frozen=True)
+class Pin:
+    """Particles held in place, or driven by an oscillation about their initial position.
+
+    Selected by grid index (``x + (nx + 1) y``), named corners and edges of the grid (left/right is
+    the first grid direction, bottom/top the second), or a world-space box around the initial pose.
+    """
+
+    indices: tuple[int, ...] = ()
+    corners: tuple[Corner, ...] = ()
+    edges: tuple[Edge, ...] = ()
+    region: Box | None = None
+    motion: Oscillation | None = None
+
+    def __post_init__(self) -> None:
+        for k, index in enumerate(self.indices):
+            _require(index >= 0, f"indices[{k}]", "a particle index >= 0", index)
+        _require(bool(self.indices or self.corners or self.edges or self.region), "",
+                 "at least one of indices, corners, edges, region", "none")
+
+
+@dataclass(frozen=True)
+class Cloth:
+    """A rectangular grid of ``resolution`` quads, ``(nx + 1) * (ny + 1)`` particles.
+
+    Built in its local (u, v) plane, laid ``vertical`` (u along +X, v along +Y, facing +Z) or
+    ``horizontal`` (u along +X, v along -Z, facing +Y), then rotated by ``rotation`` (degrees about X, then Y, then Z) about its
+    corner (0, 0), which is put at ``origin``. ``mass`` is per particle; ``density`` (kg/m^2) instead
+    gives each particle the area around it. ``jitter`` moves particles out of plane by up to that
+    fraction of a cell (the seed used 0.05), reproducibly from ``seed``.
+    """
+
+    name: str = "cloth"
+    resolution: tuple[int, int] = (10, 10)
+    size: tuple[float, float] = (10.0, 10.0)
+    origin: Vec3 = (0.0, 0.0, 0.0)
+    orientation: Literal["vertical", "horizontal"] = "vertical"
+    rotation: Vec3 = (0.0, 0.0, 0.0)
+    mass: float | None = None
+    density: float | None = None
+    velocity: Vec3 = (0.0, 0.0, 0.0)
+    jitter: float = 0.0
+    seed: int = 0
+    structural: SpringKind = SEED_STRUCTURAL
+    shear: SpringKind = SEED_SHEAR
+    bend: SpringKind = SEED_BEND
+    limit: Limit | None = None
+    pins: tuple[Pin, ...] = ()
+    color: Vec3 = (0.75, 0.32, 0.22)
+
+    def __post_init__(self) -> None:
+        _require(bool(self.name) and self.name.replace("_", "").replace("-", "").isalnum(), "name",
+                 "a non-empty name of letters, digits, '_' or '-'", self.name)
+        nx, ny = self.resolution
+        _require(nx >= 1 and ny >= 1, "resolution", "[nx, ny] quads, each >= 1", list(self.resolution))
+        _require((nx + 1) * (ny + 1) <= MAX_PARTICLES, "resolution",
+                 f"at most {MAX_PARTICLES} particles per cloth", list(self.resolution))
+        _require(self.size[0] > 0 and self.size[1] > 0, "size", "[width, height] in metres, each > 0",
+                 list(self.size))
+        _require(not (self.mass is not None and self.density is not None), "density",
+                 "either mass (per particle) or density (kg/m^2), not both", self.density)
+        if self.mass is not None:
+            _positive(self.mass, "mass")
+        if self.density is not None:
+            _positive(self.density, "density")
+        _require(0 <= self.jitter <= 0.5, "jitter", "a fraction of a cell in [0, 0.5]", self.jitter)
+        _require(all(0 <= c <= 1 for c in self.color), "color", "[r, g, b] each in [0, 1]", list(self.color))
+
+    @property
+    def particle_count(self) -> int:
+        return (self.resolution[0] + 1) * (self.resolution[1] + 1)
+
+    def particle_mass(self) -> float | None:
+        """The uniform per-particle mass, or None when ``density`` lumps area per particle."""
+        if self.density is not None:
+            return None
+        return 0.025 if self.mass is None else self.mass
+
+
+@dataclass(frozen=True)
+class Ground:
+    """The plane y = ``height``; ``size`` is only how large it is drawn in the USD (0: fit the scene)."""
+
+    height: float = 0.0
+    friction: float = 0.0
+    size: float = 0.0
+
+    def __post_init__(self) -> None:
+        _non_negative(self.friction, "friction")
+        _non_negative(self.size, "size")
+
+
+@dataclass(frozen=True)
+class Sphere:
+    """A rigid sphere collider, static or moving by ``motion`` about ``center``."""
+
+    name: str = "sphere"
+    center: Vec3 = (0.0, 0.0, 0.0)
+    radius: float = 1.0
+    friction: float = 0.0
+    motion: Oscillation | None = None
+
+    def __post_init__(self) -> None:
+        _require(bool(self.name) and self.name.replace("_", "").replace("-", "").isalnum(), "name",
+                 "a non-empty name of letters, digits, '_' or '-'", self.name)
+        _positive(self.radius, "radius")
+        _non_negative(self.friction, "friction")
+
+
+@dataclass(frozen=True)
+class Simulation:
+    """Time stepping. Give ``substeps`` per frame or a step ``dt``. The step used is ``1 / (fps * substeps)``
+    so that frames fall on exact times: for ``dt`` that is the largest such step at most 1% over ``dt``
+    (so the seed's 0.0052, 0.0104, 0.0208 and 0.04165 s at 24 fps become 1/8, 1/4, 1/2 and 1 frame).
+    ``drag`` is a linear air drag rate in 1/s (acceleration ``-drag * v``)."""
+
+    fps: float = 24.0
+    frames: int = 240
+    substeps: int | None = None
+    dt: float | None = None
+    integrator: Integrator = "symplectic"
+    gravity: Vec3 = (0.0, -9.81, 0.0)
+    drag: float = 0.0
+    limit_iterations: int = 4
+
+    def __post_init__(self) -> None:
+        _positive(self.fps, "fps")
+        _require(self.frames >= 1, "frames", "a whole number >= 1", self.frames)
+        _require(not (self.substeps is not None and self.dt is not None), "dt",
+                 "either substeps or dt, not both", self.dt)
+        if self.substeps is not None:
+            _require(self.substeps >= 1, "substeps", "a whole number >= 1", self.substeps)
+        if self.dt is not None:
+            _positive(self.dt, "dt")
+            _require(self.dt <= 1.0 / self.fps * 1.01, "dt", f"at most one frame (1/fps = {1 / self.fps:g} s)",
+                     self.dt)
+        _non_negative(self.drag, "drag")
+        _require(self.limit_iterations >= 1, "limit_iterations", "a whole number >= 1", self.limit_iterations)
+
+    @property
+    def substeps_per_frame(self) -> int:
+        if self.substeps is not None:
+            return self.substeps
+        if self.dt is None:
+            return 10
+        return max(1, math.ceil(0.99 / (self.fps * self.dt)))
+
+    @property
+    def step(self) -> float:
+        """The time step actually taken, in seconds."""
+        return 1.0 / (self.fps * self.substeps_per_frame)
+
+
+@dataclass(frozen=True)
+class Output:
+    """What a run writes: a USD stage and/or Houdini .poly files, under ``dir``."""
+
+    dir: str = "out"
+    usd: bool = True
+    poly: bool = True
+    subdivision: Literal["none", "catmullClark"] = "none"
+
+
+@dataclass(frozen=True)
+class Scene:
+    name: str = "scene"
+    description: str = ""
+    simulation: Simulation = Simulation()
+    output: Output = Output()
+    cloths: tuple[Cloth, ...] = field(default=(), metadata={"toml": "cloth"})
+    ground: Ground | None = None
+    spheres: tuple[Sphere, ...] = field(default=(), metadata={"toml": "sphere"})
+
+    def __post_init__(self) -> None:
+        _require(bool(self.name) and self.name.replace("_", "").replace("-", "").isalnum(), "name",
+                 "a non-empty name of letters, digits, '_' or '-'", self.name)
+        _require(len(self.cloths) >= 1, "cloth", "at least one [[cloth]]", len(self.cloths))
+        total = sum(c.particle_count for c in self.cloths)
+        _require(total <= MAX_PARTICLES, "cloth", f"at most {MAX_PARTICLES} particles in all", total)
+        for kind, items in (("cloth", self.cloths), ("sphere", self.spheres)):
+            names = [item.name for item in items]
+            for k, name in enumerate(names):
+                _require(names.index(name) == k, f"{kind}[{k}].name", f"a name no other {kind} has", name)
+
+    @property
+    def has_time_dependent_effects(self) -> bool:
+        return any(s.motion is not None for s in self.spheres) or any(
+            p.motion is not None for c in self.cloths for p in c.pins)

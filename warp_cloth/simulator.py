@@ -1,0 +1,219 @@
+"""The simulator: a scene's model on a device, the list of stages of a substep, and the frame loop."""
+
+from __future__ import annotations
+
+import os
+import signal
+import threading
+import time
+from dataclasses import dataclass
+from typing import Iterable, Protocol
+
+import numpy as np
+import warp as wp
+
+from .errors import SceneError
+from .model import Model, build_model
+from .progress import Progress
+from .scene import Scene
+from .stages import Stage, build_stages
+from .state import DeviceState
+
+# Rough upper bounds per particle, to refuse a scene before allocating: host arrays while building
+# (float64 grids, spring lists, sorting) and device arrays (state, springs and their adjacency).
+HOST_BYTES_PER_PARTICLE = 900
+DEVICE_BYTES_PER_PARTICLE = 320
+
+
+class FrameWriter(Protocol):
+    """Receives the state after every frame (frame 0 is the initial state)."""
+
+    def begin(self, sim: "Simulator") -> None: ...
+
+    def write_frame(self, sim: "Simulator", frame: int) -> None: ...
+
+    def finish(self, sim: "Simulator", frames_written: int) -> None: ...
+
+
+@dataclass(frozen=True)
+class RunSummary:
+    frames: int
+    substeps: int
+    particles: int
+    wall_seconds: float
+    interrupted: bool
+
+    @property
+    def particle_substeps_per_second(self) -> float:
+        return self.particles * self.substeps / self.wall_seconds if self.wall_seconds > 0 else float("inf")
+
+
+def resolve_device(device: str | None) -> wp.context.Device:
+    wp.init()
+    name = device or ("cuda" if wp.is_cuda_available() else "cpu")
+    if name.startswith("cuda") and not wp.is_cuda_available():
+        raise SceneError("device", "'cpu' (no CUDA device is available here)", name)
+    try:
+        return wp.get_device(name)
+    except (RuntimeError, ValueError):
+        raise SceneError("device", "'cpu', 'cuda' or 'cuda:N' of an existing GPU", name) from None
+
+
+def check_memory(scene: Scene, device: wp.context.Device) -> None:
+    """Refuse a scene that cannot fit, before any large allocation."""
+    n = sum(c.particle_count for c in scene.cloths)
+    host_free = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    need = n * HOST_BYTES_PER_PARTICLE + (n * DEVICE_BYTES_PER_PARTICLE if device.is_cpu else 0)
+    if need > host_free:
+        raise SceneError("cloth", f"a scene that fits in memory: {n} particles need about {need / 2**30:.1f} GiB "
+                                  f"of host memory, {host_free / 2**30:.1f} GiB is free", has_got=False)
+    if device.is_cuda:
+        free = device.free_memory
+        need = n * DEVICE_BYTES_PER_PARTICLE
+        if need > free:
+            raise SceneError("cloth", f"a scene that fits on {device.name}: {n} particles need about "
+                                      f"{need / 2**30:.1f} GiB, {free / 2**30:.1f} GiB is free", has_got=False)
+
+
+class StopOnInterrupt:
+    """Turns the first Ctrl-C into a request to stop after the frame in progress (a second one stops at
+    once), so that writers are never cut off in the middle of a frame."""
+
+    def __init__(self) -> None:
+        self.requested = False
+        self._previous = None
+
+    def __enter__(self) -> "StopOnInterrupt":
+        if threading.current_thread() is threading.main_thread():
+            self._previous = signal.signal(signal.SIGINT, self._handle)
+        return self
+
+    def _handle(self, signum, frame) -> None:
+        if self.requested:
+            raise KeyboardInterrupt
+        self.requested = True
+
+    def __exit__(self, *exc) -> None:
+        if self._previous is not None:
+            signal.signal(signal.SIGINT, self._previous)
+
+
+class Simulator:
+    """Steps a scene on a device. ``step()`` advances one frame; ``run()`` a number of frames with writers.
+
+    On CUDA each frame's substeps are captured once as a CUDA graph and replayed (``graph=False`` turns
+    that off). Positions and velocities read back as numpy arrays of shape (particles, 3).
+    """
+
+    def __init__(self, scene: Scene, device: str | None = None, graph: bool = True) -> None:
+        self.device = resolve_device(device)
+        check_memory(scene, self.device)
+        self.scene = scene
+        self.model: Model = build_model(scene)
+        self.state = DeviceState(self.model.positions, self.model.velocities, self.device)
+        self.stages: list[Stage] = build_stages(self.model, self.device)
+        self.substeps_per_frame = scene.simulation.substeps_per_frame
+        self.dt = scene.simulation.step
+        self.frame = 0
+        self.substep_count = 0
+        self.use_graph = graph and self.device.is_cuda
+        self._graphs: dict[int, tuple[wp.Graph, int]] = {}
+
+    @property
+    def time(self) -> float:
+        return self.substep_count * self.dt
+
+    @property
+    def stage_names(self) -> list[str]:
+        return [s.name for s in self.stages]
+
+    def positions(self) -> np.ndarray:
+        """A copy of the current positions, shape (particles, 3)."""
+        return self._host_copy(self.state.x)
+
+    def velocities(self) -> np.ndarray:
+        """A copy of the current velocities, shape (particles, 3)."""
+        return self._host_copy(self.state.v)
+
+    def _host_copy(self, array: wp.array) -> np.ndarray:
+        # On the CPU numpy() is a view of a buffer the next stage overwrites.
+        values = array.numpy()
+        return values.copy() if self.device.is_cpu else values
+
+    def cloth_positions(self, cloth: int, positions: np.ndarray | None = None) -> np.ndarray:
+        """Positions of one cloth (from ``positions`` if given, else read from the device)."""
+        all_positions = self.positions() if positions is None else positions
+        return all_positions[self.model.cloth_slice(cloth)]
+
+    def sphere_centers(self) -> np.ndarray:
+        """Sphere centres at the current time, shape (spheres, 3)."""
+        for stage in self.stages:
+            if stage.name.startswith("spheres"):
+                return stage.center.numpy()
+        return np.zeros((0, 3), dtype=np.float32)
+
+    def substep(self) -> None:
+        """Advance one substep (no graph; mainly for tests and debugging)."""
+        for stage in self.stages:
+            stage.run(self.state)
+        self.substep_count += 1
+
+    def step(self) -> None:
+        """Advance one frame."""
+        if self.use_graph:
+            entry = self._graphs.get(self.state.parity)
+            if entry is None:
+                before = self.state.parity
+                with wp.ScopedCapture(device=self.device) as capture:
+                    self._frame_substeps()
+                entry = self._graphs[before] = (capture.graph, self.state.parity)
+            graph, parity_after = entry
+            wp.capture_launch(graph)
+            self.state.parity = parity_after
+        else:
+            self._frame_substeps()
+        self.substep_count += self.substeps_per_frame
+        self.frame += 1
+
+    def run(self, frames: int | None = None, writers: Iterable[FrameWriter] = (), progress: bool = False) -> RunSummary:
+        """Simulate ``frames`` frames (default: the scene's), handing every frame to the writers.
+
+        Writers get the initial state as frame 0 when the simulation has not moved yet. They are finished
+        whatever happens, so an interrupted run (Ctrl-C) leaves every completed frame written.
+        """
+        frames = self.scene.simulation.frames if frames is None else frames
+        writers = list(writers)
+        bar = Progress(frames, f"{self.scene.name} on {self.device.alias}") if progress else None
+        for w in writers:
+            w.begin(self)
+        written = 0
+        if self.frame == 0:
+            for w in writers:
+                w.write_frame(self, 0)
+        start_substeps = self.substep_count
+        started = time.perf_counter()
+        try:
+            with StopOnInterrupt() as stop:
+                for _ in range(frames):
+                    if stop.requested:
+                        break
+                    self.step()
+                    for w in writers:
+                        w.write_frame(self, self.frame)
+                    written += 1
+                    if bar:
+                        bar.update(written)
+                wp.synchronize_device(self.device)
+            interrupted = stop.requested
+        finally:
+            for w in writers:
+                w.finish(self, self.frame)
+            if bar:
+                bar.close()
+        wall = time.perf_counter() - started
+        return RunSummary(written, self.substep_count - start_substeps, self.model.particle_count, wall, interrupted)
+
+    def _frame_substeps(self) -> None:
+        for _ in range(self.substeps_per_frame):
+            for stage in self.stages:
+                stage.run(self.state)
