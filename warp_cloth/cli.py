@@ -40,6 +40,9 @@ def _parser() -> argparse.ArgumentParser:
     poly.add_argument("--no-poly", action="store_true", help="write no .poly files")
     run.add_argument("--no-graph", action="store_true", help="do not capture frames as CUDA graphs")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
+
+    commands.add_parser("bench", help="time whole runs, print a table and write JSON (see 'bench --help')",
+                        add_help=False)
     return parser
 
 
@@ -99,7 +102,13 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = _parser().parse_args(argv)
+    args, rest = _parser().parse_known_args(argv)
+    if args.command == "bench":
+        from .bench import main as bench_main
+
+        return bench_main(rest)
+    if rest:
+        _parser().error(f"unrecognized arguments: {' '.join(rest)}")
     try:
         if args.command == "scenes":
             return _cmd_scenes()

@@ -1,0 +1,188 @@
+"""Benchmarks: wall time of whole runs, median of repeats, printed as a table and written as JSON with the
+device and versions. Never a test: time is measured here and asserted nowhere.
+
+    python -m warp_cloth.bench --suite core --device cpu --json out/bench-core-cpu.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import platform
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+import warp as wp
+
+from .progress import Progress
+from .scene import Cloth, Ground, Limit, Oscillation, Pin, Scene, Simulation, Sphere, SpringKind
+from .simulator import Simulator
+from .writers import PolyWriter, UsdWriter
+
+SEED_CPP_SECONDS = {"seed_25x25": 2.64}  # ../shared/seed/baseline-measured.md, this machine kind
+
+
+def seed_cloth_scene(n: int) -> Scene:
+    """The seed's single-cloth benchmark loop: an n x n cloth (L0 = 1 m, 0.025 kg a particle, k = 10,
+    b = 1) pinned at two corners, explicit Euler at dt 0.0025 (17 substeps a frame), 6 strain-limit
+    passes, ground, and the moving sphere of its main loop. (Its O(n^2) self collision is not here yet.)"""
+    cloth = Cloth(resolution=(n, n), size=(float(n), float(n)), orientation="horizontal",
+                  origin=(0.0, float(n), 0.0), mass=0.025, jitter=0.05, limit=Limit(0.1, 0.1),
+                  pins=(Pin(corners=("top-left", "top-right")),))
+    sphere = Sphere(name="ball", center=(5.0, 5.0, 0.0), radius=2.0,
+                    motion=Oscillation(axis=(0.0, 0.0, 1.0), amplitude=5.0, frequency=0.1, phase=np.pi / 4))
+    return Scene(name=f"seed_{n}x{n}", cloths=(cloth,), ground=Ground(), spheres=(sphere,),
+                 simulation=Simulation(fps=24, frames=240, dt=0.0025, integrator="explicit", limit_iterations=6))
+
+
+def large_cloth_scene(n: int, substeps: int = 10) -> Scene:
+    """An n x n cloth falling onto a sphere and the ground: springs + strain limit + sphere + ground,
+    symplectic Euler. Springs soft enough for the explicit step at this resolution (the limit holds the
+    shape), so that the timing is of a stable run."""
+    soft = SpringKind(stiffness=0.2, damping=0.01)
+    cloth = Cloth(resolution=(n - 1, n - 1), size=(10.0, 10.0), orientation="horizontal", origin=(-5.0, 3.0, 5.0),
+                  mass=1e-3, structural=soft, shear=soft,
+                  bend=SpringKind(stiffness=0.1, damping=0.005, acts="compression", damping_acts="compression"),
+                  limit=Limit(0.1, 0.1))
+    return Scene(name=f"drop_{n}x{n}", cloths=(cloth,), ground=Ground(friction=0.3),
+                 spheres=(Sphere(name="ball", center=(0.0, 1.5, 0.0), radius=1.5, friction=0.3),),
+                 simulation=Simulation(fps=24, frames=48, substeps=substeps, integrator="symplectic"))
+
+
+@dataclass(frozen=True)
+class Case:
+    name: str
+    scene: Scene
+    frames: int
+    outputs: bool = False
+    fresh: bool = True  # each repeat starts from t = 0 (else frames continue on one warmed simulator)
+
+
+@dataclass(frozen=True)
+class Result:
+    case: str
+    device: str
+    particles: int
+    substeps_per_frame: int
+    frames: int
+    outputs: bool
+    seconds: list[float]
+
+    @property
+    def median_seconds(self) -> float:
+        return statistics.median(self.seconds)
+
+    @property
+    def particle_substeps_per_second(self) -> float:
+        return self.particles * self.substeps_per_frame * self.frames / self.median_seconds
+
+    @property
+    def ms_per_frame(self) -> float:
+        return 1e3 * self.median_seconds / self.frames
+
+
+def core_cases(device: str) -> list[Case]:
+    cases = [Case("seed_25x25", seed_cloth_scene(25), 240),
+             Case("seed_25x25+usd+poly", seed_cloth_scene(25), 240, outputs=True)]
+    sizes = [64, 256] if device == "cpu" else [256, 1024, 2048]
+    cases += [Case(f"drop_{n}x{n}", large_cloth_scene(n), 24 if device == "cpu" else 48, fresh=False)
+              for n in sizes]
+    return cases
+
+
+SUITES: dict[str, Callable[[str], list[Case]]] = {"core": core_cases}
+
+
+def time_case(case: Case, device: str, repeats: int) -> Result:
+    warm = Simulator(case.scene, device=device)
+    warm.run(2)  # compiles kernels, captures graphs
+    seconds = []
+    for _ in range(repeats):
+        sim = Simulator(case.scene, device=device) if case.fresh else warm
+        with tempfile.TemporaryDirectory() as tmp:
+            writers = [UsdWriter(Path(tmp) / "run.usdc"), PolyWriter(Path(tmp) / "poly")] if case.outputs else []
+            wp.synchronize_device(sim.device)
+            started = time.perf_counter()
+            sim.run(case.frames, writers=writers)
+            wp.synchronize_device(sim.device)
+            seconds.append(time.perf_counter() - started)
+        if not np.isfinite(sim.positions()).all():
+            raise RuntimeError(f"benchmark case {case.name} went unstable on {device}")
+    return Result(case.name, str(warm.device), warm.model.particle_count, warm.substeps_per_frame, case.frames,
+                  case.outputs, seconds)
+
+
+def environment(device: str) -> dict:
+    dev = wp.get_device(device)
+    try:
+        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
+                                cwd=Path(__file__).parent, timeout=10).stdout.strip() or None
+    except (OSError, subprocess.SubprocessError):
+        commit = None
+    cpu = platform.processor() or platform.machine()
+    try:
+        cpu = next(line.split(":", 1)[1].strip() for line in open("/proc/cpuinfo") if line.startswith("model name"))
+    except (OSError, StopIteration):
+        pass
+    return {"device": dev.name, "device_alias": dev.alias, "cpu": cpu, "warp": wp.__version__,
+            "numpy": np.__version__, "python": platform.python_version(), "commit": commit,
+            "date": time.strftime("%Y-%m-%d %H:%M:%S")}
+
+
+def format_table(results: list[Result]) -> str:
+    header = f"{'case':<22} {'device':<8} {'particles':>9} {'substeps':>8} {'frames':>6} {'median s':>9} " \
+             f"{'ms/frame':>9} {'particle-substeps/s':>20} {'vs seed C++':>11}"
+    lines = [header, "-" * len(header)]
+    for r in results:
+        seed = SEED_CPP_SECONDS.get(r.case)
+        ratio = f"{seed / r.median_seconds:10.1f}x" if seed and not r.outputs else ""
+        lines.append(f"{r.case:<22} {r.device:<8} {r.particles:>9} {r.substeps_per_frame:>8} {r.frames:>6} "
+                     f"{r.median_seconds:>9.3f} {r.ms_per_frame:>9.3f} {r.particle_substeps_per_second:>20.3g} "
+                     f"{ratio:>11}")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="warp-cloth bench", description="Time whole runs; print a table, write JSON.")
+    parser.add_argument("--suite", choices=sorted(SUITES), default="core")
+    parser.add_argument("--device", default=None, help="cpu or cuda (default: cuda if available)")
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--json", type=Path, help="where to write the results (default: out/bench-SUITE-DEVICE.json)")
+    args = parser.parse_args(argv)
+    wp.config.log_level = wp.LOG_ERROR
+    wp.init()
+    device = args.device or ("cuda" if wp.is_cuda_available() else "cpu")
+    cases = SUITES[args.suite](device)
+    bar = Progress(len(cases), f"bench {args.suite} on {device}")
+    results = []
+    for k, case in enumerate(cases):
+        results.append(time_case(case, device, args.repeats))
+        bar.update(k + 1)
+    bar.close()
+    env = environment(device)
+    print(f"device: {env['device']} ({env['device_alias']}), cpu: {env['cpu']}, warp {env['warp']}, "
+          f"commit {env['commit']}, median of {args.repeats}")
+    print(format_table(results))
+    path = args.json or Path("out") / f"bench-{args.suite}-{device.replace(':', '')}.json"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    payload = {"suite": args.suite, "repeats": args.repeats, "environment": env,
+               "results": [dict(dataclasses.asdict(r), median_seconds=r.median_seconds,
+                                particle_substeps_per_second=r.particle_substeps_per_second,
+                                ms_per_frame=r.ms_per_frame) for r in results]}
+    path.write_text(json.dumps(payload, indent=2))
+    best = max(results, key=lambda r: r.particle_substeps_per_second)
+    print(f"bench {args.suite}: {len(results)} cases on {env['device']}; best {best.particle_substeps_per_second:.3g} "
+          f"particle-substeps/s ({best.case}); wrote {path}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
