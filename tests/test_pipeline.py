@@ -1,5 +1,6 @@
 """A scene pays only for the effects it declares: the kernels one substep launches, counted."""
 
+import dataclasses
 from collections import Counter
 
 import pytest
@@ -13,14 +14,26 @@ OFF = wc.SpringKind(enabled=False)
 
 @pytest.fixture
 def launches(monkeypatch):
+    """Counts kernel launches by kernel name, hash grid builds as 'HashGrid.build' and hash grids made as
+    'HashGrid'."""
     counted: Counter = Counter()
-    real_launch = wp.launch
+    real_launch, real_build, real_init = wp.launch, wp.HashGrid.build, wp.HashGrid.__init__
 
     def counting_launch(kernel, *args, **kwargs):
         counted[kernel.key] += 1
         return real_launch(kernel, *args, **kwargs)
 
+    def counting_build(grid, *args, **kwargs):
+        counted["HashGrid.build"] += 1
+        return real_build(grid, *args, **kwargs)
+
+    def counting_init(grid, *args, **kwargs):
+        counted["HashGrid"] += 1
+        return real_init(grid, *args, **kwargs)
+
     monkeypatch.setattr(wp, "launch", counting_launch)
+    monkeypatch.setattr(wp.HashGrid, "build", counting_build)
+    monkeypatch.setattr(wp.HashGrid, "__init__", counting_init)
     return counted
 
 
@@ -35,16 +48,40 @@ EXPECTED = {
     "oscillating_pins": {"euler_step": 1, "drive_pins": 1, "project_strain_limits": LIMIT_ITERATIONS,
                          "advance_clock": 1},
 }
+# With particle collision, limits, separation and colliders are projected together: each of the 8
+# passes (the larger of the collision's 8 and the limit's 4 iterations) launches one of each.
+PASSES = 8
+EXPECTED_WITH_COLLISION = {
+    "fold": {"euler_step": 1, "HashGrid.build": 1, "gather_neighbors": 1, "project_strain_limits": PASSES,
+             "separate_particles": PASSES, "collide_ground": PASSES, "resolve_contact_velocities": 1},
+    "pile": {"euler_step": 1, "HashGrid.build": 1, "gather_neighbors": 1, "project_strain_limits": PASSES,
+             "separate_particles": PASSES, "collide_ground": PASSES, "collide_spheres": PASSES,
+             "resolve_contact_velocities": 1},
+}
 
 
 @pytest.mark.parametrize("name", sorted(EXPECTED))
 def test_substep_launches_only_declared_effects(name, launches):
     scene = wc.load_scene(name)
-    assert scene.simulation.limit_iterations == LIMIT_ITERATIONS
+    assert scene.simulation.limit_iterations == LIMIT_ITERATIONS and scene.collision is None
     sim = wc.Simulator(scene, device="cpu")
+    assert launches["HashGrid"] == 0, "a scene without [collision] makes no hash grid"
     launches.clear()
     sim.substep()
     assert dict(launches) == EXPECTED[name]
+
+
+@pytest.mark.parametrize("name", sorted(EXPECTED_WITH_COLLISION))
+def test_collision_stage_exists_only_when_declared(name, launches):
+    scene = wc.load_scene(name)
+    assert scene.collision.iterations == PASSES and scene.simulation.limit_iterations == LIMIT_ITERATIONS
+    sim = wc.Simulator(scene, device="cpu")
+    launches.clear()
+    sim.substep()
+    assert dict(launches) == EXPECTED_WITH_COLLISION[name]
+    without = wc.Simulator(dataclasses.replace(scene, collision=None), device="cpu")
+    assert without.model.contacts is None
+    assert not any("collision" in name for name in without.stage_names)
 
 
 def test_bare_cloth_launches_one_kernel_and_holds_no_effect_arrays(launches):

@@ -8,7 +8,7 @@
 """
 
 from .errors import SceneError
-from .scene import (Box, Cloth, Ground, Limit, Oscillation, Output, Pin, Scene, Simulation, Sphere,
+from .scene import (Box, Cloth, Collision, Ground, Limit, Oscillation, Output, Pin, Scene, Simulation, Sphere,
                     SpringKind)
 from .scene_file import builtin_scene_names, load_scene, scene_from_dict
 from .simulator import RunSummary, Simulator
@@ -17,7 +17,7 @@ from .writers import PolyWriter, UsdWriter
 __version__ = "0.1.0"
 
 __all__ = [
-    "Box", "Cloth", "Ground", "Limit", "Oscillation", "Output", "Pin", "PolyWriter", "RunSummary", "Scene",
+    "Box", "Cloth", "Collision", "Ground", "Limit", "Oscillation", "Output", "Pin", "PolyWriter", "RunSummary", "Scene",
     "SceneError", "Simulation", "Simulator", "Sphere", "SpringKind", "UsdWriter", "builtin_scene_names",
     "load_scene", "scene_from_dict",
 ]

@@ -24,23 +24,29 @@ import numpy as np
 import warp as wp
 
 from .progress import Progress
-from .scene import Cloth, Ground, Limit, Oscillation, Pin, Scene, Simulation, Sphere, SpringKind
+from .scene import Cloth, Collision, Ground, Limit, Oscillation, Pin, Scene, Simulation, Sphere, SpringKind
+from .scene_file import load_scene
 from .simulator import Simulator
+from .stages import ParticleCollision
 from .writers import PolyWriter, UsdWriter
 
-SEED_CPP_SECONDS = {"seed_25x25": 2.64}  # ../shared/seed/baseline-measured.md, this machine kind
+# The seed's C++ on this machine kind (../shared/seed/baseline-measured.md). It always ran its O(n^2)
+# self collision, so only the "+self" rows do the same work; seed_25x25 leaves collision out.
+SEED_CPP_SECONDS = {"seed_25x25": 2.64, "seed_25x25+self": 2.64, "seed_default_60x60x2": 193.4}
 
 
-def seed_cloth_scene(n: int) -> Scene:
+def seed_cloth_scene(n: int, self_collision: bool = False) -> Scene:
     """The seed's single-cloth benchmark loop: an n x n cloth (L0 = 1 m, 0.025 kg a particle, k = 10,
     b = 1) pinned at two corners, explicit Euler at dt 0.0025 (17 substeps a frame), 6 strain-limit
-    passes, ground, and the moving sphere of its main loop. (Its O(n^2) self collision is not here yet.)"""
+    passes, ground, and the moving sphere of its main loop; with its self collision if asked (then the
+    6 passes each also push particles apart)."""
     cloth = Cloth(resolution=(n, n), size=(float(n), float(n)), orientation="horizontal",
                   origin=(0.0, float(n), 0.0), mass=0.025, jitter=0.05, limit=Limit(0.1, 0.1),
                   pins=(Pin(corners=("top-left", "top-right")),))
     sphere = Sphere(name="ball", center=(5.0, 5.0, 0.0), radius=2.0,
                     motion=Oscillation(axis=(0.0, 0.0, 1.0), amplitude=5.0, frequency=0.1, phase=np.pi / 4))
     return Scene(name=f"seed_{n}x{n}", cloths=(cloth,), ground=Ground(), spheres=(sphere,),
+                 collision=Collision(iterations=1) if self_collision else None,
                  simulation=Simulation(fps=24, frames=240, dt=0.0025, integrator="explicit", limit_iterations=6))
 
 
@@ -99,7 +105,76 @@ def core_cases(device: str) -> list[Case]:
     return cases
 
 
-SUITES: dict[str, Callable[[str], list[Case]]] = {"core": core_cases}
+def stacked_layers_scene(particles: int, broad_phase: str = "hash_grid", layers: int = 4) -> Scene:
+    """``layers`` square cloths of ``particles / layers`` particles stacked 0.9 contact distances apart, so
+    that every particle touches the layers next to it: the collision stage's working load."""
+    side = max(2, int(round((particles / layers) ** 0.5)))
+    cell = 0.01
+    contact = 2.1 * 0.25 * cell * 2 ** 0.5 * 1.1
+    cloths = tuple(Cloth(name=f"layer{k}", resolution=(side - 1, side - 1), size=(cell * (side - 1),) * 2,
+                         orientation="horizontal", origin=(0.0, 0.9 * contact * k, 0.0), jitter=0.02, seed=k,
+                         limit=Limit(0.1, 0.1)) for k in range(layers))
+    return Scene(name=f"layers_{particles}", cloths=cloths,
+                 collision=Collision(iterations=4, broad_phase=broad_phase),
+                 simulation=Simulation(fps=24, frames=1, substeps=1, gravity=(0.0, 0.0, 0.0)))
+
+
+def collision_cases(device: str) -> list[Case]:
+    cases = [Case("seed_25x25+self", seed_cloth_scene(25, self_collision=True), 240),
+             Case("seed_default_60x60x2", load_scene("seed_default"), 240)]
+    return cases
+
+
+@dataclass(frozen=True)
+class CollisionResult:
+    particles: int
+    broad_phase: str
+    device: str
+    seconds_per_substep: float
+
+    @property
+    def ns_per_particle(self) -> float:
+        return 1e9 * self.seconds_per_substep / self.particles
+
+
+def time_collision_stage(particles: int, broad_phase: str, device: str, repeats: int) -> CollisionResult:
+    """Median time of the collision stage alone (grid build or brute force, neighbour lists, 4 passes,
+    velocity pass) per substep, replayed as a recorded frame of 10 substeps of only that stage."""
+    sim = Simulator(stacked_layers_scene(particles, broad_phase), device=device)
+    stage = next(s for s in sim.stages if isinstance(s, ParticleCollision))
+    sim.stages = [stage]
+    sim.substeps_per_frame = 10
+    sim.run(1)
+    seconds = []
+    for _ in range(repeats):
+        wp.synchronize_device(sim.device)
+        started = time.perf_counter()
+        sim.step()
+        wp.synchronize_device(sim.device)
+        seconds.append((time.perf_counter() - started) / 10)
+    return CollisionResult(sim.model.particle_count, broad_phase, str(sim.device), statistics.median(seconds))
+
+
+def collision_scaling(device: str, repeats: int) -> list[CollisionResult]:
+    sizes = [1024, 4096, 16384, 65536] + ([262144, 1048576, 4194304] if device != "cpu" else [])
+    brute_limit = 4096 if device == "cpu" else 65536
+    results = []
+    for n in sizes:
+        results.append(time_collision_stage(n, "hash_grid", device, repeats))
+        if n <= brute_limit:
+            results.append(time_collision_stage(n, "brute_force", device, repeats))
+    return results
+
+
+def format_collision_table(results: list[CollisionResult]) -> str:
+    header = f"{'particles':>9} {'broad phase':<12} {'device':<8} {'ms/substep':>10} {'ns/particle':>12}"
+    lines = [header, "-" * len(header)]
+    lines += [f"{r.particles:>9} {r.broad_phase:<12} {r.device:<8} {1e3 * r.seconds_per_substep:>10.3f} "
+              f"{r.ns_per_particle:>12.1f}" for r in results]
+    return "\n".join(lines)
+
+
+SUITES: dict[str, Callable[[str], list[Case]]] = {"core": core_cases, "collision": collision_cases}
 
 
 def time_case(case: Case, device: str, repeats: int) -> Result:
@@ -174,12 +249,16 @@ def main(argv: list[str] | None = None) -> int:
     print(f"device: {env['device']} ({env['device_alias']}), cpu: {env['cpu']}, warp {env['warp']}, "
           f"commit {env['commit']}, median of {args.repeats}")
     print(format_table(results))
+    scaling = collision_scaling(device, args.repeats) if args.suite == "collision" else []
+    if scaling:
+        print(format_collision_table(scaling))
     path = args.json or Path("out") / f"bench-{args.suite}-{device.replace(':', '')}.json"
     path.parent.mkdir(parents=True, exist_ok=True)
     payload = {"suite": args.suite, "repeats": args.repeats, "environment": env,
                "results": [dict(dataclasses.asdict(r), median_seconds=r.median_seconds,
                                 particle_substeps_per_second=r.particle_substeps_per_second,
-                                ms_per_frame=r.ms_per_frame) for r in results]}
+                                ms_per_frame=r.ms_per_frame) for r in results],
+               "collision_stage": [dict(dataclasses.asdict(r), ns_per_particle=r.ns_per_particle) for r in scaling]}
     path.write_text(json.dumps(payload, indent=2))
     best = max(results, key=lambda r: r.particle_substeps_per_second)
     print(f"bench {args.suite}: {len(results)} cases on {env['device']}; best {best.particle_substeps_per_second:.3g} "

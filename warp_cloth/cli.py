@@ -40,6 +40,8 @@ def _parser() -> argparse.ArgumentParser:
     poly.add_argument("--no-poly", action="store_true", help="write no .poly files")
     run.add_argument("--no-graph", action="store_true", help="do not capture frames as CUDA graphs")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
+    run.add_argument("--check", action="store_true",
+                     help="print, after every frame, the intersecting triangle pairs and the closest contact")
 
     commands.add_parser("bench", help="time whole runs, print a table and write JSON (see 'bench --help')",
                         add_help=False)
@@ -89,7 +91,13 @@ def _cmd_run(args: argparse.Namespace) -> int:
         writers.append(UsdWriter(args.usd or out / f"{scene.name}.usdc", scene.output.subdivision))
     if scene.output.poly:
         writers.append(PolyWriter(args.poly or out / scene.name / "poly"))
-    summary = sim.run(writers=writers, progress=not args.quiet)
+    check = None
+    if args.check:
+        from .diagnostics import CheckReport
+
+        check = CheckReport(sys.stdout)
+        writers.append(check)
+    summary = sim.run(writers=writers, progress=not args.quiet and not args.check)
     sim_settings = scene.simulation
     wrote = ", ".join(str(p) for w in writers for p in w.outputs) or "nothing"
     status = (f"interrupted after {summary.frames} of {sim_settings.frames} frames" if summary.interrupted
@@ -97,7 +105,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     print(f"{scene.name}: {status} ({summary.substeps} substeps of {sim.dt * 1e3:.3g} ms, "
           f"{sim_settings.integrator}) of {summary.particles} particles on {sim.device.alias} in "
           f"{summary.wall_seconds:.2f} s ({summary.particle_substeps_per_second:.3g} particle-substeps/s); "
-          f"wrote {wrote}")
+          f"wrote {wrote}" + (f"; {check.summary()}" if check else ""))
     return EXIT_INTERRUPTED if summary.interrupted else 0
 
 

@@ -91,6 +91,20 @@ class Spheres:
 
 
 @dataclass(frozen=True)
+class ParticleContacts:
+    """What the particle collision stage needs: each particle's sphere radius and, only where some cloth's
+    strain limit cannot keep its grid neighbours apart, grid coordinates to skip those pairs."""
+
+    radius: np.ndarray  # (n,) float32
+    exclude_adjacent: np.ndarray | None  # (cloths,) int32, 1 where rest-adjacent pairs are skipped
+    grid_xy: np.ndarray | None  # (n,) int32: gx + 65536 gy
+
+    @property
+    def max_radius(self) -> float:
+        return float(self.radius.max())
+
+
+@dataclass(frozen=True)
 class Model:
     scene: Scene
     grids: tuple[ClothGrid, ...]
@@ -104,6 +118,7 @@ class Model:
     limits: StrainLimits | None
     pins: Pins | None
     spheres: Spheres | None
+    contacts: ParticleContacts | None
 
     @property
     def particle_count(self) -> int:
@@ -134,7 +149,7 @@ def build_model(scene: Scene) -> Model:
         velocities[pins.index] = pins.amplitude * omega * np.cos(pins.phase)[:, None]
     springs = _springs(scene, grids, offsets, n)
     return Model(scene, grids, tuple(offsets), positions, velocities, masses, inv_mass, cloth_id, springs,
-                 _limits(springs, n), pins, _spheres(scene))
+                 _limits(springs, n), pins, _spheres(scene), _contacts(scene, grids))
 
 
 def _springs(scene: Scene, grids, offsets, n: int) -> Springs | None:
@@ -229,3 +244,42 @@ def _spheres(scene: Scene) -> Spheres | None:
                    f32([0.0 if s.motion is None else s.motion.frequency for s in scene.spheres]),
                    f32([0.0 if s.motion is None else s.motion.phase for s in scene.spheres]),
                    moving=any(s.motion is not None and s.motion.amplitude > 0 for s in scene.spheres))
+
+
+def collision_radius(cloth, radius_override: float | None) -> float:
+    """The seed's rule: a quarter of the rest diagonal stretched to the limit, so that a particle sphere
+    cannot pass through a quad (the quad's centre is then two radii from its corners)."""
+    if radius_override is not None:
+        return radius_override
+    nx, ny = cloth.resolution
+    stretch = cloth.limit.stretch if cloth.limit is not None else 0.0
+    return 0.25 * float(np.hypot(cloth.size[0] / nx, cloth.size[1] / ny)) * (1.0 + stretch)
+
+
+def needs_adjacent_exclusion(cloth, radius: float, separation: float) -> bool:
+    """True unless the strain limit alone keeps every grid neighbour (diagonals too) farther apart than
+    the contact distance: with the seed's rule and a 10% limit, neighbours stay >= 0.9 of a cell apart
+    while contact needs 0.82 of a (square) cell, so they never touch and need no exclusion."""
+    if cloth.limit is None:
+        return True
+    nx, ny = cloth.resolution
+    shortest_neighbour = (1.0 - cloth.limit.compression) * min(cloth.size[0] / nx, cloth.size[1] / ny)
+    return separation * radius >= shortest_neighbour
+
+
+def _contacts(scene: Scene, grids) -> ParticleContacts | None:
+    collision = scene.collision
+    if collision is None:
+        return None
+    radii = [collision_radius(c, collision.radius) for c in scene.cloths]
+    radius = np.concatenate([np.full(len(g.positions), r, dtype=np.float32) for r, g in zip(radii, grids)])
+    exclude = np.array([needs_adjacent_exclusion(c, r, collision.separation) and collision.self_collision
+                        for c, r in zip(scene.cloths, radii)], dtype=np.int32)
+    if not exclude.any():
+        return ParticleContacts(radius, None, None)
+    grid_xy = []
+    for cloth in scene.cloths:
+        nx, ny = cloth.resolution
+        gx, gy = np.meshgrid(np.arange(nx + 1), np.arange(ny + 1), indexing="xy")
+        grid_xy.append((gx.ravel() + 65536 * gy.ravel()).astype(np.int32))
+    return ParticleContacts(radius, exclude, np.concatenate(grid_xy))

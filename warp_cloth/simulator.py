@@ -16,7 +16,7 @@ from .errors import SceneError
 from .model import Model, build_model
 from .progress import Progress
 from .scene import Scene
-from .stages import Launcher, Stage, build_stages
+from .stages import Launcher, SphereColliders, Stage, build_stages
 from .state import DeviceState
 
 # Rough upper bounds per particle, to refuse a scene before allocating: host arrays while building
@@ -149,8 +149,9 @@ class Simulator:
     def sphere_centers(self) -> np.ndarray:
         """Sphere centres at the current time, shape (spheres, 3)."""
         for stage in self.stages:
-            if stage.name.startswith("spheres"):
-                return stage.center.numpy()
+            for part in [stage, *getattr(stage, "colliders", [])]:
+                if isinstance(part, SphereColliders):
+                    return part.center.numpy()
         return np.zeros((0, 3), dtype=np.float32)
 
     def substep(self) -> None:
@@ -194,8 +195,8 @@ class Simulator:
                 self.launch.recording = None
 
             def replay() -> None:
-                for prepared in launches:
-                    prepared.launch()
+                for operation in launches:
+                    operation()
         after = self.state.parity
         self.state.parity = before
         return replay, after

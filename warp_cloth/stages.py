@@ -3,11 +3,11 @@ scene does not declare has no stage, so it costs no launch and no memory."""
 
 from __future__ import annotations
 
-from typing import Protocol
+from typing import Callable, Protocol
 
 import warp as wp
 
-from warp_cloth.kernels import colliders, integration, limits, motion, pins
+from warp_cloth.kernels import colliders, integration, limits, motion, particle_collision, pins
 
 from .model import Model
 from .state import DeviceState
@@ -26,14 +26,21 @@ class Launcher:
 
     def __init__(self, device) -> None:
         self.device = device
-        self.recording: list[wp.Launch] | None = None
+        self.recording: list[Callable[[], None]] | None = None
 
     def __call__(self, kernel, dim: int, inputs=(), outputs=()) -> None:
         if self.recording is None:
             wp.launch(kernel, dim=dim, inputs=inputs, outputs=outputs, device=self.device)
         else:
             self.recording.append(wp.launch(kernel, dim=dim, inputs=inputs, outputs=outputs, device=self.device,
-                                            record_cmd=True))
+                                            record_cmd=True).launch)
+
+    def call(self, operation: Callable[[], None]) -> None:
+        """Run a device operation that is not a kernel launch (a hash grid build), or record it."""
+        if self.recording is None:
+            operation()
+        else:
+            self.recording.append(operation)
 
 
 def _upload(array, dtype, device):
@@ -111,14 +118,16 @@ class StrainLimit:
 
     def run(self, state: DeviceState, launch: Launcher) -> None:
         for _ in range(self.iterations):
-            launch(limits.project_strain_limits, state.x.shape[0],
-                      inputs=[state.x, self.inv_mass, *self.arrays, self.h],
-                      outputs=[state.x_next, state.v])
-            state.swap_positions()
+            self.run_pass(state, launch)
+
+    def run_pass(self, state: DeviceState, launch: Launcher) -> None:
+        launch(limits.project_strain_limits, state.x.shape[0], inputs=[state.x, self.inv_mass, *self.arrays, self.h],
+               outputs=[state.x_next, state.v])
+        state.swap_positions()
 
 
 class SphereColliders:
-    """All spheres in one launch; moving ones first get their centre and velocity at the substep's end."""
+    """All spheres in one launch, at the centres and velocities in ``center`` / ``velocity``."""
 
     def __init__(self, model: Model, inv_mass: wp.array, h: float, device) -> None:
         s = model.spheres
@@ -128,32 +137,115 @@ class SphereColliders:
         self.velocity = wp.zeros(len(s.center), dtype=wp.vec3, device=device)
         self.radius = _upload(s.radius, float, device)
         self.friction = _upload(s.friction, float, device)
-        self.motion = None
-        if s.moving:
-            self.motion = (_upload(s.center, wp.vec3, device), _upload(s.amplitude, wp.vec3, device),
-                           _upload(s.frequency, float, device), _upload(s.phase, float, device))
-        self.name = "spheres:moving" if s.moving else "spheres:static"
+        self.name = "spheres"
 
     def run(self, state: DeviceState, launch: Launcher) -> None:
-        if self.motion is not None:
-            launch(motion.move_spheres, self.center.shape[0], inputs=[state.clock, self.h, *self.motion],
-                      outputs=[self.center, self.velocity])
         launch(colliders.collide_spheres, state.x.shape[0],
-                  inputs=[self.center, self.velocity, self.radius, self.friction, self.inv_mass],
-                  outputs=[state.x, state.v])
+               inputs=[self.center, self.velocity, self.radius, self.friction, self.h, self.inv_mass],
+               outputs=[state.x, state.v])
+
+
+class MoveSpheres:
+    """Puts moving spheres where their motion has them at the end of the substep, with its velocity."""
+
+    def __init__(self, model: Model, target: SphereColliders, h: float, device) -> None:
+        s = model.spheres
+        self.name = "spheres:move"
+        self.h = h
+        self.target = target
+        self.motion = (_upload(s.center, wp.vec3, device), _upload(s.amplitude, wp.vec3, device),
+                       _upload(s.frequency, float, device), _upload(s.phase, float, device))
+
+    def run(self, state: DeviceState, launch: Launcher) -> None:
+        launch(motion.move_spheres, self.target.center.shape[0], inputs=[state.clock, self.h, *self.motion],
+               outputs=[self.target.center, self.target.velocity])
 
 
 class GroundCollider:
-    def __init__(self, model: Model, inv_mass: wp.array) -> None:
+    def __init__(self, model: Model, inv_mass: wp.array, h: float) -> None:
         self.name = "ground"
         ground = model.scene.ground
         self.height = ground.height
         self.friction = ground.friction
+        self.h = h
         self.inv_mass = inv_mass
 
     def run(self, state: DeviceState, launch: Launcher) -> None:
-        launch(colliders.collide_ground, state.x.shape[0], inputs=[self.height, self.friction, self.inv_mass],
-                  outputs=[state.x, state.v])
+        launch(colliders.collide_ground, state.x.shape[0], inputs=[self.height, self.friction, self.h, self.inv_mass],
+               outputs=[state.x, state.v])
+
+
+class ParticleCollision:
+    """Self and cloth-cloth collision: hash grid, neighbour lists, Jacobi separation, velocity projection.
+
+    Collisions, strain limits and rigid colliders fight over the same particles (a layer pressed onto a
+    sphere by the layers above can only give way sideways), so with collision they are projected together:
+    each of ``passes`` passes runs one strain-limit pass, one separation pass and the colliders, with
+    ``passes`` the larger of the limit's and the collision's iteration counts.
+    """
+
+    SEARCH_SCALE = 1.5  # candidates within 1.5 contact distances, so passes that move particles miss none
+    CONTACT_SLACK = 1.01  # pairs within 1% of contact count as touching in the velocity pass
+
+    def __init__(self, model: Model, inv_mass: wp.array, cloth_id: wp.array, limit: StrainLimit | None,
+                 colliders: list[Stage], h: float, device) -> None:
+        settings = model.scene.collision
+        contacts = model.contacts
+        n = model.particle_count
+        self.passes = max(settings.iterations, limit.iterations if limit else 0)
+        self.name = "+".join([f"collision:{self.passes}", *(["limits"] if limit else []),
+                              *(c.name for c in colliders)])
+        self.limit = limit
+        self.colliders = colliders
+        self.settings = settings
+        self.h = h
+        self.n = n
+        self.inv_mass = inv_mass
+        self.cloth_id = cloth_id
+        self.radius = _upload(contacts.radius, float, device)
+        self.search_radius = self.SEARCH_SCALE * settings.separation * contacts.max_radius
+        if contacts.exclude_adjacent is None:
+            self.exclusion = (wp.zeros(0, dtype=int, device=device), wp.zeros(0, dtype=int, device=device))
+        else:
+            self.exclusion = (_upload(contacts.grid_xy, int, device), _upload(contacts.exclude_adjacent, int, device))
+        self.neighbors = wp.zeros(n * settings.max_neighbors, dtype=int, device=device)
+        self.counts = wp.zeros(n, dtype=int, device=device)
+        self.pushed = wp.zeros(n, dtype=float, device=device)
+        self.overflow = wp.zeros(1, dtype=int, device=device)
+        self.grid = None
+        if settings.broad_phase == "hash_grid":
+            self.grid = wp.HashGrid(128, 128, 128, device=device)
+            # Build once now so that the grid's buffers exist before a CUDA graph is captured.
+            self.grid.build(wp.array(model.positions, dtype=wp.vec3, device=device), self.search_radius)
+
+    def run(self, state: DeviceState, launch: Launcher) -> None:
+        s = self.settings
+        pair_rules = [self.cloth_id, int(s.self_collision), int(s.between_cloths), *self.exclusion, s.max_neighbors]
+        lists = [self.neighbors, self.counts, self.pushed, self.overflow]
+        if self.grid is not None:
+            positions = state.x
+            launch.call(lambda: self.grid.build(positions, self.search_radius))
+            launch(particle_collision.gather_neighbors, self.n,
+                   inputs=[self.grid.id, state.x, self.radius, self.search_radius, s.separation, self.SEARCH_SCALE,
+                           *pair_rules], outputs=lists)
+        else:
+            launch(particle_collision.gather_neighbors_brute_force, self.n,
+                   inputs=[state.x, self.radius, s.separation, self.SEARCH_SCALE, *pair_rules], outputs=lists)
+        for _ in range(self.passes):
+            if self.limit is not None:
+                self.limit.run_pass(state, launch)
+            launch(particle_collision.separate_particles, self.n,
+                   inputs=[state.x, self.inv_mass, self.radius, s.separation, self.h, self.neighbors, self.counts,
+                           s.max_neighbors],
+                   outputs=[state.x_next, state.v, self.pushed])
+            state.swap_positions()
+            for collider in self.colliders:
+                collider.run(state, launch)
+        launch(particle_collision.resolve_contact_velocities, self.n,
+               inputs=[state.x, state.v, self.inv_mass, self.radius, s.separation, self.CONTACT_SLACK, s.friction,
+                       self.h, self.pushed, self.neighbors, self.counts, s.max_neighbors],
+               outputs=[state.v_next])
+        state.swap_velocities()
 
 
 class AdvanceClock:
@@ -164,19 +256,29 @@ class AdvanceClock:
 
 
 def build_stages(model: Model, device) -> list[Stage]:
-    """The substep, in order: integrate, pins, strain limits, colliders, clock."""
+    """The substep, in order: integrate, pins, then strain limits and colliders, or, with particle
+    collision, those projected together with it, then the clock."""
     sim = model.scene.simulation
     h = sim.step
     inv_mass = _upload(model.inv_mass, float, device)
     stages: list[Stage] = [ExplicitIntegration(model, inv_mass, sim.integrator, h, device)]
     if model.pins is not None:
         stages.append(DrivePins(model, h, device) if model.pins.moving else HoldPins(model, device))
-    if model.limits is not None:
-        stages.append(StrainLimit(model, inv_mass, sim.limit_iterations, h, device))
+    limit = StrainLimit(model, inv_mass, sim.limit_iterations, h, device) if model.limits is not None else None
+    colliders: list[Stage] = []
     if model.scene.ground is not None:
-        stages.append(GroundCollider(model, inv_mass))
+        colliders.append(GroundCollider(model, inv_mass, h))
     if model.spheres is not None:
-        stages.append(SphereColliders(model, inv_mass, h, device))
+        spheres = SphereColliders(model, inv_mass, h, device)
+        colliders.append(spheres)
+        if model.spheres.moving:
+            stages.append(MoveSpheres(model, spheres, h, device))
+    if model.contacts is not None:
+        stages.append(ParticleCollision(model, inv_mass, _upload(model.cloth_id, int, device), limit, colliders, h,
+                                        device))
+    else:
+        stages.extend([limit] if limit is not None else [])
+        stages.extend(colliders)
     if (model.pins is not None and model.pins.moving) or (model.spheres is not None and model.spheres.moving):
         stages.append(AdvanceClock())
     return stages

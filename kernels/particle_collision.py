@@ -1,0 +1,194 @@
+"""Self and cloth-cloth collision between particles (spheres), in O(n) through a hash grid.
+
+One substep: build the grid on the positions, gather each particle's candidate neighbours within a
+search radius into a fixed-size list, then run Jacobi passes that push overlapping pairs apart (each
+particle moves by the mean of its corrections, weighted by inverse mass: no races, deterministic; its
+velocity changes by the same correction over h), then remove what is still approaching in each contact's
+relative velocity (averaged the same way), with friction in proportion to the normal speed taken away.
+Two particles i, j touch when closer than ``separation * (r_i + r_j) / 2``.
+"""
+
+import warp as wp
+
+
+@wp.func
+def contact_distance(ri: float, rj: float, separation: float) -> float:
+    return separation * 0.5 * (ri + rj)
+
+
+@wp.func
+def may_collide(i: int, j: int, cloth_id: wp.array(dtype=int), self_collision: int, between_cloths: int,
+                grid_xy: wp.array(dtype=int), exclude_adjacent: wp.array(dtype=int)) -> bool:
+    """Whether the pair i-j is one the scene asks to collide. Rest-adjacent particles of a cloth (grid
+    neighbours, diagonals included) are skipped only where that cloth's strain limit cannot keep them
+    apart by itself."""
+    ci = cloth_id[i]
+    if ci != cloth_id[j]:
+        return between_cloths != 0
+    if self_collision == 0:
+        return False
+    if exclude_adjacent.shape[0] > 0:
+        if exclude_adjacent[ci] != 0:
+            a = grid_xy[i]
+            b = grid_xy[j]
+            dx = wp.abs((a & 65535) - (b & 65535))
+            dy = wp.abs((a >> 16) - (b >> 16))
+            if dx <= 1 and dy <= 1:
+                return False
+    return True
+
+
+@wp.kernel
+def gather_neighbors(grid: wp.uint64, x: wp.array(dtype=wp.vec3), radius: wp.array(dtype=float),
+                     search_radius: float, separation: float, search_scale: float, cloth_id: wp.array(dtype=int),
+                     self_collision: int, between_cloths: int, grid_xy: wp.array(dtype=int),
+                     exclude_adjacent: wp.array(dtype=int), max_neighbors: int, neighbors: wp.array(dtype=int),
+                     counts: wp.array(dtype=int), pushed: wp.array(dtype=float), overflow: wp.array(dtype=int)):
+    """Each particle's candidates: pairs allowed to collide and closer than search_scale contact distances.
+    Also starts the substep's tally of how far the particle gets pushed."""
+    i = wp.tid()
+    xi = x[i]
+    ri = radius[i]
+    count = int(0)
+    query = wp.hash_grid_query(grid, xi, search_radius)
+    j = int(0)
+    while wp.hash_grid_query_next(query, j):
+        if j == i:
+            continue
+        reach = search_scale * contact_distance(ri, radius[j], separation)
+        if wp.length_sq(xi - x[j]) >= reach * reach:
+            continue
+        if not may_collide(i, j, cloth_id, self_collision, between_cloths, grid_xy, exclude_adjacent):
+            continue
+        if count < max_neighbors:
+            neighbors[i * max_neighbors + count] = j
+            count += 1
+        else:
+            wp.atomic_add(overflow, 0, 1)
+    counts[i] = count
+    pushed[i] = 0.0
+    pushed[i] = 0.0
+
+
+@wp.kernel
+def separate_particles(x: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float), radius: wp.array(dtype=float),
+                       separation: float, h: float, neighbors: wp.array(dtype=int), counts: wp.array(dtype=int),
+                       max_neighbors: int, x_out: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3),
+                       pushed: wp.array(dtype=float)):
+    """One Jacobi pass: move each particle by the mean of the pushes out of its overlapping pairs."""
+    i = wp.tid()
+    xi = x[i]
+    wi = inv_mass[i]
+    if wi == 0.0:
+        x_out[i] = xi
+        return
+    ri = radius[i]
+    correction = wp.vec3(0.0)
+    touching = int(0)
+    for k in range(counts[i]):
+        j = neighbors[i * max_neighbors + k]
+        d = xi - x[j]
+        dist = wp.length(d)
+        target = contact_distance(ri, radius[j], separation)
+        if dist < target and dist > 1.0e-9:
+            correction = correction + (wi / (wi + inv_mass[j])) * (target - dist) * (d / dist)
+            touching += 1
+    if touching > 0:
+        correction = correction / float(touching)
+        v[i] = v[i] + correction / h
+        pushed[i] = pushed[i] + wp.length(correction)
+    x_out[i] = xi + correction
+
+
+@wp.kernel
+def resolve_contact_velocities(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3),
+                               inv_mass: wp.array(dtype=float), radius: wp.array(dtype=float), separation: float,
+                               contact_slack: float, friction: float, h: float, pushed: wp.array(dtype=float),
+                               neighbors: wp.array(dtype=int), counts: wp.array(dtype=int), max_neighbors: int,
+                               v_out: wp.array(dtype=wp.vec3)):
+    """Remove the approaching normal part of each touching pair's relative velocity (the particle's mass
+    share of it, averaged over its contacts); friction takes tangential relative speed in proportion to
+    the normal speed taken away, the pushes of this substep's passes included."""
+    i = wp.tid()
+    vi = v[i]
+    wi = inv_mass[i]
+    if wi == 0.0:
+        v_out[i] = vi
+        return
+    xi = x[i]
+    ri = radius[i]
+    pushed_speed = pushed[i] / h
+    change = wp.vec3(0.0)
+    touching = int(0)
+    for k in range(counts[i]):
+        j = neighbors[i * max_neighbors + k]
+        d = xi - x[j]
+        dist = wp.length(d)
+        if dist >= contact_slack * contact_distance(ri, radius[j], separation) or dist <= 1.0e-9:
+            continue
+        n = d / dist
+        relative = vi - v[j]
+        vn = wp.dot(relative, n)
+        share = wi / (wi + inv_mass[j])
+        stopped = pushed_speed
+        if vn < 0.0:
+            change = change - share * vn * n
+            stopped = stopped - vn
+        tangential = relative - vn * n
+        speed = wp.length(tangential)
+        if speed > 0.0:
+            change = change - share * tangential * wp.min(1.0, friction * stopped / speed)
+        touching += 1
+    if touching > 0:
+        change = change / float(touching)
+    v_out[i] = vi + change
+
+
+@wp.kernel
+def closest_contact_ratio(grid: wp.uint64, x: wp.array(dtype=wp.vec3), radius: wp.array(dtype=float),
+                          search_radius: float, separation: float, cloth_id: wp.array(dtype=int),
+                          self_collision: int, between_cloths: int, grid_xy: wp.array(dtype=int),
+                          exclude_adjacent: wp.array(dtype=int), ratio: wp.array(dtype=float)):
+    """Diagnostic: the smallest distance / contact distance over all pairs that may collide."""
+    i = wp.tid()
+    xi = x[i]
+    query = wp.hash_grid_query(grid, xi, search_radius)
+    j = int(0)
+    smallest = float(1.0e30)
+    while wp.hash_grid_query_next(query, j):
+        if j <= i:
+            continue
+        if not may_collide(i, j, cloth_id, self_collision, between_cloths, grid_xy, exclude_adjacent):
+            continue
+        smallest = wp.min(smallest, wp.length(xi - x[j]) / contact_distance(radius[i], radius[j], separation))
+    wp.atomic_min(ratio, 0, smallest)
+
+
+@wp.kernel
+def gather_neighbors_brute_force(x: wp.array(dtype=wp.vec3), radius: wp.array(dtype=float), separation: float,
+                                 search_scale: float, cloth_id: wp.array(dtype=int), self_collision: int,
+                                 between_cloths: int, grid_xy: wp.array(dtype=int),
+                                 exclude_adjacent: wp.array(dtype=int), max_neighbors: int,
+                                 neighbors: wp.array(dtype=int), counts: wp.array(dtype=int),
+                                 pushed: wp.array(dtype=float), overflow: wp.array(dtype=int)):
+    """The O(n^2) way to fill the same lists as ``gather_neighbors`` (every particle against every other,
+    as the seed did): only for the benchmark that shows what the hash grid saves."""
+    i = wp.tid()
+    xi = x[i]
+    ri = radius[i]
+    count = int(0)
+    for j in range(x.shape[0]):
+        if j == i:
+            continue
+        reach = search_scale * contact_distance(ri, radius[j], separation)
+        if wp.length_sq(xi - x[j]) >= reach * reach:
+            continue
+        if not may_collide(i, j, cloth_id, self_collision, between_cloths, grid_xy, exclude_adjacent):
+            continue
+        if count < max_neighbors:
+            neighbors[i * max_neighbors + count] = j
+            count += 1
+        else:
+            wp.atomic_add(overflow, 0, 1)
+    counts[i] = count
+    pushed[i] = 0.0

@@ -1,0 +1,195 @@
+"""Self and cloth-cloth collision: the hash-grid stage against an O(n^2) reference, invariants of the
+collision scenes after every frame, determinism, and the triangle-intersection diagnostic."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+import warp as wp
+
+import warp_cloth as wc
+from conftest import run_cli, with_simulation
+from warp_cloth.diagnostics import ContactGaps, TriangleIntersections
+from warp_cloth.kernels import particle_collision
+from warp_cloth.model import collision_radius, needs_adjacent_exclusion
+from warp_cloth.stages import ParticleCollision
+
+# Jacobi passes with averaging leave pairs that are squeezed from several sides slightly inside contact;
+# the worst measured over the built-in collision scenes is 0.93 of the contact distance (pile, frame 20).
+CONTACT_TOLERANCE = 0.10
+
+
+def two_cloth_scene(limit_a: bool) -> wc.Scene:
+    a = wc.Cloth(name="a", resolution=(9, 7), size=(1.0, 0.8), jitter=0.1,
+                 limit=wc.Limit() if limit_a else None, pins=(wc.Pin(corners=("top-left",)),))
+    b = wc.Cloth(name="b", resolution=(8, 8), size=(0.9, 0.9), origin=(0.05, 0.02, 0.03), density=0.3,
+                 limit=wc.Limit())
+    return wc.Scene(name="pair", cloths=(a, b), collision=wc.Collision(iterations=1))
+
+
+def brute_force_pairs(x, radius, separation, cloth_id, grid_xy, exclude, self_on, between_on):
+    """Every allowed pair closer than its contact distance, by checking all n^2 pairs."""
+    pairs = set()
+    n = len(x)
+    for i in range(n):
+        d = np.linalg.norm(x - x[i], axis=1)
+        reach = separation * 0.5 * (radius[i] + radius)
+        for j in np.nonzero((d < reach) & (np.arange(n) != i))[0]:
+            same = cloth_id[i] == cloth_id[j]
+            if same and not self_on or not same and not between_on:
+                continue
+            if same and exclude is not None and exclude[cloth_id[i]]:
+                gi, gj = grid_xy[i], grid_xy[j]
+                if abs((gi & 65535) - (gj & 65535)) <= 1 and abs((gi >> 16) - (gj >> 16)) <= 1:
+                    continue
+            pairs.add((i, int(j)))
+    return pairs
+
+
+def brute_force_separation(x, v, inv_mass, radius, separation, pairs, h):
+    x_new, v_new = x.copy(), v.copy()
+    for i in range(len(x)):
+        if inv_mass[i] == 0:
+            continue
+        pushes = []
+        for j in (j for (k, j) in pairs if k == i):
+            d = x[i] - x[j]
+            dist = np.linalg.norm(d)
+            target = separation * 0.5 * (radius[i] + radius[j])
+            pushes.append(inv_mass[i] / (inv_mass[i] + inv_mass[j]) * (target - dist) * d / dist)
+        if pushes:
+            correction = np.mean(pushes, axis=0)
+            x_new[i] += correction
+            v_new[i] += correction / h
+    return x_new, v_new
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize("limit_a", [False, True])
+@pytest.mark.parametrize("self_on, between_on", [(True, True), (True, False), (False, True)])
+def test_hash_grid_stage_matches_brute_force(seed, limit_a, self_on, between_on):
+    scene = two_cloth_scene(limit_a)
+    scene = dataclasses.replace(scene, collision=wc.Collision(self_collision=self_on, between_cloths=between_on,
+                                                              iterations=1, max_neighbors=64))
+    sim = wc.Simulator(scene, device="cpu")
+    stage = next(s for s in sim.stages if isinstance(s, ParticleCollision))
+    rng = np.random.default_rng(seed)
+    n = sim.model.particle_count
+    # A random tangle: every particle somewhere in a small box, so that many pairs overlap.
+    x = rng.uniform(0.0, 0.6, (n, 3)).astype(np.float32)
+    v = rng.normal(0.0, 1.0, (n, 3)).astype(np.float32)
+    contacts = sim.model.contacts
+    exclude = contacts.exclude_adjacent
+    assert (exclude is not None) == (not limit_a and self_on)
+    s = stage.settings
+    x_dev, v_dev = wp.array(x, dtype=wp.vec3), wp.array(v, dtype=wp.vec3)
+    stage.grid.build(x_dev, stage.search_radius)
+    wp.launch(particle_collision.gather_neighbors, n,
+              inputs=[stage.grid.id, x_dev, stage.radius, stage.search_radius, s.separation, stage.SEARCH_SCALE,
+                      stage.cloth_id, int(self_on), int(between_on), *stage.exclusion, s.max_neighbors],
+              outputs=[stage.neighbors, stage.counts, stage.pushed, stage.overflow])
+    assert stage.overflow.numpy()[0] == 0
+    counts, neighbors = stage.counts.numpy(), stage.neighbors.numpy().reshape(n, s.max_neighbors)
+    radius = contacts.radius
+    reference = brute_force_pairs(x, radius, s.separation, sim.model.cloth_id, contacts.grid_xy, exclude,
+                                  self_on, between_on)
+    found = {(i, int(j)) for i in range(n) for j in neighbors[i, :counts[i]]
+             if np.linalg.norm(x[i] - x[j]) < s.separation * 0.5 * (radius[i] + radius[j])}
+    assert found == reference and len(reference) > 50
+
+    x_out = wp.empty_like(x_dev)
+    wp.launch(particle_collision.separate_particles, n,
+              inputs=[x_dev, stage.inv_mass, stage.radius, s.separation, sim.dt, stage.neighbors, stage.counts,
+                      s.max_neighbors],
+              outputs=[x_out, v_dev, stage.pushed])
+    x_ref, v_ref = brute_force_separation(x.astype(np.float64), v.astype(np.float64), sim.model.inv_mass, radius,
+                                          s.separation, reference, sim.dt)
+    np.testing.assert_allclose(x_out.numpy(), x_ref, atol=2e-6)
+    np.testing.assert_allclose(v_dev.numpy(), v_ref, atol=2e-6 / sim.dt)
+
+
+def test_seed_radius_rule_and_when_grid_neighbours_need_exclusion():
+    cloth = wc.Cloth(resolution=(10, 10), size=(10.0, 10.0), limit=wc.Limit(0.1, 0.1))
+    r = collision_radius(cloth, None)
+    assert r == pytest.approx(0.25 * np.sqrt(2.0) * 1.1)
+    # Contact at 2.1 r = 0.817 of a cell; the limit keeps neighbours >= 0.9 of a cell apart.
+    assert not needs_adjacent_exclusion(cloth, r, 2.1)
+    assert needs_adjacent_exclusion(dataclasses.replace(cloth, limit=None), r, 2.1)
+    stretched = dataclasses.replace(cloth, size=(10.0, 4.0))  # 1 x 0.4 cells: diagonal rule too large
+    assert needs_adjacent_exclusion(stretched, collision_radius(stretched, None), 2.1)
+
+
+SCENE_FRAMES = {"fold": 120, "pile": 48, "seed_default": 48}
+
+
+@pytest.mark.parametrize("name", sorted(SCENE_FRAMES))
+def test_collision_scene_keeps_particles_apart_and_triangles_uncrossed(name):
+    check_scene_every_frame(name, SCENE_FRAMES[name], "cpu")
+
+
+@pytest.mark.slow
+@pytest.mark.cuda
+@pytest.mark.parametrize("name", sorted(SCENE_FRAMES))
+def test_collision_scene_over_its_whole_length_on_cuda(name):
+    check_scene_every_frame(name, wc.load_scene(name).simulation.frames, "cuda")
+
+
+# seed_default: the falling cloth folds flat onto itself on the ground, where the ground clamps both
+# layers to one plane; particles stay apart but an edge of one layer can slip across a triangle of the
+# other (particle spheres do not guard edges). Measured on CPU: at most 10 pairs, frames 111-122.
+KNOWN_INTERSECTIONS = {"seed_default": 10}
+
+
+def check_scene_every_frame(name: str, frames: int, device: str) -> None:
+    scene = with_simulation(wc.load_scene(name), frames=frames)
+    sim = wc.Simulator(scene, device=device)
+    crossings, gaps = TriangleIntersections(sim), ContactGaps(sim)
+    worst_gap, worst_crossings = np.inf, 0
+    for _ in range(frames):
+        sim.step()
+        worst_gap = min(worst_gap, gaps(sim))
+        worst_crossings = max(worst_crossings, crossings(sim))
+        assert np.isfinite(sim.positions()).all()
+    assert worst_gap >= 1.0 - CONTACT_TOLERANCE
+    assert worst_crossings <= KNOWN_INTERSECTIONS.get(name, 0)
+    stage = next(s for s in sim.stages if isinstance(s, ParticleCollision))
+    assert stage.overflow.numpy()[0] == 0
+
+
+def test_collision_run_is_deterministic_on_cpu():
+    scene = with_simulation(wc.load_scene("pile"), frames=12)
+    runs = []
+    for _ in range(2):
+        sim = wc.Simulator(scene, device="cpu")
+        sim.run(12)
+        runs.append((sim.positions(), sim.velocities()))
+    assert np.array_equal(runs[0][0], runs[1][0]) and np.array_equal(runs[0][1], runs[1][1])
+
+
+def test_intersection_count_sees_a_cloth_pushed_through_another():
+    flat = wc.Cloth(name="flat", resolution=(4, 4), size=(1.0, 1.0), orientation="horizontal",
+                    origin=(0.0, 0.0, 1.0))
+    across = wc.Cloth(name="across", resolution=(1, 1), size=(0.3, 0.6), orientation="vertical",
+                      origin=(0.35, -0.3, 0.45))
+    sim = wc.Simulator(wc.Scene(cloths=(flat, across)), device="cpu")
+    count = TriangleIntersections(sim)(sim)
+    # The 0.3 x 0.6 vertical quad pierces the flat cloth along x in [0.35, 0.65] at z = 0.45: its two
+    # triangles cross the flat triangles that segment passes through.
+    assert count >= 2
+    lifted = sim.model.positions.copy()
+    lifted[sim.model.cloth_slice(1), 1] += 1.0
+    assert TriangleIntersections(sim).count(wp.array(lifted, dtype=wp.vec3)) == 0
+
+
+def test_flat_cloth_has_no_intersections():
+    sim = wc.Simulator(wc.Scene(cloths=(wc.Cloth(resolution=(12, 12), orientation="horizontal"),)), device="cpu")
+    assert TriangleIntersections(sim)(sim) == 0
+
+
+def test_check_option_prints_one_line_per_frame(tmp_path):
+    result = run_cli("run", "fold", "--frames", "3", "--check", "--no-usd", "--no-poly", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    lines = result.stdout.strip().splitlines()
+    assert [line.split(":")[0] for line in lines[:4]] == ["frame 0", "frame 1", "frame 2", "frame 3"]
+    assert all("0 intersecting triangle pairs" in line for line in lines[:4])
+    assert "most intersecting triangle pairs 0" in lines[-1]

@@ -1,0 +1,101 @@
+"""Robustness diagnostics read off a simulator's state: intersecting triangle pairs, closest particles."""
+
+from __future__ import annotations
+
+import numpy as np
+import warp as wp
+
+from warp_cloth.kernels import intersections, particle_collision
+
+from .simulator import Simulator
+from .stages import ParticleCollision
+
+
+class TriangleIntersections:
+    """Counts intersecting pairs among all cloth triangles of a simulator (self and cloth-cloth)."""
+
+    def __init__(self, sim: Simulator) -> None:
+        model = sim.model
+        triangles = np.concatenate([g.triangles + model.offsets[c] for c, g in enumerate(model.grids)])
+        self.device = sim.device
+        self.points = wp.array(model.positions, dtype=wp.vec3, device=self.device)
+        self.triangles = wp.array(triangles.astype(np.int32).ravel(), dtype=int, device=self.device)
+        self.mesh = wp.Mesh(points=self.points, indices=self.triangles)
+        self.count_buffer = wp.zeros(1, dtype=int, device=self.device)
+        self.triangle_count = len(triangles)
+
+    def count(self, positions: wp.array) -> int:
+        wp.copy(self.points, positions)
+        self.mesh.refit()
+        self.count_buffer.zero_()
+        wp.launch(intersections.count_intersecting_triangles, dim=self.triangle_count,
+                  inputs=[self.mesh.id, self.points, self.triangles], outputs=[self.count_buffer], device=self.device)
+        return int(self.count_buffer.numpy()[0])
+
+    def __call__(self, sim: Simulator) -> int:
+        return self.count(sim.state.x)
+
+
+class ContactGaps:
+    """The closest approach of two particles that may collide, as a fraction of their contact distance
+    (1.0 or more: no pair overlaps). Uses the scene's collision settings, with a hash grid of its own."""
+
+    def __init__(self, sim: Simulator) -> None:
+        stage = next((s for s in sim.stages if isinstance(s, ParticleCollision)), None)
+        if stage is None:
+            raise ValueError("the scene declares no [collision]")
+        self.stage = stage
+        self.device = sim.device
+        self.grid = wp.HashGrid(128, 128, 128, device=self.device)
+        self.ratio = wp.zeros(1, dtype=float, device=self.device)
+
+    def __call__(self, sim: Simulator) -> float:
+        stage = self.stage
+        s = stage.settings
+        self.grid.build(sim.state.x, stage.search_radius)
+        self.ratio.fill_(1.0e30)
+        wp.launch(particle_collision.closest_contact_ratio, dim=stage.n,
+                  inputs=[self.grid.id, sim.state.x, stage.radius, stage.search_radius, s.separation, stage.cloth_id,
+                          int(s.self_collision), int(s.between_cloths), *stage.exclusion],
+                  outputs=[self.ratio], device=self.device)
+        return float(self.ratio.numpy()[0])
+
+
+class CheckReport:
+    """A frame writer that prints, after every frame, the intersecting triangle pairs and (with
+    particle collision) the closest contact, and keeps the worst of each for a summary."""
+
+    def __init__(self, stream) -> None:
+        self.stream = stream
+        self.worst_intersections = (0, 0)  # (count, frame)
+        self.closest_contact: tuple[float, int] | None = None
+
+    def begin(self, sim: Simulator) -> None:
+        self.intersections = TriangleIntersections(sim)
+        self.gaps = ContactGaps(sim) if sim.scene.collision is not None else None
+
+    def write_frame(self, sim: Simulator, frame: int) -> None:
+        count = self.intersections(sim)
+        line = f"frame {frame}: {count} intersecting triangle pairs"
+        if count > self.worst_intersections[0]:
+            self.worst_intersections = (count, frame)
+        if self.gaps is not None:
+            ratio = self.gaps(sim)
+            line += f", closest contact {ratio:.3f} of contact distance"
+            if self.closest_contact is None or ratio < self.closest_contact[0]:
+                self.closest_contact = (ratio, frame)
+        print(line, file=self.stream, flush=True)
+
+    def finish(self, sim: Simulator, frames_written: int) -> None:
+        pass
+
+    @property
+    def outputs(self) -> list:
+        return []
+
+    def summary(self) -> str:
+        count, frame = self.worst_intersections
+        text = f"most intersecting triangle pairs {count}" + (f" (frame {frame})" if count else "")
+        if self.closest_contact is not None:
+            text += f", closest contact {self.closest_contact[0]:.3f} (frame {self.closest_contact[1]})"
+        return text
