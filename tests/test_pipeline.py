@@ -48,13 +48,14 @@ EXPECTED = {
     "oscillating_pins": {"euler_step": 1, "drive_pins": 1, "project_strain_limits": LIMIT_ITERATIONS,
                          "advance_clock": 1},
 }
-# With particle collision, limits, separation and colliders are projected together: each of the 8
-# passes (the larger of the collision's 8 and the limit's 4 iterations) launches one of each.
+# With particle collision, limits, separation and colliders are projected together in 8 passes (the
+# larger of the collision's 8 and the limit's 4 iterations): colliders in every pass, the limit in the
+# last 4.
 PASSES = 8
 EXPECTED_WITH_COLLISION = {
-    "fold": {"euler_step": 1, "HashGrid.build": 1, "gather_neighbors": 1, "project_strain_limits": PASSES,
+    "fold": {"euler_step": 1, "HashGrid.build": 1, "gather_neighbors": 1, "project_strain_limits": LIMIT_ITERATIONS,
              "separate_particles": PASSES, "collide_ground": PASSES, "resolve_contact_velocities": 1},
-    "pile": {"euler_step": 1, "HashGrid.build": 1, "gather_neighbors": 1, "project_strain_limits": PASSES,
+    "pile": {"euler_step": 1, "HashGrid.build": 1, "gather_neighbors": 1, "project_strain_limits": LIMIT_ITERATIONS,
              "separate_particles": PASSES, "collide_ground": PASSES, "collide_spheres": PASSES,
              "resolve_contact_velocities": 1},
 }

@@ -8,7 +8,7 @@ import warp as wp
 from warp_cloth.kernels import intersections, particle_collision
 
 from .simulator import Simulator
-from .stages import ParticleCollision
+from .stages import ParticleCollision, make_hash_grid
 
 
 class TriangleIntersections:
@@ -46,7 +46,7 @@ class ContactGaps:
             raise ValueError("the scene declares no [collision]")
         self.stage = stage
         self.device = sim.device
-        self.grid = wp.HashGrid(128, 128, 128, device=self.device)
+        self.grid = make_hash_grid(stage.n, self.device)
         self.ratio = wp.zeros(1, dtype=float, device=self.device)
 
     def __call__(self, sim: Simulator) -> float:
