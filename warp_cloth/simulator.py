@@ -7,7 +7,7 @@ import signal
 import threading
 import time
 from dataclasses import dataclass
-from typing import Callable, Iterable, Protocol
+from typing import Iterable, Protocol
 
 import numpy as np
 import warp as wp
@@ -16,7 +16,7 @@ from .errors import SceneError
 from .model import Model, build_model
 from .progress import Progress
 from .scene import Scene
-from .stages import Launcher, SphereColliders, Stage, build_stages
+from .stages import SphereColliders, Stage, build_stages
 from .state import DeviceState
 
 # Rough upper bounds per particle, to refuse a scene before allocating: host arrays while building
@@ -101,8 +101,8 @@ class StopOnInterrupt:
 class Simulator:
     """Steps a scene on a device. ``step()`` advances one frame; ``run()`` a number of frames with writers.
 
-    Each frame's launches are recorded once and replayed: a CUDA graph on a GPU, prepared launches on the
-    CPU (``graph=False`` turns that off). Positions and velocities read back as numpy arrays of shape (particles, 3).
+    Each frame's launches are captured once as a graph and replayed, on a GPU or the CPU (``graph=False``
+    turns that off). Positions and velocities read back as numpy arrays of shape (particles, 3).
     """
 
     def __init__(self, scene: Scene, device: str | None = None, graph: bool = True) -> None:
@@ -112,13 +112,12 @@ class Simulator:
         self.model: Model = build_model(scene)
         self.state = DeviceState(self.model.positions, self.model.velocities, self.device)
         self.stages: list[Stage] = build_stages(self.model, self.device)
-        self.launch = Launcher(self.device)
         self.substeps_per_frame = scene.simulation.substeps_per_frame
         self.dt = scene.simulation.step
         self.frame = 0
         self.substep_count = 0
         self.use_graph = graph
-        self._recorded: dict[int, tuple[Callable[[], None], int]] = {}
+        self._graphs: dict[int, tuple[wp.Graph, int]] = {}
 
     @property
     def time(self) -> float:
@@ -157,49 +156,30 @@ class Simulator:
     def substep(self) -> None:
         """Advance one substep, launching stage by stage (for tests and debugging; frames are faster)."""
         for stage in self.stages:
-            stage.run(self.state, self.launch)
+            stage.run(self.state)
         self.substep_count += 1
 
     def step(self) -> None:
         """Advance one frame.
 
-        A frame's launches are recorded once for each buffer parity and replayed: as a CUDA graph on a
-        GPU, as prepared launches on the CPU (``graph=False`` launches stage by stage instead).
+        A frame's launches are captured once for each buffer parity and replayed (a CUDA graph on a GPU, a
+        Warp CPU graph on the CPU); ``graph=False`` launches stage by stage instead.
         """
         if not self.use_graph:
             self._frame_substeps()
         else:
-            entry = self._recorded.get(self.state.parity)
+            entry = self._graphs.get(self.state.parity)
             if entry is None:
-                entry = self._recorded[self.state.parity] = self._record_frame()
-            replay, parity_after = entry
-            replay()
+                before = self.state.parity
+                with wp.ScopedCapture(device=self.device) as capture:
+                    self._frame_substeps()
+                entry = self._graphs[before] = (capture.graph, self.state.parity)
+                self.state.parity = before
+            graph, parity_after = entry
+            wp.capture_launch(graph)
             self.state.parity = parity_after
         self.substep_count += self.substeps_per_frame
         self.frame += 1
-
-    def _record_frame(self) -> tuple[Callable[[], None], int]:
-        """Records one frame's launches at the current parity; returns a replay and the parity after it."""
-        before = self.state.parity
-        if self.device.is_cuda:
-            with wp.ScopedCapture(device=self.device) as capture:
-                self._frame_substeps()
-            graph = capture.graph
-            replay = lambda: wp.capture_launch(graph)  # noqa: E731
-        else:
-            self.launch.recording = []
-            try:
-                self._frame_substeps()
-                launches = self.launch.recording
-            finally:
-                self.launch.recording = None
-
-            def replay() -> None:
-                for operation in launches:
-                    operation()
-        after = self.state.parity
-        self.state.parity = before
-        return replay, after
 
     def run(self, frames: int | None = None, writers: Iterable[FrameWriter] = (), progress: bool = False) -> RunSummary:
         """Simulate ``frames`` frames (default: the scene's), handing every frame to the writers.
@@ -242,4 +222,4 @@ class Simulator:
     def _frame_substeps(self) -> None:
         for _ in range(self.substeps_per_frame):
             for stage in self.stages:
-                stage.run(self.state, self.launch)
+                stage.run(self.state)

@@ -3,7 +3,7 @@ scene does not declare has no stage, so it costs no launch and no memory."""
 
 from __future__ import annotations
 
-from typing import Callable, Protocol
+from typing import Protocol
 
 import warp as wp
 
@@ -16,31 +16,11 @@ from .state import DeviceState
 class Stage(Protocol):
     name: str
 
-    def run(self, state: DeviceState, launch: "Launcher") -> None: ...
+    def run(self, state: DeviceState) -> None: ...
 
 
-class Launcher:
-    """Launches kernels on one device, or records them as prepared launches (``wp.Launch``) to replay:
-    on the CPU, where there are no CUDA graphs, replaying prepared launches skips most of the Python
-    cost of ``wp.launch`` (about 19 us against 4 us a launch here)."""
-
-    def __init__(self, device) -> None:
-        self.device = device
-        self.recording: list[Callable[[], None]] | None = None
-
-    def __call__(self, kernel, dim: int, inputs=(), outputs=()) -> None:
-        if self.recording is None:
-            wp.launch(kernel, dim=dim, inputs=inputs, outputs=outputs, device=self.device)
-        else:
-            self.recording.append(wp.launch(kernel, dim=dim, inputs=inputs, outputs=outputs, device=self.device,
-                                            record_cmd=True).launch)
-
-    def call(self, operation: Callable[[], None]) -> None:
-        """Run a device operation that is not a kernel launch (a hash grid build), or record it."""
-        if self.recording is None:
-            operation()
-        else:
-            self.recording.append(operation)
+def launch(kernel, dim: int, state: DeviceState, inputs=(), outputs=()) -> None:
+    wp.launch(kernel, dim=dim, inputs=inputs, outputs=outputs, device=state.device)
 
 
 def _upload(array, dtype, device):
@@ -70,8 +50,8 @@ class ExplicitIntegration:
                                   _upload(springs.rest, float, device), _upload(springs.stiffness, float, device),
                                   _upload(springs.damping, float, device), _upload(springs.flags, int, device))
 
-    def run(self, state: DeviceState, launch: Launcher) -> None:
-        launch(integration.euler_step, self.n,
+    def run(self, state: DeviceState) -> None:
+        launch(integration.euler_step, self.n, state,
                   inputs=[state.x, state.v, self.inv_mass, self.gravity, self.drag, self.h, self.semi_implicit, self.offsets,
                           *self.spring_arrays],
                   outputs=[state.x_next, state.v_next])
@@ -85,8 +65,8 @@ class HoldPins:
         self.index = _upload(model.pins.index, int, device)
         self.anchor = _upload(model.pins.anchor, wp.vec3, device)
 
-    def run(self, state: DeviceState, launch: Launcher) -> None:
-        launch(pins.hold_pins, self.index.shape[0], inputs=[self.index, self.anchor],
+    def run(self, state: DeviceState) -> None:
+        launch(pins.hold_pins, self.index.shape[0], state, inputs=[self.index, self.anchor],
                   outputs=[state.x, state.v])
 
 
@@ -101,8 +81,8 @@ class DrivePins:
                        _upload(p.amplitude, wp.vec3, device), _upload(p.frequency, float, device),
                        _upload(p.phase, float, device))
 
-    def run(self, state: DeviceState, launch: Launcher) -> None:
-        launch(pins.drive_pins, self.arrays[0].shape[0], inputs=[*self.arrays, state.clock, self.h],
+    def run(self, state: DeviceState) -> None:
+        launch(pins.drive_pins, self.arrays[0].shape[0], state, inputs=[*self.arrays, state.clock, self.h],
                   outputs=[state.x, state.v])
 
 
@@ -116,13 +96,13 @@ class StrainLimit:
         self.arrays = (_upload(lim.offsets, int, device), _upload(lim.other, int, device),
                        _upload(lim.min_length, float, device), _upload(lim.max_length, float, device))
 
-    def run(self, state: DeviceState, launch: Launcher) -> None:
+    def run(self, state: DeviceState) -> None:
         for _ in range(self.iterations):
-            self.run_pass(state, launch)
+            self.run_pass(state)
 
-    def run_pass(self, state: DeviceState, launch: Launcher) -> None:
-        launch(limits.project_strain_limits, state.x.shape[0], inputs=[state.x, self.inv_mass, *self.arrays, self.h],
-               outputs=[state.x_next, state.v])
+    def run_pass(self, state: DeviceState) -> None:
+        launch(limits.project_strain_limits, state.x.shape[0], state,
+               inputs=[state.x, self.inv_mass, *self.arrays, self.h], outputs=[state.x_next, state.v])
         state.swap_positions()
 
 
@@ -139,8 +119,8 @@ class SphereColliders:
         self.friction = _upload(s.friction, float, device)
         self.name = "spheres"
 
-    def run(self, state: DeviceState, launch: Launcher) -> None:
-        launch(colliders.collide_spheres, state.x.shape[0],
+    def run(self, state: DeviceState) -> None:
+        launch(colliders.collide_spheres, state.x.shape[0], state,
                inputs=[self.center, self.velocity, self.radius, self.friction, self.h, self.inv_mass],
                outputs=[state.x, state.v])
 
@@ -156,8 +136,8 @@ class MoveSpheres:
         self.motion = (_upload(s.center, wp.vec3, device), _upload(s.amplitude, wp.vec3, device),
                        _upload(s.frequency, float, device), _upload(s.phase, float, device))
 
-    def run(self, state: DeviceState, launch: Launcher) -> None:
-        launch(motion.move_spheres, self.target.center.shape[0], inputs=[state.clock, self.h, *self.motion],
+    def run(self, state: DeviceState) -> None:
+        launch(motion.move_spheres, self.target.center.shape[0], state, inputs=[state.clock, self.h, *self.motion],
                outputs=[self.target.center, self.target.velocity])
 
 
@@ -170,9 +150,9 @@ class GroundCollider:
         self.h = h
         self.inv_mass = inv_mass
 
-    def run(self, state: DeviceState, launch: Launcher) -> None:
-        launch(colliders.collide_ground, state.x.shape[0], inputs=[self.height, self.friction, self.h, self.inv_mass],
-               outputs=[state.x, state.v])
+    def run(self, state: DeviceState) -> None:
+        launch(colliders.collide_ground, state.x.shape[0], state,
+               inputs=[self.height, self.friction, self.h, self.inv_mass], outputs=[state.x, state.v])
 
 
 def make_hash_grid(particles: int, device) -> wp.HashGrid:
@@ -229,31 +209,30 @@ class ParticleCollision:
             # Build once now so that the grid's buffers exist before a CUDA graph is captured.
             self.grid.build(wp.array(model.positions, dtype=wp.vec3, device=device), self.search_radius)
 
-    def run(self, state: DeviceState, launch: Launcher) -> None:
+    def run(self, state: DeviceState) -> None:
         s = self.settings
         pair_rules = [self.cloth_id, int(s.self_collision), int(s.between_cloths), *self.exclusion, s.max_neighbors]
         lists = [self.neighbors, self.counts, self.pushed, self.overflow]
         if self.grid is not None:
-            positions = state.x
-            launch.call(lambda: self.grid.build(positions, self.search_radius))
-            launch(particle_collision.gather_neighbors, self.n,
+            self.grid.build(state.x, self.search_radius)
+            launch(particle_collision.gather_neighbors, self.n, state,
                    inputs=[self.grid.id, state.x, self.radius, self.search_radius, s.separation, self.SEARCH_SCALE,
                            *pair_rules], outputs=lists)
         else:
-            launch(particle_collision.gather_neighbors_brute_force, self.n,
+            launch(particle_collision.gather_neighbors_brute_force, self.n, state,
                    inputs=[state.x, self.radius, s.separation, self.SEARCH_SCALE, *pair_rules], outputs=lists)
         for remaining in range(self.passes, 0, -1):
             if self.limit is not None and remaining <= self.limit.iterations:
-                self.limit.run_pass(state, launch)
+                self.limit.run_pass(state)
             if remaining <= s.iterations:
-                launch(particle_collision.separate_particles, self.n,
+                launch(particle_collision.separate_particles, self.n, state,
                        inputs=[state.x, self.inv_mass, self.radius, s.separation, self.h, self.neighbors,
                                self.counts, s.max_neighbors],
                        outputs=[state.x_next, state.v, self.pushed])
                 state.swap_positions()
             for collider in self.colliders:
-                collider.run(state, launch)
-        launch(particle_collision.resolve_contact_velocities, self.n,
+                collider.run(state)
+        launch(particle_collision.resolve_contact_velocities, self.n, state,
                inputs=[state.x, state.v, self.inv_mass, self.radius, s.separation, self.CONTACT_SLACK, s.friction,
                        self.h, self.pushed, self.neighbors, self.counts, s.max_neighbors],
                outputs=[state.v_next])
@@ -263,8 +242,8 @@ class ParticleCollision:
 class AdvanceClock:
     name = "clock"
 
-    def run(self, state: DeviceState, launch: Launcher) -> None:
-        launch(motion.advance_clock, 1, outputs=[state.clock])
+    def run(self, state: DeviceState) -> None:
+        launch(motion.advance_clock, 1, state, outputs=[state.clock])
 
 
 def build_stages(model: Model, device) -> list[Stage]:

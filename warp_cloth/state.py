@@ -17,6 +17,7 @@ class DeviceState:
         self._x = (x, wp.empty_like(x))
         self._v = (v, wp.empty_like(v))
         self.clock = wp.zeros(1, dtype=int, device=device)
+        self.device = device
         self.parity = 0
 
     @property
