@@ -14,6 +14,7 @@ in every residual and search direction, so the solve never moves them.
 
 import warp as wp
 
+from .cg import CG_RZ, CG_RZ0, ITERATIONS
 from .springs import (DAMPING_COMPRESSION, DAMPING_TENSION, ELASTIC_COMPRESSION, ELASTIC_TENSION,
                       gather_spring_forces)
 
@@ -134,17 +135,63 @@ def predict_positions(x0: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), h
 
 
 @wp.kernel
-def prescribe_pinned(inv_mass: wp.array(dtype=float), v_pinned: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3),
-                     dv: wp.array(dtype=wp.vec3)):
-    """Start the solve at dv = 0 on free particles and at the prescribed change on pinned ones."""
+def finish_step(x0: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), dv: wp.array(dtype=wp.vec3), h: float,
+                newton: wp.array(dtype=int), x_out: wp.array(dtype=wp.vec3), v_out: wp.array(dtype=wp.vec3)):
+    """v' = v + dv (skipped once Newton has converged), x' = x0 + h v'."""
     i = wp.tid()
-    if inv_mass[i] == 0.0:
-        dv[i] = v_pinned[i] - v[i]
-    else:
-        dv[i] = wp.vec3(0.0)
+    vi = v[i]
+    if newton[0] != 0:
+        vi = vi + dv[i]
+    v_out[i] = vi
+    x_out[i] = x0[i] + h * vi
+
+
+# Bookkeeping of the Newton loop, in ``newton`` = [on (0 once converged), steps taken this substep], and of
+# the worst values since the host last read them, in ``stats`` = [CG iterations, r.z / r0.z0 at the end of
+# a solve, Newton steps, Newton residual (RMS of |M (v - v0) - h f| / m, m/s)].
 
 
 @wp.kernel
-def add_scaled(a: wp.array(dtype=wp.vec3), b: wp.array(dtype=wp.vec3), out: wp.array(dtype=wp.vec3)):
+def start_newton(newton: wp.array(dtype=int)):
+    newton[0] = 1
+    newton[1] = 1
+
+
+@wp.kernel
+def per_unit_mass(r: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float), out: wp.array(dtype=wp.vec3)):
     i = wp.tid()
-    out[i] = a[i] + b[i]
+    out[i] = r[i] * inv_mass[i]
+
+
+@wp.func
+def rms(partial: wp.array(dtype=float), count: float) -> float:
+    total = float(0.0)
+    for k in range(partial.shape[0]):
+        total += partial[k]
+    return wp.sqrt(total / count)
+
+
+@wp.kernel
+def continue_newton(partial: wp.array(dtype=float), free_particles: float, tolerance: float,
+                    newton: wp.array(dtype=int)):
+    """Before another Newton step: stop if the residual (per unit mass, RMS) is below the tolerance."""
+    if newton[0] == 0:
+        return
+    if rms(partial, free_particles) <= tolerance:
+        newton[0] = 0
+    else:
+        newton[1] = newton[1] + 1
+
+
+@wp.kernel
+def record_newton(partial: wp.array(dtype=float), free_particles: float, newton: wp.array(dtype=int),
+                  stats: wp.array(dtype=float)):
+    stats[2] = wp.max(stats[2], float(newton[1]))
+    stats[3] = wp.max(stats[3], rms(partial, free_particles))
+
+
+@wp.kernel
+def record_solve(scalars: wp.array(dtype=float), cg_state: wp.array(dtype=int), stats: wp.array(dtype=float)):
+    stats[0] = wp.max(stats[0], float(cg_state[ITERATIONS]))
+    if scalars[CG_RZ0] > 0.0:
+        stats[1] = wp.max(stats[1], scalars[CG_RZ] / scalars[CG_RZ0])

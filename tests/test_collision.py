@@ -70,7 +70,8 @@ def brute_force_separation(x, v, inv_mass, radius, separation, pairs, h):
 def test_hash_grid_stage_matches_brute_force(seed, limit_a, self_on, between_on):
     scene = two_cloth_scene(limit_a)
     scene = dataclasses.replace(scene, collision=wc.Collision(self_collision=self_on, between_cloths=between_on,
-                                                              iterations=1, max_neighbors=64))
+                                                              iterations=1, max_neighbors=64,
+                                                              broad_phase="hash_grid"))
     sim = wc.Simulator(scene, device="cpu")
     stage = next(s for s in sim.stages if isinstance(s, ParticleCollision))
     rng = np.random.default_rng(seed)

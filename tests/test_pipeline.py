@@ -70,6 +70,10 @@ def test_substep_launches_only_declared_effects(name, launches):
     launches.clear()
     sim.substep()
     assert dict(launches) == EXPECTED[name]
+    launches.clear()
+    sim.step()  # a frame: its substeps, each followed by the blow-up guard's check
+    frame = {kernel: count * sim.substeps_per_frame for kernel, count in EXPECTED[name].items()}
+    assert dict(launches) == {**frame, "check_state": sim.substeps_per_frame}
 
 
 @pytest.mark.parametrize("name", sorted(EXPECTED_WITH_COLLISION))

@@ -8,8 +8,8 @@
 """
 
 from .errors import SceneError
-from .scene import (Box, Cloth, Collision, Ground, Limit, Oscillation, Output, Pin, Scene, Simulation, Sphere,
-                    SpringKind)
+from .scene import (Box, Cloth, Collision, Ground, ImplicitSolver, Limit, Oscillation, Output, Pin, Scene,
+                    Simulation, Sphere, SpringKind)
 from .scene_file import builtin_scene_names, load_scene, scene_from_dict
 from .simulator import RunSummary, Simulator
 from .writers import PolyWriter, UsdWriter
@@ -17,7 +17,7 @@ from .writers import PolyWriter, UsdWriter
 __version__ = "0.1.0"
 
 __all__ = [
-    "Box", "Cloth", "Collision", "Ground", "Limit", "Oscillation", "Output", "Pin", "PolyWriter", "RunSummary", "Scene",
-    "SceneError", "Simulation", "Simulator", "Sphere", "SpringKind", "UsdWriter", "builtin_scene_names",
-    "load_scene", "scene_from_dict",
+    "Box", "Cloth", "Collision", "Ground", "ImplicitSolver", "Limit", "Oscillation", "Output", "Pin", "PolyWriter",
+    "RunSummary", "Scene", "SceneError", "Simulation", "Simulator", "Sphere", "SpringKind", "UsdWriter",
+    "builtin_scene_names", "load_scene", "scene_from_dict",
 ]

@@ -32,10 +32,14 @@ from .writers import PolyWriter, UsdWriter
 
 # The seed's C++ on this machine kind (../shared/seed/baseline-measured.md). It always ran its O(n^2)
 # self collision, so only the "+self" rows do the same work; seed_25x25 leaves collision out.
-SEED_CPP_SECONDS = {"seed_25x25": 2.64, "seed_25x25+self": 2.64, "seed_default_60x60x2": 193.4}
+SEED_CPP_SECONDS = {"seed_25x25": 2.64, "seed_25x25+self": 2.64, "seed_default_60x60x2": 193.4,
+                    **{f"seed_{n}x{n}+self explicit dt=0.0025": t
+                       for n, t in ((5, 0.0222), (10, 0.135), (15, 0.468), (20, 1.20), (25, 2.64))},
+                    **{f"seed_{n}x{n}+self implicit dt=0.0208": t
+                       for n, t in ((5, 0.224), (10, 2.30), (15, 14.7), (20, 66.7), (25, 157.9))}}
 
 
-def seed_cloth_scene(n: int, self_collision: bool = False) -> Scene:
+def seed_cloth_scene(n: int, self_collision: bool = False, integrator: str = "explicit", dt: float = 0.0025) -> Scene:
     """The seed's single-cloth benchmark loop: an n x n cloth (L0 = 1 m, 0.025 kg a particle, k = 10,
     b = 1) pinned at two corners, explicit Euler at dt 0.0025 (17 substeps a frame), 6 strain-limit
     passes, ground, and the moving sphere of its main loop; with its self collision if asked (then the
@@ -47,7 +51,7 @@ def seed_cloth_scene(n: int, self_collision: bool = False) -> Scene:
                     motion=Oscillation(axis=(0.0, 0.0, 1.0), amplitude=5.0, frequency=0.1, phase=np.pi / 4))
     return Scene(name=f"seed_{n}x{n}", cloths=(cloth,), ground=Ground(), spheres=(sphere,),
                  collision=Collision(iterations=1) if self_collision else None,
-                 simulation=Simulation(fps=24, frames=240, dt=0.0025, integrator="explicit", limit_iterations=6))
+                 simulation=Simulation(fps=24, frames=240, dt=dt, integrator=integrator, limit_iterations=6))
 
 
 def large_cloth_scene(n: int, substeps: int = 10) -> Scene:
@@ -75,6 +79,8 @@ class Case:
 
 @dataclass(frozen=True)
 class Result:
+    """``stable`` is False where the run blew up (non-finite state); its time is then not a result."""
+
     case: str
     device: str
     particles: int
@@ -82,6 +88,7 @@ class Result:
     frames: int
     outputs: bool
     seconds: list[float]
+    stable: bool = True
 
     @property
     def median_seconds(self) -> float:
@@ -117,6 +124,40 @@ def stacked_layers_scene(particles: int, broad_phase: str = "hash_grid", layers:
     return Scene(name=f"layers_{particles}", cloths=cloths,
                  collision=Collision(iterations=4, broad_phase=broad_phase),
                  simulation=Simulation(fps=24, frames=1, substeps=1, gravity=(0.0, 0.0, 0.0)))
+
+
+def hanging_cloth_scene(n: int, integrator: str, substeps: int) -> Scene:
+    """An n x n particle cloth of the seed's material scaled down to 10 m (density of 0.025 kg per 1 m^2
+    cell, k = 10), hanging from its two top corners."""
+    cloth = Cloth(resolution=(n - 1, n - 1), size=(10.0, 10.0), orientation="vertical", density=0.025,
+                  limit=Limit(0.1, 0.1), pins=(Pin(corners=("top-left", "top-right")),),
+                  structural=SpringKind(10.0, 0.1), shear=SpringKind(10.0, 0.1),
+                  bend=SpringKind(10.0, 0.1, "compression", "compression"))
+    return Scene(name=f"hanging_{n}x{n}", cloths=(cloth,),
+                 simulation=Simulation(fps=24, frames=48, substeps=substeps, integrator=integrator))
+
+
+def integrator_cases(device: str) -> list[Case]:
+    """The seed's sweeps: sizes 5..25 (explicit at 0.0025, implicit at 0.0208) and steps 0.0025..0.04165
+    at size 20, both integrators, on the seed's loop with self collision; and on a GPU a 256^2 cloth at
+    one implicit step per frame."""
+    cases = []
+    for n in (5, 10, 15, 20, 25):
+        for integrator, dt in (("explicit", 0.0025), ("implicit", 0.0208)):
+            cases.append(Case(f"seed_{n}x{n}+self {integrator} dt={dt}", seed_cloth_scene(n, True, integrator, dt),
+                              240))
+    for dt in (0.0025, 0.0052, 0.0104, 0.0208, 0.04165):
+        for integrator in ("explicit", "implicit"):
+            name = f"seed_20x20+self {integrator} dt={dt}"
+            if not any(c.name == name for c in cases):
+                cases.append(Case(name, seed_cloth_scene(20, True, integrator, dt), 240))
+    if device != "cpu":
+        scene = hanging_cloth_scene(256, "implicit", 1)
+        for loop in ("device_while", "unrolled"):
+            solver = dataclasses.replace(scene.implicit, cg_loop=loop)
+            cases.append(Case(f"hanging_256x256 implicit 1 step/frame {loop}",
+                              dataclasses.replace(scene, implicit=solver), 48, fresh=False))
+    return cases
 
 
 def collision_cases(device: str) -> list[Case]:
@@ -174,7 +215,8 @@ def format_collision_table(results: list[CollisionResult]) -> str:
     return "\n".join(lines)
 
 
-SUITES: dict[str, Callable[[str], list[Case]]] = {"core": core_cases, "collision": collision_cases}
+SUITES: dict[str, Callable[[str], list[Case]]] = {"core": core_cases, "collision": collision_cases,
+                                                   "integrators": integrator_cases}
 
 
 def time_case(case: Case, device: str, repeats: int) -> Result:
@@ -191,7 +233,8 @@ def time_case(case: Case, device: str, repeats: int) -> Result:
             wp.synchronize_device(sim.device)
             seconds.append(time.perf_counter() - started)
         if not np.isfinite(sim.positions()).all():
-            raise RuntimeError(f"benchmark case {case.name} went unstable on {device}")
+            return Result(case.name, str(warm.device), warm.model.particle_count, warm.substeps_per_frame,
+                          case.frames, case.outputs, seconds, stable=False)
     return Result(case.name, str(warm.device), warm.model.particle_count, warm.substeps_per_frame, case.frames,
                   case.outputs, seconds)
 
@@ -216,15 +259,21 @@ def environment(device: str) -> dict:
 
 
 def format_table(results: list[Result]) -> str:
-    header = f"{'case':<22} {'device':<8} {'particles':>9} {'substeps':>8} {'frames':>6} {'median s':>9} " \
-             f"{'ms/frame':>9} {'particle-substeps/s':>20} {'vs seed C++':>11}"
+    width = max(22, *(len(r.case) for r in results))
+    header = f"{'case':<{width}} {'device':<8} {'particles':>9} {'substeps':>8} {'frames':>6} {'median s':>9} " \
+             f"{'ms/frame':>9} {'particle-substeps/s':>20} {'seed C++ s':>10} {'speed-up':>9}"
     lines = [header, "-" * len(header)]
     for r in results:
         seed = SEED_CPP_SECONDS.get(r.case)
-        ratio = f"{seed / r.median_seconds:10.1f}x" if seed and not r.outputs else ""
-        lines.append(f"{r.case:<22} {r.device:<8} {r.particles:>9} {r.substeps_per_frame:>8} {r.frames:>6} "
+        seed_text = f"{seed:10.3g}" if seed and not r.outputs else ""
+        if not r.stable:
+            lines.append(f"{r.case:<{width}} {r.device:<8} {r.particles:>9} {r.substeps_per_frame:>8} {r.frames:>6} "
+                         f"{'unstable (blew up)':>40} {seed_text:>10}")
+            continue
+        ratio = f"{seed / r.median_seconds:8.1f}x" if seed and not r.outputs else ""
+        lines.append(f"{r.case:<{width}} {r.device:<8} {r.particles:>9} {r.substeps_per_frame:>8} {r.frames:>6} "
                      f"{r.median_seconds:>9.3f} {r.ms_per_frame:>9.3f} {r.particle_substeps_per_second:>20.3g} "
-                     f"{ratio:>11}")
+                     f"{seed_text:>10} {ratio:>9}")
     return "\n".join(lines)
 
 
@@ -260,7 +309,7 @@ def main(argv: list[str] | None = None) -> int:
                                 ms_per_frame=r.ms_per_frame) for r in results],
                "collision_stage": [dict(dataclasses.asdict(r), ns_per_particle=r.ns_per_particle) for r in scaling]}
     path.write_text(json.dumps(payload, indent=2))
-    best = max(results, key=lambda r: r.particle_substeps_per_second)
+    best = max((r for r in results if r.stable), key=lambda r: r.particle_substeps_per_second)
     print(f"bench {args.suite}: {len(results)} cases on {env['device']}; best {best.particle_substeps_per_second:.3g} "
           f"particle-substeps/s ({best.case}); wrote {path}")
     return 0

@@ -7,11 +7,12 @@ import dataclasses
 import sys
 from pathlib import Path
 
-from .errors import SceneError
+from .errors import SceneError, UnstableSimulation
 from .scene import INTEGRATORS, Scene
 from .scene_file import builtin_scene_names, load_scene
 
 EXIT_BAD_INPUT = 2
+EXIT_UNSTABLE = 3
 EXIT_INTERRUPTED = 130
 
 
@@ -97,7 +98,13 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
         check = CheckReport(sys.stdout)
         writers.append(check)
-    summary = sim.run(writers=writers, progress=not args.quiet and not args.check)
+    try:
+        summary = sim.run(writers=writers, progress=not args.quiet and not args.check)
+    except UnstableSimulation as exc:
+        wrote = ", ".join(str(p) for w in writers for p in w.outputs) or "nothing"
+        print(f"warp-cloth: error: {scene.name}: {exc} Wrote {wrote} (frames 0 to {exc.frame - 1}).",
+              file=sys.stderr)
+        return EXIT_UNSTABLE
     sim_settings = scene.simulation
     wrote = ", ".join(str(p) for w in writers for p in w.outputs) or "nothing"
     status = (f"interrupted after {summary.frames} of {sim_settings.frames} frames" if summary.interrupted

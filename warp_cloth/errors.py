@@ -27,8 +27,24 @@ class SceneError(ValueError):
 
     def within(self, prefix: str) -> "SceneError":
         """The same error with ``prefix`` put in front of its key path."""
-        key = prefix if not self.key else (f"{prefix}{self.key}" if self.key.startswith("[") else f"{prefix}.{self.key}")
+        if not self.key:
+            key = prefix
+        else:
+            key = f"{prefix}{self.key}" if self.key.startswith("[") else f"{prefix}.{self.key}"
         return SceneError(key, self.expected, self.got, self.source, self.has_got)
 
     def in_file(self, source: str) -> "SceneError":
         return SceneError(self.key, self.expected, self.got, source, self.has_got)
+
+
+class UnstableSimulation(RuntimeError):
+    """A run that went unstable: non-finite values, or energy or strain exploding. Raised by
+    ``Simulator.step`` at the end of the frame where the blow-up guard saw it; frames written before it stay
+    valid."""
+
+    def __init__(self, frame: int, substep: int, reason: str, advice: str) -> None:
+        self.frame = frame
+        self.substep = substep
+        self.reason = reason
+        self.advice = advice
+        super().__init__(f"unstable at frame {frame}, substep {substep}: {reason}. {advice}")

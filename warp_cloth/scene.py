@@ -18,8 +18,8 @@ Vec3 = tuple[float, float, float]
 SpringRegime = Literal["tension", "compression", "both"]
 Corner = Literal["bottom-left", "bottom-right", "top-left", "top-right"]
 Edge = Literal["bottom", "top", "left", "right"]
-Integrator = Literal["explicit", "symplectic"]
-INTEGRATORS: tuple[str, ...] = ("explicit", "symplectic")
+Integrator = Literal["explicit", "symplectic", "implicit"]
+INTEGRATORS: tuple[str, ...] = ("explicit", "symplectic", "implicit")
 
 # Particle count above which a scene is refused before any memory is asked for: indices are int32 and
 # a cloth of this size already needs gigabytes. The simulator checks the device's free memory as well.
@@ -149,10 +149,10 @@ class Cloth:
     """A rectangular grid of ``resolution`` quads, ``(nx + 1) * (ny + 1)`` particles.
 
     Built in its local (u, v) plane, laid ``vertical`` (u along +X, v along +Y, facing +Z) or
-    ``horizontal`` (u along +X, v along -Z, facing +Y), then rotated by ``rotation`` (degrees about X, then Y, then Z) about its
-    corner (0, 0), which is put at ``origin``. ``mass`` is per particle; ``density`` (kg/m^2) instead
-    gives each particle the area around it. ``jitter`` moves particles out of plane by up to that
-    fraction of a cell (the seed used 0.05), reproducibly from ``seed``.
+    ``horizontal`` (u along +X, v along -Z, facing +Y), then rotated by ``rotation`` (degrees about X,
+    then Y, then Z) about its corner (0, 0), which is put at ``origin``. ``mass`` is per particle;
+    ``density`` (kg/m^2) instead gives each particle the area around it. ``jitter`` moves particles out of
+    plane by up to that fraction of a cell (the seed used 0.05), reproducibly from ``seed``.
     """
 
     name: str = "cloth"
@@ -242,8 +242,9 @@ class Collision:
     for every cloth. Two particles are kept ``separation`` radii apart (the mean of their radii).
     ``iterations`` Jacobi passes push overlapping pairs apart, then the approaching part of their
     relative velocity is removed, and ``friction`` takes tangential relative speed in proportion.
-    ``broad_phase = "brute_force"`` finds pairs the seed's O(n^2) way instead of the hash grid: the same
-    contacts, for checking and for measuring what the grid saves.
+    ``broad_phase`` finds the pairs with a hash grid, or the seed's O(n^2) way (``brute_force``: the same
+    contacts, for checking and for measuring what the grid saves); ``auto`` takes the brute force for
+    scenes of at most 512 particles, where it is faster than building a grid.
     """
 
     self_collision: bool = field(default=True, metadata={"toml": "self"})
@@ -253,7 +254,7 @@ class Collision:
     iterations: int = 2
     friction: float = 0.0
     max_neighbors: int = 32
-    broad_phase: Literal["hash_grid", "brute_force"] = "hash_grid"
+    broad_phase: Literal["auto", "hash_grid", "brute_force"] = "auto"
 
     def __post_init__(self) -> None:
         _require(self.self_collision or self.between_cloths, "self", "self or between_cloths to be true "
@@ -267,11 +268,37 @@ class Collision:
 
 
 @dataclass(frozen=True)
+class ImplicitSolver:
+    """Settings of the ``implicit`` integrator (backward Euler). One Newton step is Baraff & Witkin's
+    linearised step; more steps solve the nonlinear backward Euler equations until the residual (RMS over
+    free particles of |M (v - v0) - h f| / m, in m/s) is below ``newton_tolerance``. Each step is solved
+    by conjugate gradient to ``cg_tolerance`` (relative, in the preconditioned norm) or
+    ``cg_max_iterations``. ``cg_loop`` says how the iterations run on the device: ``device_while`` (a
+    conditional loop in the captured graph) or ``unrolled`` (``cg_max_iterations`` captured iterations
+    that skip their work once converged)."""
+
+    newton_iterations: int = 1
+    newton_tolerance: float = 1e-4
+    cg_tolerance: float = 1e-4
+    cg_max_iterations: int = 200
+    cg_loop: Literal["device_while", "unrolled"] = "device_while"
+
+    def __post_init__(self) -> None:
+        _require(1 <= self.newton_iterations <= 100, "newton_iterations", "a whole number in [1, 100]",
+                 self.newton_iterations)
+        _non_negative(self.newton_tolerance, "newton_tolerance")
+        _require(0 < self.cg_tolerance < 1, "cg_tolerance", "a number in (0, 1)", self.cg_tolerance)
+        _require(1 <= self.cg_max_iterations <= 100000, "cg_max_iterations", "a whole number in [1, 100000]",
+                 self.cg_max_iterations)
+
+
+@dataclass(frozen=True)
 class Simulation:
     """Time stepping. Give ``substeps`` per frame or a step ``dt``. The step used is ``1 / (fps * substeps)``
     so that frames fall on exact times: for ``dt`` that is the largest such step at most 1% over ``dt``
     (so the seed's 0.0052, 0.0104, 0.0208 and 0.04165 s at 24 fps become 1/8, 1/4, 1/2 and 1 frame).
-    ``drag`` is a linear air drag rate in 1/s (acceleration ``-drag * v``)."""
+    ``drag`` is a linear air drag rate in 1/s (acceleration ``-drag * v``). A run stops as unstable when
+    a particle's state is not finite or faster than ``max_speed`` (m/s)."""
 
     fps: float = 24.0
     frames: int = 240
@@ -281,6 +308,7 @@ class Simulation:
     gravity: Vec3 = (0.0, -9.81, 0.0)
     drag: float = 0.0
     limit_iterations: int = 4
+    max_speed: float = 1000.0
 
     def __post_init__(self) -> None:
         _positive(self.fps, "fps")
@@ -294,6 +322,7 @@ class Simulation:
             _require(self.dt <= 1.0 / self.fps * 1.01, "dt", f"at most one frame (1/fps = {1 / self.fps:g} s)",
                      self.dt)
         _non_negative(self.drag, "drag")
+        _positive(self.max_speed, "max_speed")
         _require(self.limit_iterations >= 1, "limit_iterations", "a whole number >= 1", self.limit_iterations)
 
     @property
@@ -326,6 +355,7 @@ class Scene:
     description: str = ""
     simulation: Simulation = Simulation()
     output: Output = Output()
+    implicit: ImplicitSolver = ImplicitSolver()
     cloths: tuple[Cloth, ...] = field(default=(), metadata={"toml": "cloth"})
     ground: Ground | None = None
     spheres: tuple[Sphere, ...] = field(default=(), metadata={"toml": "sphere"})

@@ -12,10 +12,13 @@ from typing import Iterable, Protocol
 import numpy as np
 import warp as wp
 
-from .errors import SceneError
+from warp_cloth.kernels import guard
+
+from .errors import SceneError, UnstableSimulation
 from .model import Model, build_model
 from .progress import Progress
 from .scene import Scene
+from .implicit import BackwardEuler, SolveStats
 from .stages import SphereColliders, Stage, build_stages
 from .state import DeviceState
 
@@ -23,6 +26,7 @@ from .state import DeviceState
 # (float64 grids, spring lists, sorting) and device arrays (state, springs and their adjacency).
 HOST_BYTES_PER_PARTICLE = 900
 DEVICE_BYTES_PER_PARTICLE = 320
+IMPLICIT_DEVICE_BYTES_PER_PARTICLE = 100  # CG vectors and the preconditioner's blocks
 
 
 class FrameWriter(Protocol):
@@ -63,13 +67,15 @@ def check_memory(scene: Scene, device: wp.context.Device) -> None:
     """Refuse a scene that cannot fit, before any large allocation."""
     n = sum(c.particle_count for c in scene.cloths)
     host_free = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-    need = n * HOST_BYTES_PER_PARTICLE + (n * DEVICE_BYTES_PER_PARTICLE if device.is_cpu else 0)
+    device_bytes = DEVICE_BYTES_PER_PARTICLE + (IMPLICIT_DEVICE_BYTES_PER_PARTICLE
+                                                if scene.simulation.integrator == "implicit" else 0)
+    need = n * HOST_BYTES_PER_PARTICLE + (n * device_bytes if device.is_cpu else 0)
     if need > host_free:
         raise SceneError("cloth", f"a scene that fits in memory: {n} particles need about {need / 2**30:.1f} GiB "
                                   f"of host memory, {host_free / 2**30:.1f} GiB is free", has_got=False)
     if device.is_cuda:
         free = device.free_memory
-        need = n * DEVICE_BYTES_PER_PARTICLE
+        need = n * device_bytes
         if need > free:
             raise SceneError("cloth", f"a scene that fits on {device.name}: {n} particles need about "
                                       f"{need / 2**30:.1f} GiB, {free / 2**30:.1f} GiB is free", has_got=False)
@@ -118,6 +124,8 @@ class Simulator:
         self.substep_count = 0
         self.use_graph = graph
         self._graphs: dict[int, tuple[wp.Graph, int]] = {}
+        # One flag per substep of a frame, set by the blow-up guard (see kernels/guard.py).
+        self._guard_status = wp.zeros(self.substeps_per_frame, dtype=int, device=self.device)
 
     @property
     def time(self) -> float:
@@ -153,6 +161,12 @@ class Simulator:
                     return part.center.numpy()
         return np.zeros((0, 3), dtype=np.float32)
 
+    def solver_stats(self) -> "SolveStats | None":
+        """For the implicit integrator: the worst CG and Newton figures of the substeps since the last call
+        (reading them waits for the device); None for the explicit integrators."""
+        integrator = self.stages[0]
+        return integrator.read_stats() if isinstance(integrator, BackwardEuler) else None
+
     def substep(self) -> None:
         """Advance one substep, launching stage by stage (for tests and debugging; frames are faster)."""
         for stage in self.stages:
@@ -180,6 +194,26 @@ class Simulator:
             self.state.parity = parity_after
         self.substep_count += self.substeps_per_frame
         self.frame += 1
+        self._raise_if_unstable()
+
+    def _raise_if_unstable(self) -> None:
+        status = self._guard_status.numpy()
+        bad = np.nonzero(status)[0]
+        if len(bad) == 0:
+            return
+        first = int(bad[0])
+        sim = self.scene.simulation
+        if status[first] == guard.NOT_FINITE:
+            reason = "positions or velocities are no longer finite"
+        else:
+            reason = f"a particle moves faster than max_speed = {sim.max_speed:g} m/s"
+        if sim.integrator == "implicit":
+            advice = (f"Try a smaller step than h = {self.dt:.4g} s (--dt or --substeps), or raise "
+                      f"implicit.cg_max_iterations; frames up to {self.frame - 1} are valid.")
+        else:
+            advice = (f"Try a smaller step than h = {self.dt:.4g} s (--dt or --substeps) or the implicit integrator "
+                      f"(--integrator implicit); frames up to {self.frame - 1} are valid.")
+        raise UnstableSimulation(self.frame, first + 1, reason, advice)
 
     def run(self, frames: int | None = None, writers: Iterable[FrameWriter] = (), progress: bool = False) -> RunSummary:
         """Simulate ``frames`` frames (default: the scene's), handing every frame to the writers.
@@ -220,6 +254,10 @@ class Simulator:
         return RunSummary(written, self.substep_count - start_substeps, self.model.particle_count, wall, interrupted)
 
     def _frame_substeps(self) -> None:
-        for _ in range(self.substeps_per_frame):
+        self._guard_status.zero_()
+        for k in range(self.substeps_per_frame):
             for stage in self.stages:
                 stage.run(self.state)
+            wp.launch(guard.check_state, dim=self.model.particle_count,
+                      inputs=[self.state.x, self.state.v, self.scene.simulation.max_speed, k],
+                      outputs=[self._guard_status], device=self.device)

@@ -9,6 +9,7 @@ import warp as wp
 
 from warp_cloth.kernels import colliders, integration, limits, motion, particle_collision, pins
 
+from .implicit import BackwardEuler
 from .model import Model
 from .state import DeviceState
 
@@ -30,7 +31,7 @@ def _upload(array, dtype, device):
 class ExplicitIntegration:
     """Spring forces and gravity, then one explicit or symplectic Euler step."""
 
-    def __init__(self, model: Model, inv_mass: wp.array, integrator: str, h: float, device) -> None:
+    def __init__(self, model: Model, inv_mass: wp.array, springs: tuple, integrator: str, h: float) -> None:
         self.name = f"integrate:{integrator}"
         self.h = h
         self.semi_implicit = 1 if integrator == "symplectic" else 0
@@ -38,22 +39,12 @@ class ExplicitIntegration:
         self.drag = model.scene.simulation.drag
         self.n = model.particle_count
         self.inv_mass = inv_mass
-        springs = model.springs
-        if springs is None:
-            self.offsets = wp.zeros(self.n + 1, dtype=int, device=device)
-            empty_i, empty_f = wp.zeros(0, dtype=int, device=device), wp.zeros(0, dtype=float, device=device)
-            self.spring_arrays = (empty_i, empty_i, empty_f, empty_f, empty_f, empty_i)
-        else:
-            adj = springs.adjacency
-            self.offsets = _upload(adj.offsets, int, device)
-            self.spring_arrays = (_upload(adj.other, int, device), _upload(adj.spring, int, device),
-                                  _upload(springs.rest, float, device), _upload(springs.stiffness, float, device),
-                                  _upload(springs.damping, float, device), _upload(springs.flags, int, device))
+        self.springs = springs
 
     def run(self, state: DeviceState) -> None:
         launch(integration.euler_step, self.n, state,
-                  inputs=[state.x, state.v, self.inv_mass, self.gravity, self.drag, self.h, self.semi_implicit, self.offsets,
-                          *self.spring_arrays],
+               inputs=[state.x, state.v, self.inv_mass, self.gravity, self.drag, self.h, self.semi_implicit,
+                       *self.springs],
                   outputs=[state.x_next, state.v_next])
         state.swap_positions()
         state.swap_velocities()
@@ -177,6 +168,7 @@ class ParticleCollision:
 
     SEARCH_SCALE = 1.5  # candidates within 1.5 contact distances, so passes that move particles miss none
     CONTACT_SLACK = 1.01  # pairs within 1% of contact count as touching in the velocity pass
+    BRUTE_FORCE_UP_TO = 512  # particles; below, all pairs cost less than a grid build (80 us on the CPU)
 
     def __init__(self, model: Model, inv_mass: wp.array, cloth_id: wp.array, limit: StrainLimit | None,
                  colliders: list[Stage], h: float, device) -> None:
@@ -204,7 +196,7 @@ class ParticleCollision:
         self.pushed = wp.zeros(n, dtype=float, device=device)
         self.overflow = wp.zeros(1, dtype=int, device=device)
         self.grid = None
-        if settings.broad_phase == "hash_grid":
+        if settings.broad_phase == "hash_grid" or (settings.broad_phase == "auto" and n > self.BRUTE_FORCE_UP_TO):
             self.grid = make_hash_grid(n, device)
             # Build once now so that the grid's buffers exist before a CUDA graph is captured.
             self.grid.build(wp.array(model.positions, dtype=wp.vec3, device=device), self.search_radius)
@@ -246,13 +238,31 @@ class AdvanceClock:
         launch(motion.advance_clock, 1, state, outputs=[state.clock])
 
 
+def upload_springs(model: Model, device) -> tuple:
+    """The spring adjacency and parameters as the kernels take them: offsets, other, spring, rest,
+    stiffness, damping, flags (offsets all zero and the rest empty for a cloth without springs)."""
+    springs = model.springs
+    if springs is None:
+        empty_i, empty_f = wp.zeros(0, dtype=int, device=device), wp.zeros(0, dtype=float, device=device)
+        return (wp.zeros(model.particle_count + 1, dtype=int, device=device), empty_i, empty_i, empty_f, empty_f,
+                empty_f, empty_i)
+    adj = springs.adjacency
+    return (_upload(adj.offsets, int, device), _upload(adj.other, int, device), _upload(adj.spring, int, device),
+            _upload(springs.rest, float, device), _upload(springs.stiffness, float, device),
+            _upload(springs.damping, float, device), _upload(springs.flags, int, device))
+
+
 def build_stages(model: Model, device) -> list[Stage]:
     """The substep, in order: integrate, pins, then strain limits and colliders, or, with particle
     collision, those projected together with it, then the clock."""
     sim = model.scene.simulation
     h = sim.step
     inv_mass = _upload(model.inv_mass, float, device)
-    stages: list[Stage] = [ExplicitIntegration(model, inv_mass, sim.integrator, h, device)]
+    springs = upload_springs(model, device)
+    if sim.integrator == "implicit":
+        stages: list[Stage] = [BackwardEuler(model, inv_mass, springs, h, device)]
+    else:
+        stages = [ExplicitIntegration(model, inv_mass, springs, sim.integrator, h)]
     if model.pins is not None:
         stages.append(DrivePins(model, h, device) if model.pins.moving else HoldPins(model, device))
     limit = StrainLimit(model, inv_mass, sim.limit_iterations, h, device) if model.limits is not None else None

@@ -1,0 +1,134 @@
+"""Preconditioned conjugate gradient building blocks for systems over vec3 arrays, kept on the device.
+
+Scalars live in a small array so that no iteration waits for the host: ``CG_*`` name its slots. The
+kernels of an iteration do nothing once the solve has converged, so a fixed number of iterations can be
+captured and the surplus ones cost only their launch.
+Dot products are reduced in a fixed order (interleaved partial sums, then a second level, then one
+thread), so the result is the same on every run, with no atomics.
+"""
+
+import warp as wp
+
+CG_RZ = wp.constant(0)  # r . z of the current residual
+CG_RZ0 = wp.constant(1)  # r . z at the start: the reference for the relative tolerance
+CG_ALPHA = wp.constant(2)
+CG_BETA = wp.constant(3)
+CG_TOLERANCE_SQ = wp.constant(4)  # squared relative tolerance on sqrt(r . z)
+CG_SLOTS = 5
+
+# Integer state: [0] 1 while iterating, [1] iterations done, [2] iteration cap.
+ACTIVE = wp.constant(0)
+ITERATIONS = wp.constant(1)
+MAX_ITERATIONS = wp.constant(2)
+
+
+@wp.kernel
+def dot_partials(a: wp.array(dtype=wp.vec3), b: wp.array(dtype=wp.vec3), stride: int, state: wp.array(dtype=int),
+                 partial: wp.array(dtype=float)):
+    if state[ACTIVE] == 0:
+        return
+    t = wp.tid()
+    total = float(0.0)
+    k = t
+    while k < a.shape[0]:
+        total += wp.dot(a[k], b[k])
+        k += stride
+    partial[t] = total
+
+
+@wp.kernel
+def sum_partials(values: wp.array(dtype=float), stride: int, state: wp.array(dtype=int),
+                 partial: wp.array(dtype=float)):
+    if state[ACTIVE] == 0:
+        return
+    t = wp.tid()
+    total = float(0.0)
+    k = t
+    while k < values.shape[0]:
+        total += values[k]
+        k += stride
+    partial[t] = total
+
+
+@wp.func
+def total(partial: wp.array(dtype=float)) -> float:
+    s = float(0.0)
+    for k in range(partial.shape[0]):
+        s += partial[k]
+    return s
+
+
+@wp.kernel
+def start(partial: wp.array(dtype=float), tolerance: float, max_iterations: int, enabled: wp.array(dtype=int),
+          scalars: wp.array(dtype=float), state: wp.array(dtype=int)):
+    """After r . z of the first residual: arm the loop unless there is nothing to solve."""
+    rz = total(partial)
+    scalars[CG_RZ] = rz
+    scalars[CG_RZ0] = rz
+    scalars[CG_TOLERANCE_SQ] = tolerance * tolerance
+    state[ITERATIONS] = 0
+    state[MAX_ITERATIONS] = max_iterations
+    state[ACTIVE] = 0
+    if enabled[0] != 0 and rz > 0.0 and max_iterations > 0:
+        state[ACTIVE] = 1
+
+
+@wp.kernel
+def step_length(partial: wp.array(dtype=float), state: wp.array(dtype=int), scalars: wp.array(dtype=float)):
+    if state[ACTIVE] == 0:
+        return
+    p_ap = total(partial)
+    scalars[CG_ALPHA] = 0.0
+    if p_ap > 0.0:
+        scalars[CG_ALPHA] = scalars[CG_RZ] / p_ap
+
+
+@wp.kernel
+def advance(p: wp.array(dtype=wp.vec3), ap: wp.array(dtype=wp.vec3), scalars: wp.array(dtype=float),
+            state: wp.array(dtype=int), x: wp.array(dtype=wp.vec3), r: wp.array(dtype=wp.vec3)):
+    if state[ACTIVE] == 0:
+        return
+    i = wp.tid()
+    alpha = scalars[CG_ALPHA]
+    x[i] = x[i] + alpha * p[i]
+    r[i] = r[i] - alpha * ap[i]
+
+
+@wp.kernel
+def precondition(inverse: wp.array(dtype=wp.mat33), r: wp.array(dtype=wp.vec3), state: wp.array(dtype=int),
+                 z: wp.array(dtype=wp.vec3)):
+    if state[ACTIVE] == 0:
+        return
+    i = wp.tid()
+    z[i] = inverse[i] * r[i]
+
+
+@wp.kernel
+def next_direction_scale(partial: wp.array(dtype=float), scalars: wp.array(dtype=float), state: wp.array(dtype=int)):
+    """After r . z of the new residual: beta, the iteration count, and whether to go on."""
+    if state[ACTIVE] == 0:
+        return
+    rz = total(partial)
+    beta = float(0.0)
+    if scalars[CG_RZ] > 0.0:
+        beta = rz / scalars[CG_RZ]
+    scalars[CG_BETA] = beta
+    scalars[CG_RZ] = rz
+    state[ITERATIONS] = state[ITERATIONS] + 1
+    if rz <= scalars[CG_TOLERANCE_SQ] * scalars[CG_RZ0] or state[ITERATIONS] >= state[MAX_ITERATIONS]:
+        state[ACTIVE] = 0
+
+
+@wp.kernel
+def update_direction(z: wp.array(dtype=wp.vec3), scalars: wp.array(dtype=float), state: wp.array(dtype=int),
+                     p: wp.array(dtype=wp.vec3)):
+    if state[ACTIVE] == 0:
+        return
+    i = wp.tid()
+    p[i] = z[i] + scalars[CG_BETA] * p[i]
+
+
+@wp.kernel
+def subtract(a: wp.array(dtype=wp.vec3), b: wp.array(dtype=wp.vec3), out: wp.array(dtype=wp.vec3)):
+    i = wp.tid()
+    out[i] = a[i] - b[i]

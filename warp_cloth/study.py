@@ -1,0 +1,556 @@
+"""What accuracy costs in time: a scene run over integrators, time steps and resolutions, each run timed and
+compared frame by frame with a reference run at a much smaller step.
+
+    warp-cloth study hanging --dt 0.0025 0.00125 --frames 48
+
+For each run: wall time per simulated second (graph replays only, after warm-up, no output I/O), RMS and
+max position error against the reference, max strain, energy drift, and whether it went unstable. Writes
+``study.csv``, ``study.json`` and, with matplotlib (the ``plots`` extra), three PNG plots.
+
+The reference is the same scene and resolution run with symplectic Euler at the smallest study step / 16.
+It is run again at half that step; a run's error is resolved when it is at least 10 times the difference
+between the two references, and the reference is converged when every stable run's error is resolved.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import dataclasses
+import importlib.util
+import json
+import math
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Sequence
+
+import numpy as np
+import warp as wp
+
+from .bench import environment
+from .errors import SceneError, UnstableSimulation
+from .model import FLAG_ELASTIC_COMPRESSION, FLAG_ELASTIC_TENSION, Model, Springs
+from .progress import Progress
+from .scene import INTEGRATORS, Cloth, Scene
+from .scene_file import load_scene
+from .simulator import Simulator, resolve_device
+
+EXIT_BAD_INPUT = 2
+REFERENCE_INTEGRATOR = "symplectic"
+REFERENCE_REFINEMENT = 16  # the reference step is the smallest study step divided by this
+RESOLVED_FACTOR = 10.0  # an error is measurable when at least this many times the references' difference
+WARMUP_FRAMES = 2  # compile kernels and capture the frame graph at both buffer parities: never timed
+BLOWUP_DISTANCE = 1e4  # metres from the origin: a particle this far out counts as a blow-up
+DEFAULT_MAX_FRAMES = 48
+
+DEFINITIONS = {
+    "seconds_per_simulated_second": f"wall time of Simulator.step() only (device synchronised), frames after the "
+                                    f"first {WARMUP_FRAMES} (kernel compilation, graph capture), per simulated second",
+    "error_rms": "sqrt of the mean over frames 1..N and particles of |x - x_ref|^2, metres",
+    "error_max": "max over frames 1..N and particles of |x - x_ref|, metres",
+    "max_strain": "max over frames 0..N of |l/L - 1| over strain-limited and structural springs",
+    "energy_drift": "max over frames of |E(t) - E(0)| / max(|E(0)|, 1e-12), E = kinetic + gravitational "
+                    "(-m g . x, datum at the origin) + spring potential k L / 2 (l/L - 1)^2 of springs in their "
+                    "elastic regime; damping, strain limits and contacts remove energy, so compare with the "
+                    "reference's drift",
+    "unstable_frame": "frame at which Simulator.step() raised UnstableSimulation or a position became "
+                      f"non-finite or farther than {BLOWUP_DISTANCE:g} m from the origin; such runs get no numbers",
+    "resolved": f"error_rms >= {RESOLVED_FACTOR:g} x the RMS difference between the reference and its half step",
+    "order": "least-squares slope of log error_rms against log dt over stable resolved runs, one intercept per "
+             "resolution",
+}
+
+
+@dataclass(frozen=True)
+class StudyRun:
+    """One (integrator, dt, resolution) run. Unstable runs carry only ``unstable_frame``."""
+
+    integrator: str
+    resolution: int | None  # quads per side of every cloth; None: the scene's own
+    particles: int
+    dt_requested: float
+    dt: float  # the step taken: whole substeps per frame
+    substeps: int
+    frames: int
+    seconds_per_simulated_second: float | None
+    error_rms: float | None
+    error_max: float | None
+    max_strain: float | None
+    energy_drift: float | None
+    unstable_frame: int | None
+    resolved: bool | None
+
+
+@dataclass(frozen=True)
+class ReferenceCheck:
+    """The reference of one resolution against the same run at half its step."""
+
+    resolution: int | None
+    particles: int
+    integrator: str
+    dt: float
+    dt_half: float
+    difference_rms: float
+    difference_max: float
+    energy_drift: float
+    converged: bool
+
+
+@dataclass(frozen=True)
+class Study:
+    scene: str
+    device: str
+    frames: int
+    fps: float
+    runs: list[StudyRun]
+    references: list[ReferenceCheck]
+    orders: dict[str, float | None]
+    environment: dict
+
+    @property
+    def converged(self) -> bool:
+        return all(r.converged for r in self.references)
+
+
+# --- Scenes -------------------------------------------------------------------------------------------
+
+
+def with_resolution(scene: Scene, resolution: int) -> Scene:
+    """Every cloth at (r, r) quads, with its size and total mass kept."""
+    return dataclasses.replace(scene, cloths=tuple(_cloth_at(cloth, resolution) for cloth in scene.cloths))
+
+
+def _cloth_at(cloth: Cloth, resolution: int) -> Cloth:
+    if any(pin.indices for pin in cloth.pins):
+        raise SceneError(f"cloth {cloth.name!r} pins", "pins by corners, edges or region with --resolutions "
+                         "(indices name particles of one grid)", has_got=False)
+    mass = cloth.particle_mass()  # None for density cloths, which lump area and need nothing
+    if mass is not None:
+        mass *= cloth.particle_count / (resolution + 1) ** 2
+    return dataclasses.replace(cloth, resolution=(resolution, resolution), mass=mass)
+
+
+def with_step(scene: Scene, integrator: str, frames: int, dt: float | None = None,
+              substeps: int | None = None) -> Scene:
+    simulation = dataclasses.replace(scene.simulation, integrator=integrator, frames=frames, dt=dt,
+                                     substeps=substeps)
+    return dataclasses.replace(scene, simulation=simulation)
+
+
+def _option_error(option: str, exc: SceneError) -> SceneError:
+    return SceneError(option, exc.expected, exc.got, "command line", exc.has_got)
+
+
+# --- Measuring one run --------------------------------------------------------------------------------
+
+
+def strain(springs: Springs, x: np.ndarray) -> np.ndarray:
+    lengths = np.linalg.norm(x[springs.pairs[:, 0]] - x[springs.pairs[:, 1]], axis=1)
+    return lengths / springs.rest.astype(np.float64) - 1.0
+
+
+def strained_springs(model: Model) -> np.ndarray:
+    """Mask of the springs whose strain is reported: strain-limited ones and structural ones (grid
+    neighbours along a row or a column)."""
+    springs = model.springs
+    columns = np.concatenate([np.arange(c.particle_count) % (c.resolution[0] + 1) for c in model.scene.cloths])
+    rows = np.concatenate([np.arange(c.particle_count) // (c.resolution[0] + 1) for c in model.scene.cloths])
+    a, b = springs.pairs[:, 0], springs.pairs[:, 1]
+    structural = np.abs(columns[a] - columns[b]) + np.abs(rows[a] - rows[b]) == 1
+    return structural | np.isfinite(springs.limit_max)
+
+
+def total_energy(model: Model, gravity: Sequence[float], x: np.ndarray, v: np.ndarray) -> float:
+    """Kinetic + gravitational + elastic spring energy, for the strain-based force -k (l/L - 1) n."""
+    m = model.masses.astype(np.float64)
+    energy = 0.5 * np.sum(m * np.sum(v * v, axis=1)) - np.sum(m * (x @ np.asarray(gravity, dtype=np.float64)))
+    springs = model.springs
+    if springs is not None:
+        s = strain(springs, x)
+        acting = np.where(s > 0, springs.flags & FLAG_ELASTIC_TENSION, springs.flags & FLAG_ELASTIC_COMPRESSION)
+        energy += np.sum(0.5 * springs.stiffness * springs.rest.astype(np.float64) * s * s * (acting != 0))
+    return float(energy)
+
+
+def blown_up(x: np.ndarray) -> bool:
+    return not np.isfinite(x).all() or float(np.abs(x).max()) > BLOWUP_DISTANCE
+
+
+def timed_step(sim: Simulator) -> float:
+    wp.synchronize_device(sim.device)
+    started = time.perf_counter()
+    sim.step()
+    wp.synchronize_device(sim.device)
+    return time.perf_counter() - started
+
+
+@dataclass
+class Trajectory:
+    """What one simulated run gives; ``positions`` (frames 1..N) is kept for references only."""
+
+    dt: float
+    substeps: int
+    particles: int
+    frames: int
+    timed_seconds: float = 0.0
+    timed_frames: int = 0
+    energies: list[float] = dataclasses.field(default_factory=list)
+    max_strain: float | None = None
+    unstable_frame: int | None = None
+    positions: list[np.ndarray] = dataclasses.field(default_factory=list)
+    squared_error: float = 0.0
+    error_count: int = 0
+    error_max: float = 0.0
+
+    @property
+    def seconds_per_simulated_second(self) -> float | None:
+        simulated = self.timed_frames * self.substeps * self.dt
+        return self.timed_seconds / simulated if self.timed_frames else None
+
+    @property
+    def error_rms(self) -> float:
+        return math.sqrt(self.squared_error / self.error_count)
+
+    @property
+    def energy_drift(self) -> float:
+        e = np.asarray(self.energies)
+        return float(np.max(np.abs(e - e[0])) / max(abs(e[0]), 1e-12))
+
+    def record(self, model: Model, gravity: Sequence[float], x: np.ndarray, v: np.ndarray, mask: np.ndarray | None,
+               reference: np.ndarray | None, keep: bool) -> None:
+        x64, v64 = x.astype(np.float64), v.astype(np.float64)
+        self.energies.append(total_energy(model, gravity, x64, v64))
+        if mask is not None:
+            self.max_strain = max(self.max_strain or 0.0, float(np.abs(strain(model.springs, x64)[mask]).max()))
+        if reference is not None:
+            distance = np.linalg.norm(x64 - reference, axis=1)
+            self.squared_error += float(np.sum(distance * distance))
+            self.error_count += len(distance)
+            self.error_max = max(self.error_max, float(distance.max()))
+        if keep:
+            self.positions.append(x)
+
+
+def simulate(scene: Scene, device: str, frames: int, reference: Sequence[np.ndarray] | None = None,
+             keep_positions: bool = False, tick: Callable[[int], None] = lambda n: None) -> Trajectory:
+    """Run ``frames`` frames, timing only ``Simulator.step()`` after the warm-up frames; positions and
+    velocities are read after each timed step, outside the timed region."""
+    sim = Simulator(scene, device=device)
+    model, gravity = sim.model, scene.simulation.gravity
+    mask = strained_springs(model) if model.springs is not None else None
+    run = Trajectory(sim.dt, sim.substeps_per_frame, model.particle_count, frames)
+    run.record(model, gravity, sim.positions(), sim.velocities(), mask, None, False)
+    for frame in range(1, frames + 1):
+        try:
+            seconds = timed_step(sim)
+            x = sim.positions()
+            unstable = blown_up(x)
+        except UnstableSimulation:
+            unstable = True
+        if unstable:
+            run.unstable_frame = frame
+            tick(frames - frame + 1)
+            return run
+        if frame > WARMUP_FRAMES:
+            run.timed_seconds += seconds
+            run.timed_frames += 1
+        run.record(model, gravity, x, sim.velocities(), mask, None if reference is None else reference[frame - 1],
+                   keep_positions)
+        tick(1)
+    return run
+
+
+# --- The study ----------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class _Planned:
+    integrator: str
+    dt: float
+    resolution: int | None
+    scene: Scene
+
+
+def _plan(scene: Scene, integrators: Sequence[str], dts: Sequence[float], resolutions: Sequence[int | None],
+          frames: int) -> list[_Planned]:
+    """Every run's scene, built (and so checked) before anything runs."""
+    planned = []
+    for resolution in resolutions:
+        try:
+            base = scene if resolution is None else with_resolution(scene, resolution)
+        except SceneError as exc:
+            raise _option_error("--resolutions", exc) from None
+        for integrator in integrators:
+            if integrator not in INTEGRATORS:
+                raise SceneError("--integrators", "one of " + ", ".join(INTEGRATORS), integrator, "command line")
+            for dt in dts:
+                try:
+                    planned.append(_Planned(integrator, dt, resolution, with_step(base, integrator, frames, dt=dt)))
+                except SceneError as exc:
+                    raise _option_error(f"--{exc.key}", exc) from None
+    return planned
+
+
+def _check_reference(scene: Scene, device: str, frames: int, substeps: int,
+                     tick: Callable[[int], None]) -> tuple[Trajectory, Trajectory]:
+    """The reference (kept frame by frame) and the same at half its step, compared with it."""
+    reference = simulate(with_step(scene, REFERENCE_INTEGRATOR, frames, substeps=substeps), device, frames,
+                         keep_positions=True, tick=tick)
+    if reference.unstable_frame is not None:
+        raise SceneError("reference", f"a scene that stays stable with {REFERENCE_INTEGRATOR} Euler at dt "
+                         f"{reference.dt:.3g} s (it went unstable at frame {reference.unstable_frame})",
+                         has_got=False, source=scene.name)
+    half = simulate(with_step(scene, REFERENCE_INTEGRATOR, frames, substeps=2 * substeps), device, frames,
+                    reference=reference.positions, tick=tick)
+    return reference, half
+
+
+def _study_run(planned: _Planned, run: Trajectory, resolved_above: float) -> StudyRun:
+    stable = run.unstable_frame is None
+    rms = run.error_rms if stable else None
+    return StudyRun(planned.integrator, planned.resolution, run.particles, planned.dt, run.dt, run.substeps,
+                    run.frames, run.seconds_per_simulated_second if stable else None, rms,
+                    run.error_max if stable else None, run.max_strain if stable else None,
+                    run.energy_drift if stable else None, run.unstable_frame,
+                    rms >= resolved_above if stable else None)
+
+
+def convergence_order(runs: Sequence[StudyRun]) -> float | None:
+    """Slope of log error against log dt over the stable resolved runs, one intercept per resolution."""
+    dx, dy = [], []
+    for resolution in {r.resolution for r in runs}:
+        group = [(math.log(r.dt), math.log(r.error_rms)) for r in runs
+                 if r.resolution == resolution and r.resolved and r.error_rms > 0]
+        if len({x for x, _ in group}) < 2:
+            continue
+        mx, my = np.mean([x for x, _ in group]), np.mean([y for _, y in group])
+        dx += [x - mx for x, _ in group]
+        dy += [y - my for _, y in group]
+    if not dx:
+        return None
+    return float(np.dot(dx, dy) / np.dot(dx, dx))
+
+
+def run_study(scene: Scene | str, integrators: Sequence[str] = INTEGRATORS, dts: Sequence[float] | None = None,
+              resolutions: Sequence[int] | None = None, frames: int | None = None, device: str | None = None,
+              reference_refinement: int = REFERENCE_REFINEMENT, progress: bool = True) -> Study:
+    """Run every (integrator, dt, resolution) of a scene (a ``Scene``, a built-in name or a TOML path) and
+    measure it against a reference. Defaults: the scene's step and its half and quarter, the scene's
+    resolution, the scene's frames up to 48. Bad input raises ``SceneError`` before anything runs."""
+    scene = load_scene(scene) if isinstance(scene, str) else scene
+    step = scene.simulation.step
+    dts = list(dts) if dts else [step, step / 2, step / 4]
+    frames = frames if frames is not None else min(scene.simulation.frames, DEFAULT_MAX_FRAMES)
+    if frames <= WARMUP_FRAMES:
+        raise SceneError("--frames", f"a whole number > {WARMUP_FRAMES} (the first {WARMUP_FRAMES} are not timed)",
+                         frames, "command line")
+    if reference_refinement < 1:
+        raise SceneError("reference_refinement", "a whole number >= 1", reference_refinement)
+    resolutions_or_own: list[int | None] = list(resolutions) if resolutions else [None]
+    planned = _plan(scene, integrators, dts, resolutions_or_own, frames)
+    dev = resolve_device(device).alias
+    ref_substeps = reference_refinement * max(p.scene.simulation.substeps_per_frame for p in planned)
+    bar = Progress(frames * (len(planned) + 2 * len(resolutions_or_own)), f"study {scene.name} on {dev}") \
+        if progress else None
+    tick = (lambda n: bar.update(bar.done + n)) if bar else (lambda n: None)
+    runs, references = [], []
+    try:
+        for resolution in resolutions_or_own:
+            at_resolution = [p for p in planned if p.resolution == resolution]
+            reference, half = _check_reference(at_resolution[0].scene, dev, frames, ref_substeps, tick)
+            resolved_above = RESOLVED_FACTOR * half.error_rms
+            group = [_study_run(p, simulate(p.scene, dev, frames, reference.positions, tick=tick), resolved_above)
+                     for p in at_resolution]
+            runs += group
+            references.append(ReferenceCheck(resolution, reference.particles, REFERENCE_INTEGRATOR, reference.dt,
+                                             half.dt, half.error_rms, half.error_max, reference.energy_drift,
+                                             all(r.resolved for r in group if r.unstable_frame is None)))
+    finally:
+        if bar:
+            bar.close()
+    orders = {i: convergence_order([r for r in runs if r.integrator == i]) for i in integrators}
+    return Study(scene.name, dev, frames, scene.simulation.fps, runs, references, orders, environment(dev))
+
+
+# --- Output -------------------------------------------------------------------------------------------
+
+
+def study_json(study: Study) -> dict:
+    return {"scene": study.scene, "device": study.device, "frames": study.frames, "fps": study.fps,
+            "environment": study.environment, "definitions": DEFINITIONS,
+            "reference": {"integrator": REFERENCE_INTEGRATOR,
+                          "rule": "same scene and resolution, smallest study step / refinement; checked against "
+                                  "half its step", "converged": study.converged,
+                          "checks": [dataclasses.asdict(r) for r in study.references]},
+            "orders": study.orders, "runs": [dataclasses.asdict(r) for r in study.runs]}
+
+
+def write_csv(study: Study, path: Path) -> None:
+    with open(path, "w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=[f.name for f in dataclasses.fields(StudyRun)])
+        writer.writeheader()
+        writer.writerows(dataclasses.asdict(r) for r in study.runs)
+
+
+def plots_available() -> bool:
+    return importlib.util.find_spec("matplotlib") is not None
+
+
+def write_study(study: Study, out: Path) -> list[Path]:
+    """study.csv, study.json and, when matplotlib is installed, the three plots; returns the paths."""
+    out.mkdir(parents=True, exist_ok=True)
+    paths = [out / "study.csv", out / "study.json"]
+    write_csv(study, paths[0])
+    paths[1].write_text(json.dumps(study_json(study), indent=2))
+    if plots_available():
+        import matplotlib
+
+        matplotlib.use("Agg")
+        for name, plot in (("error_vs_time", plot_error_vs_time), ("error_vs_dt", plot_error_vs_dt),
+                           ("time_vs_resolution", plot_time_vs_resolution)):
+            paths.append(out / f"{name}.png")
+            plot(study, paths[-1])
+    return paths
+
+
+def pareto_front(runs: Sequence[StudyRun]) -> list[StudyRun]:
+    """The stable runs that no other run beats in both error and time, fastest first."""
+    points = [r for r in runs if r.error_rms and r.seconds_per_simulated_second]
+    front = [r for r in points
+             if not any(o.error_rms <= r.error_rms and o.seconds_per_simulated_second <= r.seconds_per_simulated_second
+                        and (o.error_rms, o.seconds_per_simulated_second)
+                        != (r.error_rms, r.seconds_per_simulated_second) for o in points)]
+    return sorted(front, key=lambda r: r.seconds_per_simulated_second)
+
+
+def _by_integrator(study: Study) -> dict[str, list[StudyRun]]:
+    return {i: [r for r in study.runs if r.integrator == i and r.error_rms] for i in study.orders}
+
+
+def _save(figure, axes, title: str, path: Path) -> None:
+    axes.set_title(title)
+    axes.grid(True, which="both", alpha=0.3)
+    axes.legend()
+    figure.tight_layout()
+    figure.savefig(path, dpi=120)
+    import matplotlib.pyplot as plt
+
+    plt.close(figure)
+
+
+def plot_error_vs_time(study: Study, path: Path) -> None:
+    import matplotlib.pyplot as plt
+
+    figure, axes = plt.subplots(figsize=(7, 5))
+    for integrator, runs in _by_integrator(study).items():
+        timed = [r for r in runs if r.seconds_per_simulated_second]
+        axes.loglog([r.seconds_per_simulated_second for r in timed], [r.error_rms for r in timed], "o",
+                    label=integrator)
+    front = pareto_front(study.runs)
+    axes.loglog([r.seconds_per_simulated_second for r in front], [r.error_rms for r in front], "k--",
+                drawstyle="steps-post", marker="s", markerfacecolor="none", markersize=11, label="Pareto front")
+    axes.set_xlabel("wall time per simulated second (s)")
+    axes.set_ylabel("RMS position error (m)")
+    _save(figure, axes, f"{study.scene}: error vs cost on {study.device}", path)
+
+
+def plot_error_vs_dt(study: Study, path: Path) -> None:
+    import matplotlib.pyplot as plt
+
+    figure, axes = plt.subplots(figsize=(7, 5))
+    for integrator, runs in _by_integrator(study).items():
+        order = study.orders[integrator]
+        label = f"{integrator} (order {order:.2f})" if order is not None else f"{integrator} (order n/a)"
+        axes.loglog([r.dt for r in runs], [r.error_rms for r in runs], "o", label=label)
+    axes.set_xlabel("time step dt (s)")
+    axes.set_ylabel("RMS position error (m)")
+    _save(figure, axes, f"{study.scene}: error vs time step", path)
+
+
+def plot_time_vs_resolution(study: Study, path: Path) -> None:
+    import matplotlib.pyplot as plt
+
+    figure, axes = plt.subplots(figsize=(7, 5))
+    for integrator in study.orders:
+        for dt in sorted({r.dt for r in study.runs if r.integrator == integrator}):
+            runs = sorted((r for r in study.runs if r.integrator == integrator and r.dt == dt
+                           and r.seconds_per_simulated_second), key=lambda r: r.particles)
+            if runs:
+                axes.loglog([r.particles for r in runs], [r.seconds_per_simulated_second for r in runs], "o-",
+                            label=f"{integrator} dt {dt * 1e3:.3g} ms")
+    axes.set_xlabel("particles")
+    axes.set_ylabel("wall time per simulated second (s)")
+    _save(figure, axes, f"{study.scene}: cost vs resolution on {study.device}", path)
+
+
+def _number(value: float | None, fmt: str) -> str:
+    return "-" if value is None else format(value, fmt)
+
+
+def format_table(study: Study) -> str:
+    header = (f"{'integrator':<10} {'res':>5} {'particles':>9} {'dt ms':>8} {'substeps':>8} {'s/sim s':>9} "
+              f"{'rms err m':>10} {'max err m':>10} {'max strain':>10} {'E drift':>9}  status")
+    lines = [header, "-" * len(header)]
+    for r in study.runs:
+        status = (f"unstable at frame {r.unstable_frame}" if r.unstable_frame is not None
+                  else "ok" if r.resolved else "below reference resolution")
+        lines.append(f"{r.integrator:<10} {r.resolution or 'scene':>5} {r.particles:>9} {r.dt * 1e3:>8.4g} "
+                     f"{r.substeps:>8} {_number(r.seconds_per_simulated_second, '9.3g')} "
+                     f"{_number(r.error_rms, '10.3g')} {_number(r.error_max, '10.3g')} "
+                     f"{_number(r.max_strain, '10.3g')} {_number(r.energy_drift, '9.3g')}  {status}")
+    for c in study.references:
+        lines.append(f"reference {c.resolution or 'scene'}: {c.integrator} dt {c.dt * 1e3:.4g} ms vs "
+                     f"{c.dt_half * 1e3:.4g} ms: difference rms {c.difference_rms:.3g} m, max "
+                     f"{c.difference_max:.3g} m, energy drift {c.energy_drift:.3g}; "
+                     + ("converged" if c.converged else "NOT converged (some errors are below its resolution)"))
+    return "\n".join(lines)
+
+
+def summary_line(study: Study, out: Path) -> str:
+    unstable = sum(r.unstable_frame is not None for r in study.runs)
+    orders = ", ".join(f"{i} {_number(o, '.2f') if o is not None else 'n/a'}" for i, o in study.orders.items())
+    reference = "" if study.converged else "; reference NOT converged"
+    return (f"study {study.scene}: {len(study.runs)} runs ({unstable} unstable) on {study.device}; orders {orders}"
+            f"{reference}; wrote {out}/")
+
+
+# --- Command line -------------------------------------------------------------------------------------
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="warp-cloth study",
+        description="What accuracy costs in time: run a scene over integrators, time steps and resolutions; "
+                    "time each run and compare it frame by frame with a reference at a much smaller step.")
+    parser.add_argument("scene", help="built-in scene name or path to a .toml file")
+    parser.add_argument("--integrators", nargs="+", choices=INTEGRATORS, default=list(INTEGRATORS))
+    parser.add_argument("--dt", nargs="+", type=float, help="time steps in seconds (default: the scene's, /2, /4)")
+    parser.add_argument("--resolutions", nargs="+", type=int,
+                        help="quads per side of every cloth, size and total mass kept (default: the scene's)")
+    parser.add_argument("--frames", type=int, help=f"frames per run (default: the scene's, at most {DEFAULT_MAX_FRAMES})")
+    parser.add_argument("--device", help="cpu, cuda or cuda:N (default: cuda if available, else cpu)")
+    parser.add_argument("--out", type=Path, help="output folder (default: out/study-SCENE)")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    wp.config.log_level = wp.LOG_ERROR
+    try:
+        study = run_study(args.scene, args.integrators, args.dt, args.resolutions, args.frames, args.device)
+    except SceneError as exc:
+        print(f"warp-cloth study: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    out = args.out or Path("out") / f"study-{study.scene}"
+    write_study(study, out)
+    print(format_table(study))
+    if not plots_available():
+        print("plots skipped: matplotlib is not installed (pip install 'warp-cloth[plots]')")
+    print(summary_line(study, out))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
