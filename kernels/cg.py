@@ -16,16 +16,16 @@ CG_BETA = wp.constant(3)
 CG_TOLERANCE_SQ = wp.constant(4)  # squared relative tolerance on sqrt(r . z)
 CG_SLOTS = 5
 
-# Integer state: [0] 1 while iterating, [1] iterations done, [2] iteration cap.
-ACTIVE = wp.constant(0)
-ITERATIONS = wp.constant(1)
-MAX_ITERATIONS = wp.constant(2)
+# Integer state: ``active`` (one element, the loop's condition: 1 while iterating) and ``counts``:
+# [0] iterations done, [1] iteration cap.
+ITERATIONS = wp.constant(0)
+MAX_ITERATIONS = wp.constant(1)
 
 
 @wp.kernel
-def dot_partials(a: wp.array(dtype=wp.vec3), b: wp.array(dtype=wp.vec3), stride: int, state: wp.array(dtype=int),
+def dot_partials(a: wp.array(dtype=wp.vec3), b: wp.array(dtype=wp.vec3), stride: int, active: wp.array(dtype=int),
                  partial: wp.array(dtype=float)):
-    if state[ACTIVE] == 0:
+    if active[0] == 0:
         return
     t = wp.tid()
     total = float(0.0)
@@ -37,9 +37,9 @@ def dot_partials(a: wp.array(dtype=wp.vec3), b: wp.array(dtype=wp.vec3), stride:
 
 
 @wp.kernel
-def sum_partials(values: wp.array(dtype=float), stride: int, state: wp.array(dtype=int),
+def sum_partials(values: wp.array(dtype=float), stride: int, active: wp.array(dtype=int),
                  partial: wp.array(dtype=float)):
-    if state[ACTIVE] == 0:
+    if active[0] == 0:
         return
     t = wp.tid()
     total = float(0.0)
@@ -60,22 +60,22 @@ def total(partial: wp.array(dtype=float)) -> float:
 
 @wp.kernel
 def start(partial: wp.array(dtype=float), tolerance: float, max_iterations: int, enabled: wp.array(dtype=int),
-          scalars: wp.array(dtype=float), state: wp.array(dtype=int)):
+          scalars: wp.array(dtype=float), active: wp.array(dtype=int), counts: wp.array(dtype=int)):
     """After r . z of the first residual: arm the loop unless there is nothing to solve."""
     rz = total(partial)
     scalars[CG_RZ] = rz
     scalars[CG_RZ0] = rz
     scalars[CG_TOLERANCE_SQ] = tolerance * tolerance
-    state[ITERATIONS] = 0
-    state[MAX_ITERATIONS] = max_iterations
-    state[ACTIVE] = 0
+    counts[ITERATIONS] = 0
+    counts[MAX_ITERATIONS] = max_iterations
+    active[0] = 0
     if enabled[0] != 0 and rz > 0.0 and max_iterations > 0:
-        state[ACTIVE] = 1
+        active[0] = 1
 
 
 @wp.kernel
-def step_length(partial: wp.array(dtype=float), state: wp.array(dtype=int), scalars: wp.array(dtype=float)):
-    if state[ACTIVE] == 0:
+def step_length(partial: wp.array(dtype=float), active: wp.array(dtype=int), scalars: wp.array(dtype=float)):
+    if active[0] == 0:
         return
     p_ap = total(partial)
     scalars[CG_ALPHA] = 0.0
@@ -85,8 +85,8 @@ def step_length(partial: wp.array(dtype=float), state: wp.array(dtype=int), scal
 
 @wp.kernel
 def advance(p: wp.array(dtype=wp.vec3), ap: wp.array(dtype=wp.vec3), scalars: wp.array(dtype=float),
-            state: wp.array(dtype=int), x: wp.array(dtype=wp.vec3), r: wp.array(dtype=wp.vec3)):
-    if state[ACTIVE] == 0:
+            active: wp.array(dtype=int), x: wp.array(dtype=wp.vec3), r: wp.array(dtype=wp.vec3)):
+    if active[0] == 0:
         return
     i = wp.tid()
     alpha = scalars[CG_ALPHA]
@@ -95,18 +95,19 @@ def advance(p: wp.array(dtype=wp.vec3), ap: wp.array(dtype=wp.vec3), scalars: wp
 
 
 @wp.kernel
-def precondition(inverse: wp.array(dtype=wp.mat33), r: wp.array(dtype=wp.vec3), state: wp.array(dtype=int),
+def precondition(inverse: wp.array(dtype=wp.mat33), r: wp.array(dtype=wp.vec3), active: wp.array(dtype=int),
                  z: wp.array(dtype=wp.vec3)):
-    if state[ACTIVE] == 0:
+    if active[0] == 0:
         return
     i = wp.tid()
     z[i] = inverse[i] * r[i]
 
 
 @wp.kernel
-def next_direction_scale(partial: wp.array(dtype=float), scalars: wp.array(dtype=float), state: wp.array(dtype=int)):
+def next_direction_scale(partial: wp.array(dtype=float), scalars: wp.array(dtype=float),
+                         active: wp.array(dtype=int), counts: wp.array(dtype=int)):
     """After r . z of the new residual: beta, the iteration count, and whether to go on."""
-    if state[ACTIVE] == 0:
+    if active[0] == 0:
         return
     rz = total(partial)
     beta = float(0.0)
@@ -114,15 +115,15 @@ def next_direction_scale(partial: wp.array(dtype=float), scalars: wp.array(dtype
         beta = rz / scalars[CG_RZ]
     scalars[CG_BETA] = beta
     scalars[CG_RZ] = rz
-    state[ITERATIONS] = state[ITERATIONS] + 1
-    if rz <= scalars[CG_TOLERANCE_SQ] * scalars[CG_RZ0] or state[ITERATIONS] >= state[MAX_ITERATIONS]:
-        state[ACTIVE] = 0
+    counts[ITERATIONS] = counts[ITERATIONS] + 1
+    if rz <= scalars[CG_TOLERANCE_SQ] * scalars[CG_RZ0] or counts[ITERATIONS] >= counts[MAX_ITERATIONS]:
+        active[0] = 0
 
 
 @wp.kernel
-def update_direction(z: wp.array(dtype=wp.vec3), scalars: wp.array(dtype=float), state: wp.array(dtype=int),
+def update_direction(z: wp.array(dtype=wp.vec3), scalars: wp.array(dtype=float), active: wp.array(dtype=int),
                      p: wp.array(dtype=wp.vec3)):
-    if state[ACTIVE] == 0:
+    if active[0] == 0:
         return
     i = wp.tid()
     p[i] = z[i] + scalars[CG_BETA] * p[i]

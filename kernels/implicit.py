@@ -191,7 +191,7 @@ def record_newton(partial: wp.array(dtype=float), free_particles: float, newton:
 
 
 @wp.kernel
-def record_solve(scalars: wp.array(dtype=float), cg_state: wp.array(dtype=int), stats: wp.array(dtype=float)):
-    stats[0] = wp.max(stats[0], float(cg_state[ITERATIONS]))
+def record_solve(scalars: wp.array(dtype=float), cg_counts: wp.array(dtype=int), stats: wp.array(dtype=float)):
+    stats[0] = wp.max(stats[0], float(cg_counts[ITERATIONS]))
     if scalars[CG_RZ0] > 0.0:
         stats[1] = wp.max(stats[1], scalars[CG_RZ] / scalars[CG_RZ0])

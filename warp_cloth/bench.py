@@ -26,6 +26,7 @@ import warp as wp
 from .progress import Progress
 from .scene import Cloth, Collision, Ground, Limit, Oscillation, Pin, Scene, Simulation, Sphere, SpringKind
 from .scene_file import load_scene
+from .errors import UnstableSimulation
 from .simulator import Simulator
 from .stages import ParticleCollision
 from .writers import PolyWriter, UsdWriter
@@ -221,22 +222,24 @@ SUITES: dict[str, Callable[[str], list[Case]]] = {"core": core_cases, "collision
 
 def time_case(case: Case, device: str, repeats: int) -> Result:
     warm = Simulator(case.scene, device=device)
-    warm.run(2)  # compiles kernels, captures graphs
-    seconds = []
-    for _ in range(repeats):
-        sim = Simulator(case.scene, device=device) if case.fresh else warm
-        with tempfile.TemporaryDirectory() as tmp:
-            writers = [UsdWriter(Path(tmp) / "run.usdc"), PolyWriter(Path(tmp) / "poly")] if case.outputs else []
-            wp.synchronize_device(sim.device)
-            started = time.perf_counter()
-            sim.run(case.frames, writers=writers)
-            wp.synchronize_device(sim.device)
-            seconds.append(time.perf_counter() - started)
-        if not np.isfinite(sim.positions()).all():
-            return Result(case.name, str(warm.device), warm.model.particle_count, warm.substeps_per_frame,
-                          case.frames, case.outputs, seconds, stable=False)
-    return Result(case.name, str(warm.device), warm.model.particle_count, warm.substeps_per_frame, case.frames,
-                  case.outputs, seconds)
+    result = lambda seconds, stable=True: Result(  # noqa: E731
+        case.name, str(warm.device), warm.model.particle_count, warm.substeps_per_frame, case.frames, case.outputs,
+        seconds, stable)
+    try:
+        warm.run(2)  # compiles kernels, captures graphs
+        seconds = []
+        for _ in range(repeats):
+            sim = Simulator(case.scene, device=device) if case.fresh else warm
+            with tempfile.TemporaryDirectory() as tmp:
+                writers = [UsdWriter(Path(tmp) / "run.usdc"), PolyWriter(Path(tmp) / "poly")] if case.outputs else []
+                wp.synchronize_device(sim.device)
+                started = time.perf_counter()
+                sim.run(case.frames, writers=writers)
+                wp.synchronize_device(sim.device)
+                seconds.append(time.perf_counter() - started)
+    except UnstableSimulation:
+        return result([], stable=False)
+    return result(seconds)
 
 
 def environment(device: str) -> dict:

@@ -38,7 +38,11 @@ class TriangleIntersections:
 
 class ContactGaps:
     """The closest approach of two particles that may collide, as a fraction of their contact distance
-    (1.0 or more: no pair overlaps). Uses the scene's collision settings, with a hash grid of its own."""
+    (1.0 or more: no pair overlaps). Uses the scene's collision settings and the collision stage's hash
+    grid (rebuilt here; the next substep rebuilds it anyway). It must not be a grid of its own: on CUDA,
+    Warp's HashGrid.build copies the grid's descriptor from one static host variable per type, and a
+    captured graph copies whatever that variable holds when it replays, so building a second grid
+    between replays hands the simulation the second grid's cells."""
 
     def __init__(self, sim: Simulator) -> None:
         stage = next((s for s in sim.stages if isinstance(s, ParticleCollision)), None)
@@ -46,7 +50,7 @@ class ContactGaps:
             raise ValueError("the scene declares no [collision]")
         self.stage = stage
         self.device = sim.device
-        self.grid = make_hash_grid(stage.n, self.device)
+        self.grid = stage.grid if stage.grid is not None else make_hash_grid(stage.n, self.device)
         self.ratio = wp.zeros(1, dtype=float, device=self.device)
 
     def __call__(self, sim: Simulator) -> float:

@@ -57,7 +57,8 @@ class BackwardEuler:
         self.partial = wp.zeros(min(n, PARTIALS), dtype=float, device=device)
         self.partial_2 = wp.zeros(min(n, PARTIALS_2), dtype=float, device=device)
         self.scalars = wp.zeros(cg.CG_SLOTS, dtype=float, device=device)
-        self.cg_state = wp.zeros(3, dtype=int, device=device)
+        self.cg_active = wp.zeros(1, dtype=int, device=device)  # the device loop's condition
+        self.cg_counts = wp.zeros(2, dtype=int, device=device)
         self.newton = wp.ones(2, dtype=int, device=device)  # [on (0 once converged), steps this substep]
         self.stats = wp.zeros(4, dtype=float, device=device)  # worst since read, see implicit.record_*
         self.always = wp.ones(1, dtype=int, device=device)
@@ -114,9 +115,9 @@ class BackwardEuler:
         wp.copy(self.p, self.z)
         self._dot(self.r, self.z, self.always)
         launch(cg.start, 1, inputs=[self.partial_2, s.cg_tolerance, s.cg_max_iterations, self.newton],
-               outputs=[self.scalars, self.cg_state])
+               outputs=[self.scalars, self.cg_active, self.cg_counts])
 
-        state = self.cg_state
+        state = self.cg_active
 
         def iteration() -> None:
             launch(implicit.system_times, self.n, inputs=[*system, self.p, state], outputs=[self.ap])
@@ -125,7 +126,7 @@ class BackwardEuler:
             launch(cg.advance, self.n, inputs=[self.p, self.ap, self.scalars, state], outputs=[self.dv, self.r])
             launch(cg.precondition, self.n, inputs=[self.inverse, self.r, state], outputs=[self.z])
             self._dot(self.r, self.z, state)
-            launch(cg.next_direction_scale, 1, inputs=[self.partial_2], outputs=[self.scalars, state])
+            launch(cg.next_direction_scale, 1, inputs=[self.partial_2], outputs=[self.scalars, state, self.cg_counts])
             launch(cg.update_direction, self.n, inputs=[self.z, self.scalars, state], outputs=[self.p])
 
         if s.cg_loop == "device_while":
@@ -133,7 +134,7 @@ class BackwardEuler:
         else:
             for _ in range(s.cg_max_iterations):
                 iteration()
-        launch(implicit.record_solve, 1, inputs=[self.scalars, self.cg_state], outputs=[self.stats])
+        launch(implicit.record_solve, 1, inputs=[self.scalars, self.cg_counts], outputs=[self.stats])
 
     def _newton_residual(self, y: wp.array, v: wp.array, v0: wp.array) -> None:
         """r = h f(y, v) - M (v - v0), and (in the partial sums) the square of its size per unit mass."""
