@@ -93,7 +93,7 @@ class Result:
 
     @property
     def median_seconds(self) -> float:
-        return statistics.median(self.seconds)
+        return statistics.median(self.seconds) if self.seconds else float("nan")
 
     @property
     def particle_substeps_per_second(self) -> float:

@@ -46,6 +46,8 @@ def _parser() -> argparse.ArgumentParser:
 
     commands.add_parser("bench", help="time whole runs, print a table and write JSON (see 'bench --help')",
                         add_help=False)
+    commands.add_parser("study", help="what accuracy costs in time: error against a reference and wall time "
+                                      "per integrator, step and resolution (see 'study --help')", add_help=False)
     return parser
 
 
@@ -122,6 +124,10 @@ def main(argv: list[str] | None = None) -> int:
         from .bench import main as bench_main
 
         return bench_main(rest)
+    if args.command == "study":
+        from .study import main as study_main
+
+        return study_main(rest)
     if rest:
         _parser().error(f"unrecognized arguments: {' '.join(rest)}")
     try:

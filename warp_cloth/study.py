@@ -3,13 +3,16 @@ compared frame by frame with a reference run at a much smaller step.
 
     warp-cloth study hanging --dt 0.0025 0.00125 --frames 48
 
-For each run: wall time per simulated second (graph replays only, after warm-up, no output I/O), RMS and
-max position error against the reference, max strain, energy drift, and whether it went unstable. Writes
+For each run: wall time per simulated second (the median frame's ``Simulator.step()`` after warm-up, no
+output I/O), RMS and max position error against the reference, max strain, energy drift, and whether it
+went unstable. Writes
 ``study.csv``, ``study.json`` and, with matplotlib (the ``plots`` extra), three PNG plots.
 
-The reference is the same scene and resolution run with symplectic Euler at the smallest study step / 16.
-It is run again at half that step; a run's error is resolved when it is at least 10 times the difference
-between the two references, and the reference is converged when every stable run's error is resolved.
+The reference is the same scene and resolution run with symplectic Euler at the smallest study step / 16
+(``--reference-refinement``). It is run again at half that step; a run's error is resolved when it is at
+least 10 times the difference between the two references, and the reference is converged when every stable
+run's error is resolved. Positions are float32, so refining further is not always better: past some step
+the rounding error of many small steps outgrows the truncation error, which the check then shows.
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ import dataclasses
 import importlib.util
 import json
 import math
+import statistics
 import sys
 import time
 from dataclasses import dataclass
@@ -40,14 +44,21 @@ from .simulator import Simulator, resolve_device
 EXIT_BAD_INPUT = 2
 REFERENCE_INTEGRATOR = "symplectic"
 REFERENCE_REFINEMENT = 16  # the reference step is the smallest study step divided by this
-RESOLVED_FACTOR = 10.0  # an error is measurable when at least this many times the references' difference
+# A first-order reference's own error is about twice its difference from the half-step run, so requiring a
+# measured error of 10 such differences keeps the reference's share of it under about a fifth.
+RESOLVED_FACTOR = 10.0
 WARMUP_FRAMES = 2  # compile kernels and capture the frame graph at both buffer parities: never timed
 BLOWUP_DISTANCE = 1e4  # metres from the origin: a particle this far out counts as a blow-up
+# A strain limit keeps a blown-up cloth bounded (it boils in place at hundreds of m/s), so a limited spring
+# this many times past its limit counts as a blow-up too; an unlimited one past twice its rest length.
+BLOWUP_LIMIT_FACTOR = 3.0
 DEFAULT_MAX_FRAMES = 48
 
 DEFINITIONS = {
-    "seconds_per_simulated_second": f"wall time of Simulator.step() only (device synchronised), frames after the "
-                                    f"first {WARMUP_FRAMES} (kernel compilation, graph capture), per simulated second",
+    "seconds_per_simulated_second": f"median over the frames after the first {WARMUP_FRAMES} (kernel compilation, "
+                                    "graph capture) of the wall time of Simulator.step() (device synchronised, no "
+                                    "output I/O), over the frame's simulated time; the median so that a shared, noisy "
+                                    "machine's hiccups do not count",
     "error_rms": "sqrt of the mean over frames 1..N and particles of |x - x_ref|^2, metres",
     "error_max": "max over frames 1..N and particles of |x - x_ref|, metres",
     "max_strain": "max over frames 0..N of |l/L - 1| over strain-limited and structural springs",
@@ -55,8 +66,10 @@ DEFINITIONS = {
                     "(-m g . x, datum at the origin) + spring potential k L / 2 (l/L - 1)^2 of springs in their "
                     "elastic regime; damping, strain limits and contacts remove energy, so compare with the "
                     "reference's drift",
-    "unstable_frame": "frame at which Simulator.step() raised UnstableSimulation or a position became "
-                      f"non-finite or farther than {BLOWUP_DISTANCE:g} m from the origin; such runs get no numbers",
+    "unstable_frame": "frame at which Simulator.step() raised UnstableSimulation, a position became non-finite "
+                      f"or farther than {BLOWUP_DISTANCE:g} m from the origin, or a reported spring's strain went "
+                      f"{BLOWUP_LIMIT_FACTOR:g} times past its strain limit (past 1 where it has none); such runs "
+                      "get no numbers",
     "resolved": f"error_rms >= {RESOLVED_FACTOR:g} x the RMS difference between the reference and its half step",
     "order": "least-squares slope of log error_rms against log dt over stable resolved runs, one intercept per "
              "resolution",
@@ -80,6 +93,7 @@ class StudyRun:
     max_strain: float | None
     energy_drift: float | None
     unstable_frame: int | None
+    unstable_reason: str | None
     resolved: bool | None
 
 
@@ -104,6 +118,7 @@ class Study:
     device: str
     frames: int
     fps: float
+    reference_refinement: int
     runs: list[StudyRun]
     references: list[ReferenceCheck]
     orders: dict[str, float | None]
@@ -162,6 +177,15 @@ def strained_springs(model: Model) -> np.ndarray:
     return structural | np.isfinite(springs.limit_max)
 
 
+def strain_bounds(springs: Springs, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per reported spring, the strains past which a run counts as blown up."""
+    rest = springs.rest[mask].astype(np.float64)
+    limited = np.isfinite(springs.limit_max[mask])
+    high = np.where(limited, BLOWUP_LIMIT_FACTOR * (springs.limit_max[mask] / rest - 1.0), 1.0)
+    low = np.where(limited, -BLOWUP_LIMIT_FACTOR * (1.0 - springs.limit_min[mask] / rest), -np.inf)
+    return low, high
+
+
 def total_energy(model: Model, gravity: Sequence[float], x: np.ndarray, v: np.ndarray) -> float:
     """Kinetic + gravitational + elastic spring energy, for the strain-based force -k (l/L - 1) n."""
     m = model.masses.astype(np.float64)
@@ -174,8 +198,13 @@ def total_energy(model: Model, gravity: Sequence[float], x: np.ndarray, v: np.nd
     return float(energy)
 
 
-def blown_up(x: np.ndarray) -> bool:
-    return not np.isfinite(x).all() or float(np.abs(x).max()) > BLOWUP_DISTANCE
+def instability(x: np.ndarray, strains: np.ndarray | None, bounds: tuple[np.ndarray, np.ndarray] | None) -> str | None:
+    """Why this state counts as blown up, or None."""
+    if not np.isfinite(x).all() or float(np.abs(x).max()) > BLOWUP_DISTANCE:
+        return f"a position is non-finite or farther than {BLOWUP_DISTANCE:g} m"
+    if strains is not None and ((strains < bounds[0]) | (strains > bounds[1])).any():
+        return f"a spring's strain is {BLOWUP_LIMIT_FACTOR:g} times past its limit"
+    return None
 
 
 def timed_step(sim: Simulator) -> float:
@@ -194,11 +223,11 @@ class Trajectory:
     substeps: int
     particles: int
     frames: int
-    timed_seconds: float = 0.0
-    timed_frames: int = 0
+    frame_seconds: list[float] = dataclasses.field(default_factory=list)  # after the warm-up frames
     energies: list[float] = dataclasses.field(default_factory=list)
     max_strain: float | None = None
     unstable_frame: int | None = None
+    unstable_reason: str | None = None
     positions: list[np.ndarray] = dataclasses.field(default_factory=list)
     squared_error: float = 0.0
     error_count: int = 0
@@ -206,8 +235,7 @@ class Trajectory:
 
     @property
     def seconds_per_simulated_second(self) -> float | None:
-        simulated = self.timed_frames * self.substeps * self.dt
-        return self.timed_seconds / simulated if self.timed_frames else None
+        return statistics.median(self.frame_seconds) / (self.substeps * self.dt) if self.frame_seconds else None
 
     @property
     def error_rms(self) -> float:
@@ -218,46 +246,48 @@ class Trajectory:
         e = np.asarray(self.energies)
         return float(np.max(np.abs(e - e[0])) / max(abs(e[0]), 1e-12))
 
-    def record(self, model: Model, gravity: Sequence[float], x: np.ndarray, v: np.ndarray, mask: np.ndarray | None,
-               reference: np.ndarray | None, keep: bool) -> None:
-        x64, v64 = x.astype(np.float64), v.astype(np.float64)
-        self.energies.append(total_energy(model, gravity, x64, v64))
-        if mask is not None:
-            self.max_strain = max(self.max_strain or 0.0, float(np.abs(strain(model.springs, x64)[mask]).max()))
+    def record(self, energy: float, strains: np.ndarray | None, x: np.ndarray, reference: np.ndarray | None) -> None:
+        self.energies.append(energy)
+        if strains is not None:
+            self.max_strain = max(self.max_strain or 0.0, float(np.abs(strains).max()))
         if reference is not None:
-            distance = np.linalg.norm(x64 - reference, axis=1)
+            distance = np.linalg.norm(x - reference, axis=1)
             self.squared_error += float(np.sum(distance * distance))
             self.error_count += len(distance)
             self.error_max = max(self.error_max, float(distance.max()))
-        if keep:
-            self.positions.append(x)
 
 
 def simulate(scene: Scene, device: str, frames: int, reference: Sequence[np.ndarray] | None = None,
              keep_positions: bool = False, tick: Callable[[int], None] = lambda n: None) -> Trajectory:
-    """Run ``frames`` frames, timing only ``Simulator.step()`` after the warm-up frames; positions and
-    velocities are read after each timed step, outside the timed region."""
+    """Run ``frames`` frames, timing only ``Simulator.step()`` after the warm-up frames; the state is read
+    after each timed step, outside the timed region."""
     sim = Simulator(scene, device=device)
-    model, gravity = sim.model, scene.simulation.gravity
-    mask = strained_springs(model) if model.springs is not None else None
+    model, gravity, springs = sim.model, scene.simulation.gravity, sim.model.springs
+    mask = strained_springs(model) if springs is not None else None
+    bounds = strain_bounds(springs, mask) if springs is not None else None
     run = Trajectory(sim.dt, sim.substeps_per_frame, model.particle_count, frames)
-    run.record(model, gravity, sim.positions(), sim.velocities(), mask, None, False)
+    x = sim.positions().astype(np.float64)
+    run.record(total_energy(model, gravity, x, sim.velocities().astype(np.float64)),
+               None if mask is None else strain(springs, x)[mask], x, None)
     for frame in range(1, frames + 1):
         try:
             seconds = timed_step(sim)
-            x = sim.positions()
-            unstable = blown_up(x)
-        except UnstableSimulation:
-            unstable = True
-        if unstable:
+            positions = sim.positions()
+            x = positions.astype(np.float64)
+            strains = None if mask is None else strain(springs, x)[mask]
+            run.unstable_reason = instability(x, strains, bounds)
+        except UnstableSimulation as exc:
+            run.unstable_reason = exc.reason
+        if run.unstable_reason is not None:
             run.unstable_frame = frame
             tick(frames - frame + 1)
             return run
         if frame > WARMUP_FRAMES:
-            run.timed_seconds += seconds
-            run.timed_frames += 1
-        run.record(model, gravity, x, sim.velocities(), mask, None if reference is None else reference[frame - 1],
-                   keep_positions)
+            run.frame_seconds.append(seconds)
+        run.record(total_energy(model, gravity, x, sim.velocities().astype(np.float64)), strains, x,
+                   None if reference is None else reference[frame - 1])
+        if keep_positions:
+            run.positions.append(positions)
         tick(1)
     return run
 
@@ -276,8 +306,13 @@ class _Planned:
 def _plan(scene: Scene, integrators: Sequence[str], dts: Sequence[float], resolutions: Sequence[int | None],
           frames: int) -> list[_Planned]:
     """Every run's scene, built (and so checked) before anything runs."""
+    if not integrators:
+        raise SceneError("--integrators", "at least one of " + ", ".join(INTEGRATORS), has_got=False,
+                         source="command line")
     planned = []
     for resolution in resolutions:
+        if resolution is not None and resolution < 1:
+            raise SceneError("--resolutions", "quads per side, whole numbers >= 1", resolution, "command line")
         try:
             base = scene if resolution is None else with_resolution(scene, resolution)
         except SceneError as exc:
@@ -300,7 +335,7 @@ def _check_reference(scene: Scene, device: str, frames: int, substeps: int,
                          keep_positions=True, tick=tick)
     if reference.unstable_frame is not None:
         raise SceneError("reference", f"a scene that stays stable with {REFERENCE_INTEGRATOR} Euler at dt "
-                         f"{reference.dt:.3g} s (it went unstable at frame {reference.unstable_frame})",
+                         f"{reference.dt:.3g} s (at frame {reference.unstable_frame}: {reference.unstable_reason})",
                          has_got=False, source=scene.name)
     half = simulate(with_step(scene, REFERENCE_INTEGRATOR, frames, substeps=2 * substeps), device, frames,
                     reference=reference.positions, tick=tick)
@@ -313,7 +348,7 @@ def _study_run(planned: _Planned, run: Trajectory, resolved_above: float) -> Stu
     return StudyRun(planned.integrator, planned.resolution, run.particles, planned.dt, run.dt, run.substeps,
                     run.frames, run.seconds_per_simulated_second if stable else None, rms,
                     run.error_max if stable else None, run.max_strain if stable else None,
-                    run.energy_drift if stable else None, run.unstable_frame,
+                    run.energy_drift if stable else None, run.unstable_frame, run.unstable_reason,
                     rms >= resolved_above if stable else None)
 
 
@@ -333,13 +368,13 @@ def convergence_order(runs: Sequence[StudyRun]) -> float | None:
     return float(np.dot(dx, dy) / np.dot(dx, dx))
 
 
-def run_study(scene: Scene | str, integrators: Sequence[str] = INTEGRATORS, dts: Sequence[float] | None = None,
+def run_study(scene: Scene | str | Path, integrators: Sequence[str] = INTEGRATORS, dts: Sequence[float] | None = None,
               resolutions: Sequence[int] | None = None, frames: int | None = None, device: str | None = None,
               reference_refinement: int = REFERENCE_REFINEMENT, progress: bool = True) -> Study:
     """Run every (integrator, dt, resolution) of a scene (a ``Scene``, a built-in name or a TOML path) and
     measure it against a reference. Defaults: the scene's step and its half and quarter, the scene's
     resolution, the scene's frames up to 48. Bad input raises ``SceneError`` before anything runs."""
-    scene = load_scene(scene) if isinstance(scene, str) else scene
+    scene = scene if isinstance(scene, Scene) else load_scene(scene)
     step = scene.simulation.step
     dts = list(dts) if dts else [step, step / 2, step / 4]
     frames = frames if frames is not None else min(scene.simulation.frames, DEFAULT_MAX_FRAMES)
@@ -347,10 +382,13 @@ def run_study(scene: Scene | str, integrators: Sequence[str] = INTEGRATORS, dts:
         raise SceneError("--frames", f"a whole number > {WARMUP_FRAMES} (the first {WARMUP_FRAMES} are not timed)",
                          frames, "command line")
     if reference_refinement < 1:
-        raise SceneError("reference_refinement", "a whole number >= 1", reference_refinement)
+        raise SceneError("--reference-refinement", "a whole number >= 1", reference_refinement, "command line")
     resolutions_or_own: list[int | None] = list(resolutions) if resolutions else [None]
     planned = _plan(scene, integrators, dts, resolutions_or_own, frames)
-    dev = resolve_device(device).alias
+    try:
+        dev = resolve_device(device).alias
+    except SceneError as exc:
+        raise _option_error("--device", exc) from None
     ref_substeps = reference_refinement * max(p.scene.simulation.substeps_per_frame for p in planned)
     bar = Progress(frames * (len(planned) + 2 * len(resolutions_or_own)), f"study {scene.name} on {dev}") \
         if progress else None
@@ -371,7 +409,8 @@ def run_study(scene: Scene | str, integrators: Sequence[str] = INTEGRATORS, dts:
         if bar:
             bar.close()
     orders = {i: convergence_order([r for r in runs if r.integrator == i]) for i in integrators}
-    return Study(scene.name, dev, frames, scene.simulation.fps, runs, references, orders, environment(dev))
+    return Study(scene.name, dev, frames, scene.simulation.fps, reference_refinement, runs, references, orders,
+                 environment(dev))
 
 
 # --- Output -------------------------------------------------------------------------------------------
@@ -380,7 +419,7 @@ def run_study(scene: Scene | str, integrators: Sequence[str] = INTEGRATORS, dts:
 def study_json(study: Study) -> dict:
     return {"scene": study.scene, "device": study.device, "frames": study.frames, "fps": study.fps,
             "environment": study.environment, "definitions": DEFINITIONS,
-            "reference": {"integrator": REFERENCE_INTEGRATOR,
+            "reference": {"integrator": REFERENCE_INTEGRATOR, "refinement": study.reference_refinement,
                           "rule": "same scene and resolution, smallest study step / refinement; checked against "
                                   "half its step", "converged": study.converged,
                           "checks": [dataclasses.asdict(r) for r in study.references]},
@@ -417,11 +456,9 @@ def write_study(study: Study, out: Path) -> list[Path]:
 
 def pareto_front(runs: Sequence[StudyRun]) -> list[StudyRun]:
     """The stable runs that no other run beats in both error and time, fastest first."""
-    points = [r for r in runs if r.error_rms and r.seconds_per_simulated_second]
-    front = [r for r in points
-             if not any(o.error_rms <= r.error_rms and o.seconds_per_simulated_second <= r.seconds_per_simulated_second
-                        and (o.error_rms, o.seconds_per_simulated_second)
-                        != (r.error_rms, r.seconds_per_simulated_second) for o in points)]
+    points = [(r.seconds_per_simulated_second, r.error_rms, r) for r in runs
+              if r.error_rms and r.seconds_per_simulated_second]
+    front = [r for t, e, r in points if not any(u <= t and f <= e and (u, f) != (t, e) for u, f, _ in points)]
     return sorted(front, key=lambda r: r.seconds_per_simulated_second)
 
 
@@ -429,14 +466,20 @@ def _by_integrator(study: Study) -> dict[str, list[StudyRun]]:
     return {i: [r for r in study.runs if r.integrator == i and r.error_rms] for i in study.orders}
 
 
-def _save(figure, axes, title: str, path: Path) -> None:
-    axes.set_title(title)
-    axes.grid(True, which="both", alpha=0.3)
-    axes.legend()
-    figure.tight_layout()
-    figure.savefig(path, dpi=120)
+def _style(study: Study, integrator: str) -> dict:
+    """One colour and marker per integrator, the same in every plot."""
+    k = list(study.orders).index(integrator)
+    return {"color": f"C{k}", "marker": "osD^v"[k % 5]}
+
+
+def _save(figure, axes, title: str, path: Path, **legend) -> None:
     import matplotlib.pyplot as plt
 
+    axes.set_title(title)
+    axes.grid(True, which="both", alpha=0.3)
+    axes.legend(**legend)
+    figure.tight_layout()
+    figure.savefig(path, dpi=120)
     plt.close(figure)
 
 
@@ -446,11 +489,11 @@ def plot_error_vs_time(study: Study, path: Path) -> None:
     figure, axes = plt.subplots(figsize=(7, 5))
     for integrator, runs in _by_integrator(study).items():
         timed = [r for r in runs if r.seconds_per_simulated_second]
-        axes.loglog([r.seconds_per_simulated_second for r in timed], [r.error_rms for r in timed], "o",
-                    label=integrator)
+        axes.loglog([r.seconds_per_simulated_second for r in timed], [r.error_rms for r in timed], linestyle="none",
+                    label=integrator, **_style(study, integrator))
     front = pareto_front(study.runs)
     axes.loglog([r.seconds_per_simulated_second for r in front], [r.error_rms for r in front], "k--",
-                drawstyle="steps-post", marker="s", markerfacecolor="none", markersize=11, label="Pareto front")
+                drawstyle="steps-post", marker="o", markerfacecolor="none", markersize=13, label="Pareto front")
     axes.set_xlabel("wall time per simulated second (s)")
     axes.set_ylabel("RMS position error (m)")
     _save(figure, axes, f"{study.scene}: error vs cost on {study.device}", path)
@@ -462,8 +505,9 @@ def plot_error_vs_dt(study: Study, path: Path) -> None:
     figure, axes = plt.subplots(figsize=(7, 5))
     for integrator, runs in _by_integrator(study).items():
         order = study.orders[integrator]
-        label = f"{integrator} (order {order:.2f})" if order is not None else f"{integrator} (order n/a)"
-        axes.loglog([r.dt for r in runs], [r.error_rms for r in runs], "o", label=label)
+        label = f"{integrator} (order {'n/a' if order is None else format(order, '.2f')})"
+        axes.loglog([r.dt for r in runs], [r.error_rms for r in runs], linestyle="none", markerfacecolor="none",
+                    label=label, **_style(study, integrator))
     axes.set_xlabel("time step dt (s)")
     axes.set_ylabel("RMS position error (m)")
     _save(figure, axes, f"{study.scene}: error vs time step", path)
@@ -472,21 +516,24 @@ def plot_error_vs_dt(study: Study, path: Path) -> None:
 def plot_time_vs_resolution(study: Study, path: Path) -> None:
     import matplotlib.pyplot as plt
 
-    figure, axes = plt.subplots(figsize=(7, 5))
+    figure, axes = plt.subplots(figsize=(9, 5))
     for integrator in study.orders:
-        for dt in sorted({r.dt for r in study.runs if r.integrator == integrator}):
+        dts = sorted({r.dt for r in study.runs if r.integrator == integrator})
+        for k, dt in enumerate(dts):
             runs = sorted((r for r in study.runs if r.integrator == integrator and r.dt == dt
                            and r.seconds_per_simulated_second), key=lambda r: r.particles)
             if runs:
-                axes.loglog([r.particles for r in runs], [r.seconds_per_simulated_second for r in runs], "o-",
-                            label=f"{integrator} dt {dt * 1e3:.3g} ms")
+                axes.loglog([r.particles for r in runs], [r.seconds_per_simulated_second for r in runs],
+                            alpha=1.0 - 0.6 * k / max(1, len(dts) - 1), label=f"{integrator} dt {dt * 1e3:.3g} ms",
+                            **_style(study, integrator))
     axes.set_xlabel("particles")
     axes.set_ylabel("wall time per simulated second (s)")
-    _save(figure, axes, f"{study.scene}: cost vs resolution on {study.device}", path)
+    _save(figure, axes, f"{study.scene}: cost vs resolution on {study.device} (fainter: larger dt)", path,
+          loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize="small")
 
 
-def _number(value: float | None, fmt: str) -> str:
-    return "-" if value is None else format(value, fmt)
+def _number(value: float | None, width: int, spec: str = ".3g") -> str:
+    return f"{'-' if value is None else format(value, spec):>{width}}"
 
 
 def format_table(study: Study) -> str:
@@ -494,12 +541,11 @@ def format_table(study: Study) -> str:
               f"{'rms err m':>10} {'max err m':>10} {'max strain':>10} {'E drift':>9}  status")
     lines = [header, "-" * len(header)]
     for r in study.runs:
-        status = (f"unstable at frame {r.unstable_frame}" if r.unstable_frame is not None
+        status = (f"unstable at frame {r.unstable_frame}: {r.unstable_reason}" if r.unstable_frame is not None
                   else "ok" if r.resolved else "below reference resolution")
         lines.append(f"{r.integrator:<10} {r.resolution or 'scene':>5} {r.particles:>9} {r.dt * 1e3:>8.4g} "
-                     f"{r.substeps:>8} {_number(r.seconds_per_simulated_second, '9.3g')} "
-                     f"{_number(r.error_rms, '10.3g')} {_number(r.error_max, '10.3g')} "
-                     f"{_number(r.max_strain, '10.3g')} {_number(r.energy_drift, '9.3g')}  {status}")
+                     f"{r.substeps:>8} {_number(r.seconds_per_simulated_second, 9)} {_number(r.error_rms, 10)} "
+                     f"{_number(r.error_max, 10)} {_number(r.max_strain, 10)} {_number(r.energy_drift, 9)}  {status}")
     for c in study.references:
         lines.append(f"reference {c.resolution or 'scene'}: {c.integrator} dt {c.dt * 1e3:.4g} ms vs "
                      f"{c.dt_half * 1e3:.4g} ms: difference rms {c.difference_rms:.3g} m, max "
@@ -510,7 +556,7 @@ def format_table(study: Study) -> str:
 
 def summary_line(study: Study, out: Path) -> str:
     unstable = sum(r.unstable_frame is not None for r in study.runs)
-    orders = ", ".join(f"{i} {_number(o, '.2f') if o is not None else 'n/a'}" for i, o in study.orders.items())
+    orders = ", ".join(f"{i} {'n/a' if o is None else format(o, '.2f')}" for i, o in study.orders.items())
     reference = "" if study.converged else "; reference NOT converged"
     return (f"study {study.scene}: {len(study.runs)} runs ({unstable} unstable) on {study.device}; orders {orders}"
             f"{reference}; wrote {out}/")
@@ -529,8 +575,11 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--dt", nargs="+", type=float, help="time steps in seconds (default: the scene's, /2, /4)")
     parser.add_argument("--resolutions", nargs="+", type=int,
                         help="quads per side of every cloth, size and total mass kept (default: the scene's)")
-    parser.add_argument("--frames", type=int, help=f"frames per run (default: the scene's, at most {DEFAULT_MAX_FRAMES})")
+    parser.add_argument("--frames", type=int,
+                        help=f"frames per run (default: the scene's, at most {DEFAULT_MAX_FRAMES})")
     parser.add_argument("--device", help="cpu, cuda or cuda:N (default: cuda if available, else cpu)")
+    parser.add_argument("--reference-refinement", type=int, default=REFERENCE_REFINEMENT, metavar="N",
+                        help=f"reference step = smallest study step / N (default {REFERENCE_REFINEMENT})")
     parser.add_argument("--out", type=Path, help="output folder (default: out/study-SCENE)")
     return parser
 
@@ -539,7 +588,8 @@ def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     wp.config.log_level = wp.LOG_ERROR
     try:
-        study = run_study(args.scene, args.integrators, args.dt, args.resolutions, args.frames, args.device)
+        study = run_study(args.scene, args.integrators, args.dt, args.resolutions, args.frames, args.device,
+                          args.reference_refinement)
     except SceneError as exc:
         print(f"warp-cloth study: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT

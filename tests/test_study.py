@@ -1,0 +1,137 @@
+"""The accuracy/cost study: its numbers against exact ones (free fall), its convergence orders on the seed's
+cloth, its instability reports, its files and its input errors."""
+
+import csv
+import json
+import math
+
+import numpy as np
+import pytest
+
+import warp_cloth as wc
+from warp_cloth.study import StudyRun, main, pareto_front, plots_available, run_study, with_resolution
+
+G = 9.81
+FPS = 24
+OFF = wc.SpringKind(enabled=False)
+
+
+def free_fall_scene() -> wc.Scene:
+    cloth = wc.Cloth(resolution=(2, 2), size=(1.0, 1.0), orientation="horizontal", origin=(0.0, 1.0, 0.0),
+                     structural=OFF, shear=OFF, bend=OFF)
+    return wc.Scene(name="fall", cloths=(cloth,), simulation=wc.Simulation(fps=FPS, frames=12))
+
+
+def test_free_fall_errors_drift_and_orders_are_the_exact_ones():
+    # Forward Euler lags the exact fall by g h t / 2 and semi-implicit (and backward) Euler lead it by as much,
+    # so against a symplectic reference at h_r each run is off by g (h -/+ h_r) t / 2 at every particle, and
+    # the energy changes by m g^2 h t / 2: a drift of g h T / (2 y0) with the cloth starting at height y0 = 1.
+    frames, substeps = 12, (4, 8, 16)
+    study = run_study(free_fall_scene(), ("explicit", "symplectic", "implicit"), [1 / (FPS * s) for s in substeps],
+                      frames=frames, device="cpu", progress=False)
+    h_ref = 1 / (FPS * 16 * substeps[-1])
+    assert study.references[0].dt == pytest.approx(h_ref)
+    times = np.arange(1, frames + 1) / FPS
+    for run in study.runs:
+        offset = run.dt + h_ref if run.integrator == "explicit" else run.dt - h_ref
+        assert run.error_rms == pytest.approx(G * offset / 2 * np.sqrt(np.mean(times ** 2)), rel=2e-3)
+        assert run.error_max == pytest.approx(G * offset / 2 * times[-1], rel=2e-3)
+        assert run.energy_drift == pytest.approx(G * run.dt * times[-1] / 2, rel=2e-3)
+        assert run.max_strain is None and run.unstable_frame is None and run.resolved
+    dts = np.array([1 / (FPS * s) for s in substeps])
+    for integrator, sign in (("explicit", 1), ("symplectic", -1), ("implicit", -1)):
+        expected = np.polyfit(np.log(dts), np.log(dts + sign * h_ref), 1)[0]  # 0.967 and 1.035
+        assert study.orders[integrator] == pytest.approx(expected, abs=0.01)
+        assert abs(study.orders[integrator] - 1) < 0.05
+    assert study.converged
+
+
+def test_error_halves_with_dt_on_the_seed_cloth(tmp_path):
+    # The seed's hanging cloth at 4x4 quads and 12 frames (before the strain limit holds the swing hard):
+    # first order for all three integrators, within 0.15.
+    out = tmp_path / "study"
+    code = main(["hanging", "--resolutions", "4", "--frames", "12", "--dt", *(str(1 / (FPS * s)) for s in (8, 16, 32)),
+                 "--reference-refinement", "8", "--device", "cpu", "--out", str(out)])
+    assert code == 0
+    data = json.loads((out / "study.json").read_text())
+    for integrator in ("explicit", "symplectic", "implicit"):
+        assert abs(data["orders"][integrator] - 1) < 0.15, data["orders"]
+        errors = [r["error_rms"] for r in data["runs"] if r["integrator"] == integrator]
+        assert errors == sorted(errors, reverse=True)
+        assert 1.5 < errors[0] / errors[1] < 2.5
+    assert all(0.07 < r["max_strain"] < 0.11 for r in data["runs"])
+    check = data["reference"]["checks"][0]
+    assert check["resolution"] == 4 and check["particles"] == 25
+    assert check["difference_rms"] < min(r["error_rms"] for r in data["runs"])
+
+
+def test_a_run_at_the_reference_step_has_no_error_and_the_study_says_it_cannot_resolve_it():
+    study = run_study("hanging", ["symplectic"], [0.0025], frames=6, device="cpu", reference_refinement=1,
+                      progress=False)
+    (run,) = study.runs
+    assert run.dt == study.references[0].dt
+    assert run.error_rms == 0.0 and run.error_max == 0.0
+    assert run.resolved is False and not study.converged
+    assert study.orders == {"symplectic": None}
+
+
+def test_unstable_runs_are_reported_not_raised(tmp_path, capsys):
+    # The seed's cloth blows up with explicit Euler at these steps (NaN or the guard); semi-implicit Euler at
+    # 0.0104 s does not leave the strain limit's bounds, but boils at hundreds of m/s with springs 4x past it.
+    out = tmp_path / "study"
+    code = main(["hanging", "--dt", "0.0208", "0.0104", "--frames", "24", "--device", "cpu", "--out", str(out)])
+    assert code == 0
+    with open(out / "study.csv") as handle:
+        rows = list(csv.DictReader(handle))
+    data = json.loads((out / "study.json").read_text())
+    assert len(rows) == len(data["runs"]) == 6
+    unstable = [r for r in data["runs"] if r["integrator"] != "implicit"]
+    assert all(1 <= r["unstable_frame"] <= 24 and r["unstable_reason"] for r in unstable)
+    assert all(r["error_rms"] is None and r["seconds_per_simulated_second"] is None for r in unstable)
+    assert all(row["unstable_frame"] for row in rows if row["integrator"] != "implicit")
+    assert "strain" in next(r["unstable_reason"] for r in unstable if r["integrator"] == "symplectic"
+                            and r["dt_requested"] == 0.0104)
+    implicit = [r for r in data["runs"] if r["integrator"] == "implicit"]
+    assert all(r["unstable_frame"] is None and r["error_rms"] > 0 for r in implicit)
+    assert all(r["seconds_per_simulated_second"] > 0 and math.isfinite(r["energy_drift"]) for r in implicit)
+    assert data["device"] == "cpu" and data["environment"]["device_alias"] == "cpu" and data["environment"]["warp"]
+    assert set(data["definitions"]) >= {"error_rms", "energy_drift", "max_strain", "unstable_frame"}
+    pngs = [out / name for name in ("error_vs_time.png", "error_vs_dt.png", "time_vs_resolution.png")]
+    stdout = capsys.readouterr().out
+    assert "unstable at frame" in stdout and "6 runs (4 unstable) on cpu" in stdout
+    if plots_available():
+        assert all(png.stat().st_size > 1000 for png in pngs)
+    else:
+        assert "plots skipped" in stdout and not any(png.exists() for png in pngs)
+
+
+def test_resolution_keeps_size_and_total_mass():
+    scene = wc.load_scene("hanging")  # mass per particle
+    density = wc.Scene(cloths=(wc.Cloth(density=0.2),))
+    for original in (scene, density):
+        finer = with_resolution(original, 20)
+        assert finer.cloths[0].resolution == (20, 20) and finer.cloths[0].size == original.cloths[0].size
+        masses = [wc.Simulator(s, device="cpu").model.masses.sum() for s in (original, finer)]
+        assert masses[1] == pytest.approx(masses[0], rel=1e-5)
+    by_index = wc.Scene(cloths=(wc.Cloth(pins=(wc.Pin(indices=(0,)),)),))
+    with pytest.raises(wc.SceneError, match="indices"):
+        with_resolution(by_index, 4)
+
+
+def test_pareto_front_keeps_only_unbeaten_runs():
+    def run(seconds, error, unstable=None):
+        return StudyRun("symplectic", None, 9, 0.01, 0.01, 4, 12, seconds, error, error, None, 0.0, unstable,
+                        unstable and "test", True)
+
+    fast, accurate, beaten, tied = run(1.0, 0.1), run(10.0, 0.01), run(20.0, 0.1), run(10.0, 0.01)
+    blown = run(None, None, unstable=3)
+    assert pareto_front([beaten, accurate, fast, blown, tied]) == [fast, accurate, tied]
+
+
+@pytest.mark.parametrize("args", [["no_such_scene"], ["hanging", "--dt", "-0.01"], ["hanging", "--frames", "2"],
+                                  ["hanging", "--resolutions", "0"], ["hanging", "--dt", "0.5"]])
+def test_bad_input_is_one_line_and_exit_code_2(args, capsys, tmp_path):
+    assert main([*args, "--out", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("warp-cloth study: error: ") and "\n" not in err
+    assert not (tmp_path / "x").exists()
