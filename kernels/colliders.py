@@ -29,11 +29,14 @@ def contact_velocity(v: wp.vec3, collider_velocity: wp.vec3, normal: wp.vec3, pu
 
 @wp.kernel
 def collide_ground(height: float, friction: float, h: float, inv_mass: wp.array(dtype=float),
-                   x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3)):
+                   x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), resting: wp.array(dtype=int)):
+    """``resting`` (empty without particle collision) marks the particles a collider holds up."""
     i = wp.tid()
     p = x[i]
     if p[1] >= height or inv_mass[i] == 0.0:
         return
+    if resting.shape[0] > 0:
+        resting[i] = 1
     depth = height - p[1]
     x[i] = wp.vec3(p[0], height, p[2])
     normal = wp.vec3(0.0, 1.0, 0.0)
@@ -43,7 +46,8 @@ def collide_ground(height: float, friction: float, h: float, inv_mass: wp.array(
 @wp.kernel
 def collide_spheres(center: wp.array(dtype=wp.vec3), sphere_velocity: wp.array(dtype=wp.vec3),
                     radius: wp.array(dtype=float), friction: wp.array(dtype=float), h: float,
-                    inv_mass: wp.array(dtype=float), x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3)):
+                    inv_mass: wp.array(dtype=float), x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3),
+                    resting: wp.array(dtype=int)):
     i = wp.tid()
     if inv_mass[i] == 0.0:
         return
@@ -57,6 +61,8 @@ def collide_spheres(center: wp.array(dtype=wp.vec3), sphere_velocity: wp.array(d
             if dist > 1.0e-12:
                 normal = d / dist
             depth = radius[s] - dist
+            if resting.shape[0] > 0:
+                resting[i] = 1
             p = center[s] + radius[s] * normal
             vel = contact_velocity(vel + normal * (depth / h), sphere_velocity[s], normal, depth / h, friction[s])
     x[i] = p

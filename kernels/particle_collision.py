@@ -3,8 +3,8 @@
 One substep: build the grid on the positions, gather each particle's candidate neighbours within a
 search radius into a fixed-size list, then run Jacobi passes that push overlapping pairs apart (each
 particle moves by the mean of its corrections, weighted by inverse mass: no races, deterministic; its
-velocity changes by the same correction over h), then remove what is still approaching in each contact's
-relative velocity (averaged the same way), with friction in proportion to the normal speed taken away.
+velocity changes by the same correction over h), then make each contact inelastic (averaged the same
+way), with friction in proportion to the normal speed taken away.
 Two particles i, j touch when closer than ``separation * (r_i + r_j) / 2``.
 """
 
@@ -43,9 +43,8 @@ def gather_neighbors(grid: wp.uint64, x: wp.array(dtype=wp.vec3), radius: wp.arr
                      search_radius: float, separation: float, search_scale: float, cloth_id: wp.array(dtype=int),
                      self_collision: int, between_cloths: int, grid_xy: wp.array(dtype=int),
                      exclude_adjacent: wp.array(dtype=int), max_neighbors: int, neighbors: wp.array(dtype=int),
-                     counts: wp.array(dtype=int), pushed: wp.array(dtype=float), overflow: wp.array(dtype=int)):
-    """Each particle's candidates: pairs allowed to collide and closer than search_scale contact distances.
-    Also starts the substep's tally of how far the particle gets pushed."""
+                     counts: wp.array(dtype=int), overflow: wp.array(dtype=int)):
+    """Each particle's candidates: pairs allowed to collide and closer than search_scale contact distances."""
     i = wp.tid()
     xi = x[i]
     ri = radius[i]
@@ -66,22 +65,38 @@ def gather_neighbors(grid: wp.uint64, x: wp.array(dtype=wp.vec3), radius: wp.arr
         else:
             wp.atomic_add(overflow, 0, 1)
     counts[i] = count
-    pushed[i] = 0.0
-    pushed[i] = 0.0
+
+
+@wp.func
+def separating_direction(d: wp.vec3, dist: float, i: int, j: int) -> wp.vec3:
+    """The unit direction from j to i; for particles on top of each other, a fixed direction whose sign
+    the pair's indices decide, so that the two are pushed apart rather than left coincident."""
+    if dist > 1.0e-9:
+        return d / dist
+    direction = wp.normalize(wp.vec3(0.267, 0.535, 0.802))
+    if i < j:
+        return direction
+    return -direction
 
 
 @wp.kernel
 def separate_particles(x: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float), radius: wp.array(dtype=float),
                        separation: float, h: float, neighbors: wp.array(dtype=int), counts: wp.array(dtype=int),
-                       max_neighbors: int, x_out: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3),
-                       pushed: wp.array(dtype=float)):
-    """One Jacobi pass: move each particle by the mean of the pushes out of its overlapping pairs."""
+                       max_neighbors: int, resting: wp.array(dtype=int), x_out: wp.array(dtype=wp.vec3),
+                       v: wp.array(dtype=wp.vec3), pushed: wp.array(dtype=float)):
+    """One Jacobi pass: move each particle by the mean of the pushes out of its overlapping pairs.
+
+    A particle that a rigid collider holds up (``resting``) does not give way to one that is not: the
+    other takes the whole push, as if the resting one were as heavy as the ground under it. Without this,
+    a heavy cloth on a light one on the ground sinks in, since each pass shares the push by mass and the
+    ground then undoes the light cloth's share."""
     i = wp.tid()
     xi = x[i]
     wi = inv_mass[i]
     if wi == 0.0:
         x_out[i] = xi
         return
+    rests = resting.shape[0] > 0 and resting[i] != 0
     ri = radius[i]
     correction = wp.vec3(0.0)
     touching = int(0)
@@ -90,8 +105,16 @@ def separate_particles(x: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=floa
         d = xi - x[j]
         dist = wp.length(d)
         target = contact_distance(ri, radius[j], separation)
-        if dist < target and dist > 1.0e-9:
-            correction = correction + (wi / (wi + inv_mass[j])) * (target - dist) * (d / dist)
+        if dist < target:
+            n = separating_direction(d, dist, i, j)
+            share = wi / (wi + inv_mass[j])
+            if resting.shape[0] > 0:
+                other_rests = resting[j] != 0
+                if rests and not other_rests:
+                    share = 0.0
+                elif other_rests and not rests:
+                    share = 1.0
+            correction = correction + share * (target - dist) * n
             touching += 1
     if touching > 0:
         correction = correction / float(touching)
@@ -101,19 +124,21 @@ def separate_particles(x: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=floa
 
 
 @wp.kernel
-def resolve_contact_velocities(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3),
+def resolve_contact_velocities(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), v_start: wp.array(dtype=wp.vec3),
                                inv_mass: wp.array(dtype=float), radius: wp.array(dtype=float), separation: float,
                                contact_slack: float, friction: float, h: float, pushed: wp.array(dtype=float),
                                neighbors: wp.array(dtype=int), counts: wp.array(dtype=int), max_neighbors: int,
                                v_out: wp.array(dtype=wp.vec3)):
-    """Remove the approaching normal part of each touching pair's relative velocity (the particle's mass
-    share of it, averaged over its contacts); friction takes tangential relative speed in proportion to
-    the normal speed taken away, the pushes of this substep's passes included."""
+    """Contacts are inelastic: each touching pair's relative normal velocity ends between 0 and what it
+    was before the collision stage (so pushes out of a deep overlap do not launch particles apart), the
+    particle taking its mass share of the change, averaged over its contacts; friction takes tangential
+    relative speed in proportion to the normal speed taken away, this substep's pushes included."""
     i = wp.tid()
     vi = v[i]
     wi = inv_mass[i]
     if wi == 0.0:
         v_out[i] = vi
+        pushed[i] = 0.0
         return
     xi = x[i]
     ri = radius[i]
@@ -124,16 +149,16 @@ def resolve_contact_velocities(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.
         j = neighbors[i * max_neighbors + k]
         d = xi - x[j]
         dist = wp.length(d)
-        if dist >= contact_slack * contact_distance(ri, radius[j], separation) or dist <= 1.0e-9:
+        if dist >= contact_slack * contact_distance(ri, radius[j], separation):
             continue
-        n = d / dist
+        n = separating_direction(d, dist, i, j)
         relative = vi - v[j]
         vn = wp.dot(relative, n)
+        allowed = wp.max(0.0, wp.dot(v_start[i] - v_start[j], n))
+        target = wp.clamp(vn, 0.0, allowed)
         share = wi / (wi + inv_mass[j])
-        stopped = pushed_speed
-        if vn < 0.0:
-            change = change - share * vn * n
-            stopped = stopped - vn
+        change = change + share * (target - vn) * n
+        stopped = pushed_speed + wp.max(0.0, -vn)
         tangential = relative - vn * n
         speed = wp.length(tangential)
         if speed > 0.0:
@@ -142,6 +167,7 @@ def resolve_contact_velocities(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.
     if touching > 0:
         change = change / float(touching)
     v_out[i] = vi + change
+    pushed[i] = 0.0
 
 
 @wp.kernel
@@ -170,7 +196,7 @@ def gather_neighbors_brute_force(x: wp.array(dtype=wp.vec3), radius: wp.array(dt
                                  between_cloths: int, grid_xy: wp.array(dtype=int),
                                  exclude_adjacent: wp.array(dtype=int), max_neighbors: int,
                                  neighbors: wp.array(dtype=int), counts: wp.array(dtype=int),
-                                 pushed: wp.array(dtype=float), overflow: wp.array(dtype=int)):
+                                 overflow: wp.array(dtype=int)):
     """The O(n^2) way to fill the same lists as ``gather_neighbors`` (every particle against every other,
     as the seed did): only for the benchmark that shows what the hash grid saves."""
     i = wp.tid()
@@ -191,4 +217,3 @@ def gather_neighbors_brute_force(x: wp.array(dtype=wp.vec3), radius: wp.array(dt
         else:
             wp.atomic_add(overflow, 0, 1)
     counts[i] = count
-    pushed[i] = 0.0

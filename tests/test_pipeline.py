@@ -49,14 +49,14 @@ EXPECTED = {
                          "advance_clock": 1},
 }
 # With particle collision, limits, separation and colliders are projected together in 8 passes (the
-# larger of the collision's 8 and the limit's 4 iterations): colliders in every pass, the limit in the
-# last 4.
+# larger of the collision's 8 and the limit's 4 iterations): colliders once before the passes (to know
+# which particles rest on them) and in every pass, the limit in the last 4.
 PASSES = 8
 EXPECTED_WITH_COLLISION = {
     "fold": {"euler_step": 1, "HashGrid.build": 1, "gather_neighbors": 1, "project_strain_limits": LIMIT_ITERATIONS,
-             "separate_particles": PASSES, "collide_ground": PASSES, "resolve_contact_velocities": 1},
+             "separate_particles": PASSES, "collide_ground": PASSES + 1, "resolve_contact_velocities": 1},
     "pile": {"euler_step": 1, "HashGrid.build": 1, "gather_neighbors": 1, "project_strain_limits": LIMIT_ITERATIONS,
-             "separate_particles": PASSES, "collide_ground": PASSES, "collide_spheres": PASSES,
+             "separate_particles": PASSES, "collide_ground": PASSES + 1, "collide_spheres": PASSES + 1,
              "resolve_contact_velocities": 1},
 }
 

@@ -68,6 +68,11 @@ def grid_positions(cloth: Cloth) -> np.ndarray:
     if cloth.jitter > 0:
         rng = np.random.default_rng(cloth.seed)
         local[:, 2] = rng.uniform(-1.0, 1.0, len(local)) * cloth.jitter * min(dx, dy)
+    if cloth.twist != 0.0:
+        angle = np.radians(cloth.twist) * gy / ny
+        across = local[:, 0] - 0.5 * cloth.size[0]
+        local[:, 0] = 0.5 * cloth.size[0] + across * np.cos(angle) - local[:, 2] * np.sin(angle)
+        local[:, 2] = across * np.sin(angle) + local[:, 2] * np.cos(angle)
     return local @ cloth_frame(cloth).T + np.asarray(cloth.origin, dtype=float)
 
 

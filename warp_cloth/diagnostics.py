@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from warp_cloth.kernels import intersections, particle_collision
+from warp_cloth.kernels import intersections
 
 from .simulator import Simulator
-from .stages import ParticleCollision, make_hash_grid
+from .stages import ParticleCollision
 
 
 class TriangleIntersections:
@@ -38,31 +38,16 @@ class TriangleIntersections:
 
 class ContactGaps:
     """The closest approach of two particles that may collide, as a fraction of their contact distance
-    (1.0 or more: no pair overlaps). Uses the scene's collision settings and the collision stage's hash
-    grid (rebuilt here; the next substep rebuilds it anyway). It must not be a grid of its own: on CUDA,
-    Warp's HashGrid.build copies the grid's descriptor from one static host variable per type, and a
-    captured graph copies whatever that variable holds when it replays, so building a second grid
-    between replays hands the simulation the second grid's cells."""
+    (1.0 or more: no pair overlaps), from the scene's collision stage."""
 
     def __init__(self, sim: Simulator) -> None:
         stage = next((s for s in sim.stages if isinstance(s, ParticleCollision)), None)
         if stage is None:
             raise ValueError("the scene declares no [collision]")
         self.stage = stage
-        self.device = sim.device
-        self.grid = stage.grid if stage.grid is not None else make_hash_grid(stage.n, self.device)
-        self.ratio = wp.zeros(1, dtype=float, device=self.device)
 
     def __call__(self, sim: Simulator) -> float:
-        stage = self.stage
-        s = stage.settings
-        self.grid.build(sim.state.x, stage.search_radius)
-        self.ratio.fill_(1.0e30)
-        wp.launch(particle_collision.closest_contact_ratio, dim=stage.n,
-                  inputs=[self.grid.id, sim.state.x, stage.radius, stage.search_radius, s.separation, stage.cloth_id,
-                          int(s.self_collision), int(s.between_cloths), *stage.exclusion],
-                  outputs=[self.ratio], device=self.device)
-        return float(self.ratio.numpy()[0])
+        return self.stage.closest_contact(sim.state.x)
 
 
 class CheckReport:

@@ -21,6 +21,8 @@ Edge = Literal["bottom", "top", "left", "right"]
 Integrator = Literal["explicit", "symplectic", "implicit"]
 INTEGRATORS: tuple[str, ...] = ("explicit", "symplectic", "implicit")
 
+MIN_CELL = 1e-4  # metres: the shortest spring rest length float32 positions resolve well
+
 # Particle count above which a scene is refused before any memory is asked for: indices are int32 and
 # a cloth of this size already needs gigabytes. The simulator checks the device's free memory as well.
 MAX_PARTICLES = 64 * 1024 * 1024
@@ -152,7 +154,9 @@ class Cloth:
     ``horizontal`` (u along +X, v along -Z, facing +Y), then rotated by ``rotation`` (degrees about X,
     then Y, then Z) about its corner (0, 0), which is put at ``origin``. ``mass`` is per particle;
     ``density`` (kg/m^2) instead gives each particle the area around it. ``jitter`` moves particles out of
-    plane by up to that fraction of a cell (the seed used 0.05), reproducibly from ``seed``.
+    plane by up to that fraction of a cell (the seed used 0.05), reproducibly from ``seed``. ``twist``
+    (degrees) starts the cloth twisted about its middle line along v, the far edge turned that much:
+    the springs keep the flat grid's rest lengths, so the cloth springs back.
     """
 
     name: str = "cloth"
@@ -165,6 +169,7 @@ class Cloth:
     density: float | None = None
     velocity: Vec3 = (0.0, 0.0, 0.0)
     jitter: float = 0.0
+    twist: float = 0.0
     seed: int = 0
     structural: SpringKind = SEED_STRUCTURAL
     shear: SpringKind = SEED_SHEAR
@@ -183,6 +188,9 @@ class Cloth:
                  f"at most {MAX_PARTICLES} particles per cloth", list(self.resolution))
         _require(self.size[0] > 0 and self.size[1] > 0, "size", "[width, height] in metres, each > 0",
                  list(self.size))
+        _require(min(self.size[0] / nx, self.size[1] / ny) >= MIN_CELL, "size",
+                 f"cells of at least {MIN_CELL:g} m (size / resolution; float32 positions cannot resolve "
+                 "smaller springs)", list(self.size))
         _require(not (self.mass is not None and self.density is not None), "density",
                  "either mass (per particle) or density (kg/m^2), not both", self.density)
         if self.mass is not None:

@@ -19,7 +19,7 @@ from .model import Model, build_model
 from .progress import Progress
 from .scene import Scene
 from .implicit import BackwardEuler, SolveStats
-from .stages import SphereColliders, Stage, build_stages
+from .stages import ParticleCollision, SphereColliders, Stage, build_stages
 from .state import DeviceState
 
 # Rough upper bounds per particle, to refuse a scene before allocating: host arrays while building
@@ -111,6 +111,8 @@ class Simulator:
     turns that off). Positions and velocities read back as numpy arrays of shape (particles, 3).
     """
 
+    INITIAL_OVERLAP_LIMIT = 0.5  # of the contact distance: closer starting pairs are refused
+
     def __init__(self, scene: Scene, device: str | None = None, graph: bool = True) -> None:
         self.device = resolve_device(device)
         check_memory(scene, self.device)
@@ -126,6 +128,19 @@ class Simulator:
         self._graphs: dict[int, tuple[wp.Graph, int]] = {}
         # One flag per substep of a frame, set by the blow-up guard (see kernels/guard.py).
         self._guard_status = wp.zeros(self.substeps_per_frame, dtype=int, device=self.device)
+        self._refuse_initial_overlap()
+
+    def _refuse_initial_overlap(self) -> None:
+        """Cloths that start deep inside each other (or themselves) would be shot apart: refuse them."""
+        collision = next((s for s in self.stages if isinstance(s, ParticleCollision)), None)
+        if collision is None:
+            return
+        ratio = collision.closest_contact(self.state.x)
+        if ratio < self.INITIAL_OVERLAP_LIMIT:
+            raise SceneError("cloth", f"cloths that start apart: two particles that collide start "
+                                      f"{ratio:.2f} of their contact distance apart (at least "
+                                      f"{self.INITIAL_OVERLAP_LIMIT} needed); move the cloths apart or "
+                                      "leave collision out", has_got=False)
 
     @property
     def time(self) -> float:

@@ -108,12 +108,13 @@ class SphereColliders:
         self.velocity = wp.zeros(len(s.center), dtype=wp.vec3, device=device)
         self.radius = _upload(s.radius, float, device)
         self.friction = _upload(s.friction, float, device)
+        self.resting = wp.zeros(0, dtype=int, device=device)  # the collision stage's, when there is one
         self.name = "spheres"
 
     def run(self, state: DeviceState) -> None:
         launch(colliders.collide_spheres, state.x.shape[0], state,
                inputs=[self.center, self.velocity, self.radius, self.friction, self.h, self.inv_mass],
-               outputs=[state.x, state.v])
+               outputs=[state.x, state.v, self.resting])
 
 
 class MoveSpheres:
@@ -133,17 +134,18 @@ class MoveSpheres:
 
 
 class GroundCollider:
-    def __init__(self, model: Model, inv_mass: wp.array, h: float) -> None:
+    def __init__(self, model: Model, inv_mass: wp.array, h: float, device) -> None:
         self.name = "ground"
         ground = model.scene.ground
         self.height = ground.height
         self.friction = ground.friction
         self.h = h
         self.inv_mass = inv_mass
+        self.resting = wp.zeros(0, dtype=int, device=device)  # the collision stage's, when there is one
 
     def run(self, state: DeviceState) -> None:
         launch(colliders.collide_ground, state.x.shape[0], state,
-               inputs=[self.height, self.friction, self.h, self.inv_mass], outputs=[state.x, state.v])
+               inputs=[self.height, self.friction, self.h, self.inv_mass], outputs=[state.x, state.v, self.resting])
 
 
 def make_hash_grid(particles: int, device) -> wp.HashGrid:
@@ -194,17 +196,45 @@ class ParticleCollision:
         self.neighbors = wp.zeros(n * settings.max_neighbors, dtype=int, device=device)
         self.counts = wp.zeros(n, dtype=int, device=device)
         self.pushed = wp.zeros(n, dtype=float, device=device)
+        self.v_start = wp.zeros(n, dtype=wp.vec3, device=device)
+        self.resting = wp.zeros(n if colliders else 0, dtype=int, device=device)
+        for collider in colliders:
+            collider.resting = self.resting
         self.overflow = wp.zeros(1, dtype=int, device=device)
         self.grid = None
+        self.grid_for_checks = None
         if settings.broad_phase == "hash_grid" or (settings.broad_phase == "auto" and n > self.BRUTE_FORCE_UP_TO):
             self.grid = make_hash_grid(n, device)
             # Build once now so that the grid's buffers exist before a CUDA graph is captured.
             self.grid.build(wp.array(model.positions, dtype=wp.vec3, device=device), self.search_radius)
 
+    def closest_contact(self, x: wp.array) -> float:
+        """The closest approach of two particles that may collide, as a fraction of their contact distance
+        (a diagnostic: it waits for the device). It rebuilds the stage's own grid, which the next substep
+        rebuilds anyway; a grid of its own would be wrong on CUDA, where Warp's HashGrid.build copies each
+        grid's descriptor from one static host variable that a captured graph reads when it replays, so a
+        second grid built between replays would hand the simulation its cells."""
+        if self.grid is None:  # brute force: the only grid there is
+            self.grid_for_checks = self.grid_for_checks or make_hash_grid(self.n, x.device)
+        grid = self.grid or self.grid_for_checks
+        s = self.settings
+        grid.build(x, self.search_radius)
+        ratio = wp.full(1, 1.0e30, dtype=float, device=x.device)
+        wp.launch(particle_collision.closest_contact_ratio, dim=self.n,
+                  inputs=[grid.id, x, self.radius, self.search_radius, s.separation, self.cloth_id,
+                          int(s.self_collision), int(s.between_cloths), *self.exclusion],
+                  outputs=[ratio], device=x.device)
+        return float(ratio.numpy()[0])
+
     def run(self, state: DeviceState) -> None:
         s = self.settings
+        wp.copy(self.v_start, state.v)
+        if self.colliders:
+            self.resting.zero_()
+            for collider in self.colliders:
+                collider.run(state)
         pair_rules = [self.cloth_id, int(s.self_collision), int(s.between_cloths), *self.exclusion, s.max_neighbors]
-        lists = [self.neighbors, self.counts, self.pushed, self.overflow]
+        lists = [self.neighbors, self.counts, self.overflow]
         if self.grid is not None:
             self.grid.build(state.x, self.search_radius)
             launch(particle_collision.gather_neighbors, self.n, state,
@@ -219,14 +249,14 @@ class ParticleCollision:
             if remaining <= s.iterations:
                 launch(particle_collision.separate_particles, self.n, state,
                        inputs=[state.x, self.inv_mass, self.radius, s.separation, self.h, self.neighbors,
-                               self.counts, s.max_neighbors],
+                               self.counts, s.max_neighbors, self.resting],
                        outputs=[state.x_next, state.v, self.pushed])
                 state.swap_positions()
             for collider in self.colliders:
                 collider.run(state)
         launch(particle_collision.resolve_contact_velocities, self.n, state,
-               inputs=[state.x, state.v, self.inv_mass, self.radius, s.separation, self.CONTACT_SLACK, s.friction,
-                       self.h, self.pushed, self.neighbors, self.counts, s.max_neighbors],
+               inputs=[state.x, state.v, self.v_start, self.inv_mass, self.radius, s.separation, self.CONTACT_SLACK,
+                       s.friction, self.h, self.pushed, self.neighbors, self.counts, s.max_neighbors],
                outputs=[state.v_next])
         state.swap_velocities()
 
@@ -268,7 +298,7 @@ def build_stages(model: Model, device) -> list[Stage]:
     limit = StrainLimit(model, inv_mass, sim.limit_iterations, h, device) if model.limits is not None else None
     colliders: list[Stage] = []
     if model.scene.ground is not None:
-        colliders.append(GroundCollider(model, inv_mass, h))
+        colliders.append(GroundCollider(model, inv_mass, h, device))
     if model.spheres is not None:
         spheres = SphereColliders(model, inv_mass, h, device)
         colliders.append(spheres)
