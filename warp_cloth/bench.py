@@ -216,8 +216,48 @@ def format_collision_table(results: list[CollisionResult]) -> str:
     return "\n".join(lines)
 
 
+MATRIX_VARIANTS = ("hanging", "sphere", "self")
+MATRIX_FPS, MATRIX_SUBSTEPS = 24, 10
+
+
+def matrix_scene(variant: str, n: int, integrator: str) -> Scene:
+    """The speed matrix's cloth (the same as ``newton_compare`` builds in Newton): n x n particles, 10 m
+    square, hanging in the XY plane from its whole top edge at y = 10, 2.5 kg in all, 10 substeps a frame;
+    ``sphere`` adds a 2 m sphere at (5, 5, 1.5), ``self`` adds self collision to that. Springs are as stiff
+    as the explicit step allows at this resolution (h w = 0.7), 50 times that for the implicit integrator;
+    the 10% strain limit holds the shape either way."""
+    h = 1.0 / (MATRIX_FPS * MATRIX_SUBSTEPS)
+    mass = 2.5 / (n * n)
+    cell = 10.0 / (n - 1)
+    stiffness = 0.5 * mass * cell / (8.0 * h * h) * (50.0 if integrator == "implicit" else 1.0)
+    damping = 0.1 * mass / (8.0 * h)
+    spring = SpringKind(stiffness, damping)
+    cloth = Cloth(resolution=(n - 1, n - 1), size=(10.0, 10.0), orientation="vertical", mass=mass, limit=Limit(0.1, 0.1),
+                  pins=(Pin(edges=("top",)),), structural=spring, shear=spring,
+                  bend=SpringKind(stiffness, damping, "compression", "compression"))
+    spheres = (Sphere(name="ball", center=(5.0, 5.0, 1.5), radius=2.0),) if variant in ("sphere", "self") else ()
+    return Scene(name=f"{variant}_{n}x{n}", cloths=(cloth,), spheres=spheres,
+                 collision=Collision(iterations=2) if variant == "self" else None,
+                 simulation=Simulation(fps=MATRIX_FPS, frames=48, substeps=MATRIX_SUBSTEPS, integrator=integrator,
+                                       limit_iterations=2))
+
+
+def matrix_sizes(device: str) -> list[int]:
+    return [64, 256] if device == "cpu" else [64, 256, 1024, 2048]
+
+
+def matrix_frames(n: int, device: str) -> int:
+    return 10 if device == "cpu" else (24 if n >= 2048 else 48)
+
+
+def matrix_cases(device: str) -> list[Case]:
+    return [Case(f"{variant} {n}^2 {integrator}", matrix_scene(variant, n, integrator), matrix_frames(n, device),
+                 fresh=False)
+            for variant in MATRIX_VARIANTS for n in matrix_sizes(device) for integrator in ("symplectic", "implicit")]
+
+
 SUITES: dict[str, Callable[[str], list[Case]]] = {"core": core_cases, "collision": collision_cases,
-                                                   "integrators": integrator_cases}
+                                                   "integrators": integrator_cases, "matrix": matrix_cases}
 
 
 def time_case(case: Case, device: str, repeats: int) -> Result:
@@ -280,12 +320,53 @@ def format_table(results: list[Result]) -> str:
     return "\n".join(lines)
 
 
+def newton_comparison(results: list[Result], device: str, repeats: int) -> list[dict]:
+    """The matrix's cloths in Newton's solvers on the same device, each row with the ratio of our
+    symplectic run's particle-substeps per second to the solver's."""
+    from .newton_compare import SOLVERS, newton_available, time_newton
+
+    if not newton_available():
+        print("newton is not installed (pip install 'warp-cloth[bench]'): no comparison", file=sys.stderr)
+        return []
+    ours = {r.case: r for r in results}
+    rows = []
+    sizes = matrix_sizes(device)
+    bar = Progress(len(MATRIX_VARIANTS) * len(sizes) * len(SOLVERS), f"newton on {device}")
+    for variant in MATRIX_VARIANTS:
+        for n in sizes:
+            mine = ours[f"{variant} {n}^2 symplectic"]
+            for solver in SOLVERS:
+                row = time_newton(variant, n, solver, device, frames=matrix_frames(n, device),
+                                  substeps=MATRIX_SUBSTEPS, repeats=repeats)
+                theirs = row["particle_substeps_per_second"]
+                row["ours_symplectic_particle_substeps_per_second"] = mine.particle_substeps_per_second
+                row["ratio"] = mine.particle_substeps_per_second / theirs if theirs and mine.stable else None
+                rows.append(row)
+                bar.update(len(rows))
+    bar.close()
+    return rows
+
+
+def format_newton_table(rows: list[dict]) -> str:
+    header = f"{'variant':<8} {'n^2':>9} {'Newton solver':<14} {'graph':>5} {'ms/frame':>9} " \
+             f"{'particle-substeps/s':>20} {'ours (symplectic)':>18} {'ours / Newton':>13} finite"
+    lines = [header, "-" * len(header)]
+    for r in rows:
+        ratio = f"{r['ratio']:12.1f}x" if r["ratio"] else f"{'-':>13}"
+        lines.append(f"{r['variant']:<8} {r['particles']:>9} {r['solver']:<14} {str(r['graph']):>5} "
+                     f"{r['ms_per_frame']:>9.3f} {r['particle_substeps_per_second']:>20.3g} "
+                     f"{r['ours_symplectic_particle_substeps_per_second']:>18.3g} {ratio} {r['finite']}")
+    return "\n".join(lines)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="warp-cloth bench", description="Time whole runs; print a table, write JSON.")
     parser.add_argument("--suite", choices=sorted(SUITES), default="core")
     parser.add_argument("--device", default=None, help="cpu or cuda (default: cuda if available)")
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--json", type=Path, help="where to write the results (default: out/bench-SUITE-DEVICE.json)")
+    parser.add_argument("--newton", action=argparse.BooleanOptionalAction, default=True,
+                        help="with the matrix suite, run the same cloths in Newton's solvers (the 'bench' extra)")
     args = parser.parse_args(argv)
     wp.config.log_level = wp.LOG_ERROR
     wp.init()
@@ -304,13 +385,17 @@ def main(argv: list[str] | None = None) -> int:
     scaling = collision_scaling(device, args.repeats) if args.suite == "collision" else []
     if scaling:
         print(format_collision_table(scaling))
+    newton_rows = newton_comparison(results, device, args.repeats) if args.suite == "matrix" and args.newton else []
+    if newton_rows:
+        print(format_newton_table(newton_rows))
     path = args.json or Path("out") / f"bench-{args.suite}-{device.replace(':', '')}.json"
     path.parent.mkdir(parents=True, exist_ok=True)
     payload = {"suite": args.suite, "repeats": args.repeats, "environment": env,
                "results": [dict(dataclasses.asdict(r), median_seconds=r.median_seconds,
                                 particle_substeps_per_second=r.particle_substeps_per_second,
                                 ms_per_frame=r.ms_per_frame) for r in results],
-               "collision_stage": [dict(dataclasses.asdict(r), ns_per_particle=r.ns_per_particle) for r in scaling]}
+               "collision_stage": [dict(dataclasses.asdict(r), ns_per_particle=r.ns_per_particle) for r in scaling],
+               "newton": newton_rows}
     path.write_text(json.dumps(payload, indent=2))
     best = max((r for r in results if r.stable), key=lambda r: r.particle_substeps_per_second)
     print(f"bench {args.suite}: {len(results)} cases on {env['device']}; best {best.particle_substeps_per_second:.3g} "
