@@ -11,6 +11,25 @@ Two particles i, j touch when closer than ``separation * (r_i + r_j) / 2``.
 import warp as wp
 
 
+@wp.kernel
+def rotate_for_hashing(x: wp.array(dtype=wp.vec3), rotation: wp.mat33, x_hash: wp.array(dtype=wp.vec3)):
+    """Positions as the hash grid sees them, turned by a fixed odd rotation. wp.HashGrid folds cells onto
+    buckets by coordinate modulo its dimensions, so a sheet lying along two grid axes piles dozens of its
+    cells into each bucket (a 2048^2 cloth in the XY plane: 42 a bucket); tilted, its cells spread over
+    the whole table."""
+    i = wp.tid()
+    x_hash[i] = rotation * x[i]
+
+
+@wp.kernel
+def displacement_exceeds(x: wp.array(dtype=wp.vec3), x_built: wp.array(dtype=wp.vec3), threshold: float,
+                         rebuild: wp.array(dtype=int)):
+    """Sets rebuild[0] if any particle moved farther than ``threshold`` since the neighbour lists were made."""
+    i = wp.tid()
+    if wp.length_sq(x[i] - x_built[i]) > threshold * threshold:
+        rebuild[0] = 1
+
+
 @wp.func
 def contact_distance(ri: float, rj: float, separation: float) -> float:
     return separation * 0.5 * (ri + rj)
@@ -39,8 +58,9 @@ def may_collide(i: int, j: int, cloth_id: wp.array(dtype=int), self_collision: i
 
 
 @wp.kernel
-def gather_neighbors(grid: wp.uint64, x: wp.array(dtype=wp.vec3), radius: wp.array(dtype=float),
-                     search_radius: float, separation: float, search_scale: float, cloth_id: wp.array(dtype=int),
+def gather_neighbors(grid: wp.uint64, x: wp.array(dtype=wp.vec3), x_hash: wp.array(dtype=wp.vec3),
+                     radius: wp.array(dtype=float), search_radius: float, separation: float, search_scale: float,
+                     cloth_id: wp.array(dtype=int),
                      self_collision: int, between_cloths: int, grid_xy: wp.array(dtype=int),
                      exclude_adjacent: wp.array(dtype=int), max_neighbors: int, neighbors: wp.array(dtype=int),
                      counts: wp.array(dtype=int), overflow: wp.array(dtype=int)):
@@ -49,7 +69,7 @@ def gather_neighbors(grid: wp.uint64, x: wp.array(dtype=wp.vec3), radius: wp.arr
     xi = x[i]
     ri = radius[i]
     count = int(0)
-    query = wp.hash_grid_query(grid, xi, search_radius)
+    query = wp.hash_grid_query(grid, x_hash[i], search_radius)
     j = int(0)
     while wp.hash_grid_query_next(query, j):
         if j == i:
@@ -171,14 +191,15 @@ def resolve_contact_velocities(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.
 
 
 @wp.kernel
-def closest_contact_ratio(grid: wp.uint64, x: wp.array(dtype=wp.vec3), radius: wp.array(dtype=float),
+def closest_contact_ratio(grid: wp.uint64, x: wp.array(dtype=wp.vec3), x_hash: wp.array(dtype=wp.vec3),
+                          radius: wp.array(dtype=float),
                           search_radius: float, separation: float, cloth_id: wp.array(dtype=int),
                           self_collision: int, between_cloths: int, grid_xy: wp.array(dtype=int),
                           exclude_adjacent: wp.array(dtype=int), ratio: wp.array(dtype=float)):
     """Diagnostic: the smallest distance / contact distance over all pairs that may collide."""
     i = wp.tid()
     xi = x[i]
-    query = wp.hash_grid_query(grid, xi, search_radius)
+    query = wp.hash_grid_query(grid, x_hash[i], search_radius)
     j = int(0)
     smallest = float(1.0e30)
     while wp.hash_grid_query_next(query, j):

@@ -84,11 +84,7 @@ def test_hash_grid_stage_matches_brute_force(seed, limit_a, self_on, between_on)
     assert (exclude is not None) == (not limit_a and self_on)
     s = stage.settings
     x_dev, v_dev = wp.array(x, dtype=wp.vec3), wp.array(v, dtype=wp.vec3)
-    stage.grid.build(x_dev, stage.search_radius)
-    wp.launch(particle_collision.gather_neighbors, n,
-              inputs=[stage.grid.id, x_dev, stage.radius, stage.search_radius, s.separation, stage.SEARCH_SCALE,
-                      stage.cloth_id, int(self_on), int(between_on), *stage.exclusion, s.max_neighbors],
-              outputs=[stage.neighbors, stage.counts, stage.overflow])
+    stage.make_lists(x_dev)
     assert stage.overflow.numpy()[0] == 0
     counts, neighbors = stage.counts.numpy(), stage.neighbors.numpy().reshape(n, s.max_neighbors)
     radius = contacts.radius

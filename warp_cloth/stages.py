@@ -10,6 +10,7 @@ import warp as wp
 from warp_cloth.kernels import colliders, integration, limits, motion, particle_collision, pins
 
 from .implicit import BackwardEuler
+from .cloth_grid import rotation_matrix
 from .model import Model
 from .state import DeviceState
 
@@ -148,6 +149,11 @@ class GroundCollider:
                inputs=[self.height, self.friction, self.h, self.inv_mass], outputs=[state.x, state.v, self.resting])
 
 
+# A fixed rotation of about 0.5, 0.7 and 0.9 rad about X, Y, Z: no cloth a user lays along world axes is
+# along the hash grid's axes (see kernels/particle_collision.py, rotate_for_hashing).
+HASH_ROTATION = wp.mat33(*rotation_matrix((28.6, 40.1, 51.6)).ravel().tolist())
+
+
 def make_hash_grid(particles: int, device) -> wp.HashGrid:
     """A hash grid sized to the particle count: a build clears every cell, so a small scene wants few
     cells (128^3 cost 0.43 ms a build for 676 particles on the CPU), and a large one enough cells that
@@ -201,30 +207,56 @@ class ParticleCollision:
         for collider in colliders:
             collider.resting = self.resting
         self.overflow = wp.zeros(1, dtype=int, device=device)
+        # Neighbour lists are remade only when some particle has moved more than this since they were made:
+        # a pair left out was farther than SEARCH_SCALE contact distances apart, so it cannot touch before.
+        self.rebuild_distance = 0.5 * (self.SEARCH_SCALE - 1.0) * settings.separation * float(contacts.radius.min())
+        self.x_built = wp.full(n, wp.vec3(1.0e30), dtype=wp.vec3, device=device)
+        self.rebuild = wp.zeros(1, dtype=int, device=device)
+        self.x_hash = wp.zeros(n, dtype=wp.vec3, device=device)
         self.grid = None
         self.grid_for_checks = None
         if settings.broad_phase == "hash_grid" or (settings.broad_phase == "auto" and n > self.BRUTE_FORCE_UP_TO):
             self.grid = make_hash_grid(n, device)
             # Build once now so that the grid's buffers exist before a CUDA graph is captured.
-            self.grid.build(wp.array(model.positions, dtype=wp.vec3, device=device), self.search_radius)
+            self.grid.build(self.x_hash, self.search_radius)
+
+    def _hash(self, x: wp.array, grid: wp.HashGrid) -> None:
+        wp.launch(particle_collision.rotate_for_hashing, dim=self.n, inputs=[x, HASH_ROTATION], outputs=[self.x_hash],
+                  device=x.device)
+        grid.build(self.x_hash, self.search_radius)
 
     def closest_contact(self, x: wp.array) -> float:
         """The closest approach of two particles that may collide, as a fraction of their contact distance
-        (a diagnostic: it waits for the device). It rebuilds the stage's own grid, which the next substep
-        rebuilds anyway; a grid of its own would be wrong on CUDA, where Warp's HashGrid.build copies each
-        grid's descriptor from one static host variable that a captured graph reads when it replays, so a
-        second grid built between replays would hand the simulation its cells."""
+        (a diagnostic: it waits for the device). It rebuilds the stage's own grid, which only a rebuild of
+        the neighbour lists reads; a grid of its own would be wrong on CUDA, where Warp's HashGrid.build
+        copies each grid's descriptor from one static host variable that a captured graph reads when it
+        replays, so a second grid built between replays would hand the simulation its cells."""
         if self.grid is None:  # brute force: the only grid there is
             self.grid_for_checks = self.grid_for_checks or make_hash_grid(self.n, x.device)
         grid = self.grid or self.grid_for_checks
         s = self.settings
-        grid.build(x, self.search_radius)
+        self._hash(x, grid)
         ratio = wp.full(1, 1.0e30, dtype=float, device=x.device)
         wp.launch(particle_collision.closest_contact_ratio, dim=self.n,
-                  inputs=[grid.id, x, self.radius, self.search_radius, s.separation, self.cloth_id,
+                  inputs=[grid.id, x, self.x_hash, self.radius, self.search_radius, s.separation, self.cloth_id,
                           int(s.self_collision), int(s.between_cloths), *self.exclusion],
                   outputs=[ratio], device=x.device)
         return float(ratio.numpy()[0])
+
+    def make_lists(self, x: wp.array) -> None:
+        s = self.settings
+        pair_rules = [self.cloth_id, int(s.self_collision), int(s.between_cloths), *self.exclusion, s.max_neighbors]
+        lists = [self.neighbors, self.counts, self.overflow]
+        if self.grid is not None:
+            self._hash(x, self.grid)
+            wp.launch(particle_collision.gather_neighbors, dim=self.n,
+                      inputs=[self.grid.id, x, self.x_hash, self.radius, self.search_radius, s.separation,
+                              self.SEARCH_SCALE, *pair_rules], outputs=lists, device=x.device)
+        else:
+            wp.launch(particle_collision.gather_neighbors_brute_force, dim=self.n,
+                      inputs=[x, self.radius, s.separation, self.SEARCH_SCALE, *pair_rules], outputs=lists,
+                      device=x.device)
+        wp.copy(self.x_built, x)
 
     def run(self, state: DeviceState) -> None:
         s = self.settings
@@ -233,16 +265,11 @@ class ParticleCollision:
             self.resting.zero_()
             for collider in self.colliders:
                 collider.run(state)
-        pair_rules = [self.cloth_id, int(s.self_collision), int(s.between_cloths), *self.exclusion, s.max_neighbors]
-        lists = [self.neighbors, self.counts, self.overflow]
-        if self.grid is not None:
-            self.grid.build(state.x, self.search_radius)
-            launch(particle_collision.gather_neighbors, self.n, state,
-                   inputs=[self.grid.id, state.x, self.radius, self.search_radius, s.separation, self.SEARCH_SCALE,
-                           *pair_rules], outputs=lists)
-        else:
-            launch(particle_collision.gather_neighbors_brute_force, self.n, state,
-                   inputs=[state.x, self.radius, s.separation, self.SEARCH_SCALE, *pair_rules], outputs=lists)
+        self.rebuild.zero_()
+        launch(particle_collision.displacement_exceeds, self.n, state,
+               inputs=[state.x, self.x_built, self.rebuild_distance], outputs=[self.rebuild])
+        positions = state.x
+        wp.capture_if(self.rebuild, on_true=lambda: self.make_lists(positions))
         for remaining in range(self.passes, 0, -1):
             if self.limit is not None and remaining <= self.limit.iterations:
                 self.limit.run_pass(state)
