@@ -1,7 +1,7 @@
 """Self and cloth-cloth collision between particles (spheres), in O(n) through a hash grid.
 
-One substep: build the grid on the positions, gather each particle's candidate neighbours within a
-search radius into a fixed-size list, then run Jacobi passes that push overlapping pairs apart (each
+One substep: unless no particle has moved far enough since they were made, remake each particle's list of
+candidate neighbours within a search radius (through a spatial hash, ``spatial_hash.py``), then run Jacobi passes that push overlapping pairs apart (each
 particle moves by the mean of its corrections, weighted by inverse mass: no races, deterministic; its
 velocity changes by the same correction over h), then make each contact inelastic (averaged the same
 way), with friction in proportion to the normal speed taken away.
@@ -10,15 +10,7 @@ Two particles i, j touch when closer than ``separation * (r_i + r_j) / 2``.
 
 import warp as wp
 
-
-@wp.kernel
-def rotate_for_hashing(x: wp.array(dtype=wp.vec3), rotation: wp.mat33, x_hash: wp.array(dtype=wp.vec3)):
-    """Positions as the hash grid sees them, turned by a fixed odd rotation. wp.HashGrid folds cells onto
-    buckets by coordinate modulo its dimensions, so a sheet lying along two grid axes piles dozens of its
-    cells into each bucket (a 2048^2 cloth in the XY plane: 42 a bucket); tilted, its cells spread over
-    the whole table."""
-    i = wp.tid()
-    x_hash[i] = rotation * x[i]
+from . import spatial_hash
 
 
 @wp.kernel
@@ -57,34 +49,53 @@ def may_collide(i: int, j: int, cloth_id: wp.array(dtype=int), self_collision: i
     return True
 
 
+@wp.func
+def keep_sorted(neighbors: wp.array(dtype=int), start: int, count: int):
+    """Insertion sort of one particle's list: the order, and so the float sums over it, are then the
+    same on every run and device, whatever order atomics filled the buckets in."""
+    for a in range(1, count):
+        value = neighbors[start + a]
+        b = a - 1
+        while b >= 0 and neighbors[start + b] > value:
+            neighbors[start + b + 1] = neighbors[start + b]
+            b -= 1
+        neighbors[start + b + 1] = value
+
+
 @wp.kernel
-def gather_neighbors(grid: wp.uint64, x: wp.array(dtype=wp.vec3), x_hash: wp.array(dtype=wp.vec3),
-                     radius: wp.array(dtype=float), search_radius: float, separation: float, search_scale: float,
-                     cloth_id: wp.array(dtype=int),
-                     self_collision: int, between_cloths: int, grid_xy: wp.array(dtype=int),
-                     exclude_adjacent: wp.array(dtype=int), max_neighbors: int, neighbors: wp.array(dtype=int),
-                     counts: wp.array(dtype=int), overflow: wp.array(dtype=int)):
-    """Each particle's candidates: pairs allowed to collide and closer than search_scale contact distances."""
+def gather_neighbors(x: wp.array(dtype=wp.vec3), radius: wp.array(dtype=float), inv_cell: float, mask: int,
+                     capacity: int, bucket_size: wp.array(dtype=int), bucket_items: wp.array(dtype=int),
+                     separation: float, search_scale: float, cloth_id: wp.array(dtype=int), self_collision: int,
+                     between_cloths: int, grid_xy: wp.array(dtype=int), exclude_adjacent: wp.array(dtype=int),
+                     max_neighbors: int, neighbors: wp.array(dtype=int), counts: wp.array(dtype=int),
+                     overflow: wp.array(dtype=int)):
+    """Each particle's candidates, from the spatial hash: pairs allowed to collide and closer than
+    search_scale contact distances, in index order."""
     i = wp.tid()
     xi = x[i]
     ri = radius[i]
+    center = spatial_hash.cell_of(xi, inv_cell)
     count = int(0)
-    query = wp.hash_grid_query(grid, x_hash[i], search_radius)
-    j = int(0)
-    while wp.hash_grid_query_next(query, j):
-        if j == i:
+    for k in range(27):
+        bucket = spatial_hash.neighbour_bucket(center, k, mask)
+        if spatial_hash.bucket_seen_before(center, k, bucket, mask):
             continue
-        reach = search_scale * contact_distance(ri, radius[j], separation)
-        if wp.length_sq(xi - x[j]) >= reach * reach:
-            continue
-        if not may_collide(i, j, cloth_id, self_collision, between_cloths, grid_xy, exclude_adjacent):
-            continue
-        if count < max_neighbors:
-            neighbors[i * max_neighbors + count] = j
-            count += 1
-        else:
-            wp.atomic_add(overflow, 0, 1)
+        for s in range(wp.min(bucket_size[bucket], capacity)):
+            j = bucket_items[bucket * capacity + s]
+            if j == i:
+                continue
+            reach = search_scale * contact_distance(ri, radius[j], separation)
+            if wp.length_sq(xi - x[j]) >= reach * reach:
+                continue
+            if not may_collide(i, j, cloth_id, self_collision, between_cloths, grid_xy, exclude_adjacent):
+                continue
+            if count < max_neighbors:
+                neighbors[i * max_neighbors + count] = j
+                count += 1
+            else:
+                wp.atomic_add(overflow, 0, 1)
     counts[i] = count
+    keep_sorted(neighbors, i * max_neighbors, count)
 
 
 @wp.func
@@ -191,22 +202,15 @@ def resolve_contact_velocities(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.
 
 
 @wp.kernel
-def closest_contact_ratio(grid: wp.uint64, x: wp.array(dtype=wp.vec3), x_hash: wp.array(dtype=wp.vec3),
-                          radius: wp.array(dtype=float),
-                          search_radius: float, separation: float, cloth_id: wp.array(dtype=int),
-                          self_collision: int, between_cloths: int, grid_xy: wp.array(dtype=int),
-                          exclude_adjacent: wp.array(dtype=int), ratio: wp.array(dtype=float)):
-    """Diagnostic: the smallest distance / contact distance over all pairs that may collide."""
+def closest_contact_ratio(x: wp.array(dtype=wp.vec3), radius: wp.array(dtype=float), separation: float,
+                          neighbors: wp.array(dtype=int), counts: wp.array(dtype=int), max_neighbors: int,
+                          ratio: wp.array(dtype=float)):
+    """Diagnostic: the smallest distance / contact distance over the pairs of freshly made lists."""
     i = wp.tid()
     xi = x[i]
-    query = wp.hash_grid_query(grid, x_hash[i], search_radius)
-    j = int(0)
     smallest = float(1.0e30)
-    while wp.hash_grid_query_next(query, j):
-        if j <= i:
-            continue
-        if not may_collide(i, j, cloth_id, self_collision, between_cloths, grid_xy, exclude_adjacent):
-            continue
+    for k in range(counts[i]):
+        j = neighbors[i * max_neighbors + k]
         smallest = wp.min(smallest, wp.length(xi - x[j]) / contact_distance(radius[i], radius[j], separation))
     wp.atomic_min(ratio, 0, smallest)
 

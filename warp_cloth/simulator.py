@@ -27,6 +27,7 @@ from .state import DeviceState
 HOST_BYTES_PER_PARTICLE = 900
 DEVICE_BYTES_PER_PARTICLE = 320
 IMPLICIT_DEVICE_BYTES_PER_PARTICLE = 100  # CG vectors and the preconditioner's blocks
+COLLISION_DEVICE_BYTES_PER_PARTICLE = 320  # neighbour lists, spatial hash buckets, contact state
 
 
 class FrameWriter(Protocol):
@@ -67,8 +68,9 @@ def check_memory(scene: Scene, device: wp.context.Device) -> None:
     """Refuse a scene that cannot fit, before any large allocation."""
     n = sum(c.particle_count for c in scene.cloths)
     host_free = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-    device_bytes = DEVICE_BYTES_PER_PARTICLE + (IMPLICIT_DEVICE_BYTES_PER_PARTICLE
-                                                if scene.simulation.integrator == "implicit" else 0)
+    device_bytes = (DEVICE_BYTES_PER_PARTICLE
+                    + (IMPLICIT_DEVICE_BYTES_PER_PARTICLE if scene.simulation.integrator == "implicit" else 0)
+                    + (COLLISION_DEVICE_BYTES_PER_PARTICLE if scene.collision is not None else 0))
     need = n * HOST_BYTES_PER_PARTICLE + (n * device_bytes if device.is_cpu else 0)
     if need > host_free:
         raise SceneError("cloth", f"a scene that fits in memory: {n} particles need about {need / 2**30:.1f} GiB "

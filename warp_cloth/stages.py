@@ -7,10 +7,9 @@ from typing import Protocol
 
 import warp as wp
 
-from warp_cloth.kernels import colliders, integration, limits, motion, particle_collision, pins
+from warp_cloth.kernels import colliders, integration, limits, motion, particle_collision, pins, spatial_hash
 
 from .implicit import BackwardEuler
-from .cloth_grid import rotation_matrix
 from .model import Model
 from .state import DeviceState
 
@@ -149,21 +148,6 @@ class GroundCollider:
                inputs=[self.height, self.friction, self.h, self.inv_mass], outputs=[state.x, state.v, self.resting])
 
 
-# A fixed rotation of about 0.5, 0.7 and 0.9 rad about X, Y, Z: no cloth a user lays along world axes is
-# along the hash grid's axes (see kernels/particle_collision.py, rotate_for_hashing).
-HASH_ROTATION = wp.mat33(*rotation_matrix((28.6, 40.1, 51.6)).ravel().tolist())
-
-
-def make_hash_grid(particles: int, device) -> wp.HashGrid:
-    """A hash grid sized to the particle count: a build clears every cell, so a small scene wants few
-    cells (128^3 cost 0.43 ms a build for 676 particles on the CPU), and a large one enough cells that
-    unrelated points rarely share a hash bucket."""
-    side = 8
-    while side < 256 and side ** 3 < 8 * particles:
-        side *= 2
-    return wp.HashGrid(side, side, side, device=device)
-
-
 class ParticleCollision:
     """Self and cloth-cloth collision: hash grid, neighbour lists, Jacobi separation, velocity projection.
 
@@ -176,7 +160,8 @@ class ParticleCollision:
 
     SEARCH_SCALE = 1.5  # candidates within 1.5 contact distances, so passes that move particles miss none
     CONTACT_SLACK = 1.01  # pairs within 1% of contact count as touching in the velocity pass
-    BRUTE_FORCE_UP_TO = 512  # particles; below, all pairs cost less than a grid build (80 us on the CPU)
+    BUCKET_CAPACITY = 16  # particles a spatial-hash bucket holds (overflow is counted, tests keep it 0)
+    BRUTE_FORCE_UP_TO = 512  # particles; below, checking all pairs costs less than the hash
 
     def __init__(self, model: Model, inv_mass: wp.array, cloth_id: wp.array, limit: StrainLimit | None,
                  colliders: list[Stage], h: float, device) -> None:
@@ -212,51 +197,46 @@ class ParticleCollision:
         self.rebuild_distance = 0.5 * (self.SEARCH_SCALE - 1.0) * settings.separation * float(contacts.radius.min())
         self.x_built = wp.full(n, wp.vec3(1.0e30), dtype=wp.vec3, device=device)
         self.rebuild = wp.zeros(1, dtype=int, device=device)
-        self.x_hash = wp.zeros(n, dtype=wp.vec3, device=device)
-        self.grid = None
-        self.grid_for_checks = None
-        if settings.broad_phase == "hash_grid" or (settings.broad_phase == "auto" and n > self.BRUTE_FORCE_UP_TO):
-            self.grid = make_hash_grid(n, device)
-            # Build once now so that the grid's buffers exist before a CUDA graph is captured.
-            self.grid.build(self.x_hash, self.search_radius)
-
-    def _hash(self, x: wp.array, grid: wp.HashGrid) -> None:
-        wp.launch(particle_collision.rotate_for_hashing, dim=self.n, inputs=[x, HASH_ROTATION], outputs=[self.x_hash],
-                  device=x.device)
-        grid.build(self.x_hash, self.search_radius)
-
-    def closest_contact(self, x: wp.array) -> float:
-        """The closest approach of two particles that may collide, as a fraction of their contact distance
-        (a diagnostic: it waits for the device). It rebuilds the stage's own grid, which only a rebuild of
-        the neighbour lists reads; a grid of its own would be wrong on CUDA, where Warp's HashGrid.build
-        copies each grid's descriptor from one static host variable that a captured graph reads when it
-        replays, so a second grid built between replays would hand the simulation its cells."""
-        if self.grid is None:  # brute force: the only grid there is
-            self.grid_for_checks = self.grid_for_checks or make_hash_grid(self.n, x.device)
-        grid = self.grid or self.grid_for_checks
-        s = self.settings
-        self._hash(x, grid)
-        ratio = wp.full(1, 1.0e30, dtype=float, device=x.device)
-        wp.launch(particle_collision.closest_contact_ratio, dim=self.n,
-                  inputs=[grid.id, x, self.x_hash, self.radius, self.search_radius, s.separation, self.cloth_id,
-                          int(s.self_collision), int(s.between_cloths), *self.exclusion],
-                  outputs=[ratio], device=x.device)
-        return float(ratio.numpy()[0])
+        self.use_hash = settings.broad_phase == "hash_grid" or (
+            settings.broad_phase == "auto" and n > self.BRUTE_FORCE_UP_TO)
+        table = 64
+        while table < 2 * n:
+            table *= 2
+        self.table_mask = table - 1
+        self.bucket_size = wp.zeros(table if self.use_hash else 0, dtype=int, device=device)
+        self.bucket_items = wp.zeros(table * self.BUCKET_CAPACITY if self.use_hash else 0, dtype=int, device=device)
 
     def make_lists(self, x: wp.array) -> None:
+        """Remake every particle's candidate list from positions ``x`` (and remember them)."""
         s = self.settings
         pair_rules = [self.cloth_id, int(s.self_collision), int(s.between_cloths), *self.exclusion, s.max_neighbors]
         lists = [self.neighbors, self.counts, self.overflow]
-        if self.grid is not None:
-            self._hash(x, self.grid)
+        if self.use_hash:
+            inv_cell = 1.0 / self.search_radius
+            self.bucket_size.zero_()
+            wp.launch(spatial_hash.insert_points, dim=self.n,
+                      inputs=[x, inv_cell, self.table_mask, self.BUCKET_CAPACITY],
+                      outputs=[self.bucket_size, self.bucket_items, self.overflow], device=x.device)
             wp.launch(particle_collision.gather_neighbors, dim=self.n,
-                      inputs=[self.grid.id, x, self.x_hash, self.radius, self.search_radius, s.separation,
-                              self.SEARCH_SCALE, *pair_rules], outputs=lists, device=x.device)
+                      inputs=[x, self.radius, inv_cell, self.table_mask, self.BUCKET_CAPACITY, self.bucket_size,
+                              self.bucket_items, s.separation, self.SEARCH_SCALE, *pair_rules],
+                      outputs=lists, device=x.device)
         else:
             wp.launch(particle_collision.gather_neighbors_brute_force, dim=self.n,
                       inputs=[x, self.radius, s.separation, self.SEARCH_SCALE, *pair_rules], outputs=lists,
                       device=x.device)
         wp.copy(self.x_built, x)
+
+    def closest_contact(self, x: wp.array) -> float:
+        """The closest approach of two particles that may collide, as a fraction of their contact distance
+        (a diagnostic: it waits for the device). It remakes the lists from ``x``, which the simulation may
+        then go on using: they are as valid as any it makes itself."""
+        self.make_lists(x)
+        ratio = wp.full(1, 1.0e30, dtype=float, device=x.device)
+        wp.launch(particle_collision.closest_contact_ratio, dim=self.n,
+                  inputs=[x, self.radius, self.settings.separation, self.neighbors, self.counts,
+                          self.settings.max_neighbors], outputs=[ratio], device=x.device)
+        return float(ratio.numpy()[0])
 
     def run(self, state: DeviceState) -> None:
         s = self.settings
