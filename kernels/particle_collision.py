@@ -1,10 +1,10 @@
-"""Self and cloth-cloth collision between particles (spheres), in O(n) through a hash grid.
+"""Self and cloth-cloth collision between particles (spheres), in O(n) through a spatial hash.
 
-One substep: unless no particle has moved far enough since they were made, remake each particle's list of
-candidate neighbours within a search radius (through a spatial hash, ``spatial_hash.py``), then run Jacobi passes that push overlapping pairs apart (each
-particle moves by the mean of its corrections, weighted by inverse mass: no races, deterministic; its
-velocity changes by the same correction over h), then make each contact inelastic (averaged the same
-way), with friction in proportion to the normal speed taken away.
+One substep: if some particle has moved far enough since they were made, remake each particle's list of
+candidate neighbours within a search radius (through ``spatial_hash.py``); then run Jacobi passes that
+push overlapping pairs apart (each particle moves by the mean of its corrections, weighted by inverse
+mass: no races, deterministic; its velocity changes by the same correction over h); then make each
+contact inelastic (averaged the same way), with friction in proportion to the normal speed taken away.
 Two particles i, j touch when closer than ``separation * (r_i + r_j) / 2``.
 """
 

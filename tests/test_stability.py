@@ -156,9 +156,10 @@ def test_random_valid_scenes_stay_finite_and_bounded(resolution, size, density, 
     stiffness = max(1e-3, stiffness_fraction * k_max)
     damping = damping_fraction * mass / (8.0 * h)  # the documented range: h 8 b / m <= 1
     spring = wc.SpringKind(stiffness, damping)
+    bend = wc.SpringKind(stiffness, damping, "compression", "compression")
     cloth = wc.Cloth(resolution=(resolution, resolution), size=(size, size), origin=(0.0, 1.0, 0.0), density=density,
-                     structural=spring, shear=spring, bend=wc.SpringKind(stiffness, damping, "compression", "compression"),
-                     limit=wc.Limit(), pins=(wc.Pin(corners=("top-left", "top-right")),) if pinned else ())
+                     structural=spring, shear=spring, bend=bend, limit=wc.Limit(),
+                     pins=(wc.Pin(corners=("top-left", "top-right")),) if pinned else ())
     scene = wc.Scene(cloths=(cloth,), ground=wc.Ground(),
                      simulation=wc.Simulation(fps=24, frames=24, substeps=substeps, integrator=integrator))
     sim = wc.Simulator(scene, device="cpu")

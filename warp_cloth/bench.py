@@ -171,6 +171,7 @@ def collision_cases(device: str) -> list[Case]:
 class CollisionResult:
     particles: int
     broad_phase: str
+    lists: str  # "remade" every substep, or "kept" while no particle moved far enough
     device: str
     seconds_per_substep: float
 
@@ -179,11 +180,15 @@ class CollisionResult:
         return 1e9 * self.seconds_per_substep / self.particles
 
 
-def time_collision_stage(particles: int, broad_phase: str, device: str, repeats: int) -> CollisionResult:
-    """Median time of the collision stage alone (grid build or brute force, neighbour lists, 4 passes,
-    velocity pass) per substep, replayed as a recorded frame of 10 substeps of only that stage."""
+def time_collision_stage(particles: int, broad_phase: str, device: str, repeats: int,
+                         remake_lists: bool = True) -> CollisionResult:
+    """Median time of the collision stage alone (neighbour lists from the spatial hash or brute force, 4
+    passes, velocity pass) per substep, replayed as a captured frame of 10 substeps of only that stage.
+    The layers do not move, so kept lists are never remade: ``remake_lists`` makes them every substep, to
+    time the broad phase."""
     sim = Simulator(stacked_layers_scene(particles, broad_phase), device=device)
     stage = next(s for s in sim.stages if isinstance(s, ParticleCollision))
+    stage.remake_every_substep = remake_lists
     sim.stages = [stage]
     sim.substeps_per_frame = 10
     sim.run(1)
@@ -194,7 +199,8 @@ def time_collision_stage(particles: int, broad_phase: str, device: str, repeats:
         sim.step()
         wp.synchronize_device(sim.device)
         seconds.append((time.perf_counter() - started) / 10)
-    return CollisionResult(sim.model.particle_count, broad_phase, str(sim.device), statistics.median(seconds))
+    return CollisionResult(sim.model.particle_count, broad_phase, "remade" if remake_lists else "kept",
+                           str(sim.device), statistics.median(seconds))
 
 
 def collision_scaling(device: str, repeats: int) -> list[CollisionResult]:
@@ -205,18 +211,20 @@ def collision_scaling(device: str, repeats: int) -> list[CollisionResult]:
         results.append(time_collision_stage(n, "hash_grid", device, repeats))
         if n <= brute_limit:
             results.append(time_collision_stage(n, "brute_force", device, repeats))
+        results.append(time_collision_stage(n, "hash_grid", device, repeats, remake_lists=False))
     return results
 
 
 def format_collision_table(results: list[CollisionResult]) -> str:
-    header = f"{'particles':>9} {'broad phase':<12} {'device':<8} {'ms/substep':>10} {'ns/particle':>12}"
+    header = f"{'particles':>9} {'broad phase':<12} {'lists':<7} {'device':<8} {'ms/substep':>10} {'ns/particle':>12}"
     lines = [header, "-" * len(header)]
-    lines += [f"{r.particles:>9} {r.broad_phase:<12} {r.device:<8} {1e3 * r.seconds_per_substep:>10.3f} "
+    lines += [f"{r.particles:>9} {r.broad_phase:<12} {r.lists:<7} {r.device:<8} {1e3 * r.seconds_per_substep:>10.3f} "
               f"{r.ns_per_particle:>12.1f}" for r in results]
     return "\n".join(lines)
 
 
 MATRIX_VARIANTS = ("hanging", "sphere", "self")
+SPRINGS_ONLY = "springs"  # the hanging cloth without its strain limit: springs and the integrator alone
 MATRIX_FPS, MATRIX_SUBSTEPS = 24, 10
 
 
@@ -232,7 +240,8 @@ def matrix_scene(variant: str, n: int, integrator: str) -> Scene:
     stiffness = 0.5 * mass * cell / (8.0 * h * h) * (50.0 if integrator == "implicit" else 1.0)
     damping = 0.1 * mass / (8.0 * h)
     spring = SpringKind(stiffness, damping)
-    cloth = Cloth(resolution=(n - 1, n - 1), size=(10.0, 10.0), orientation="vertical", mass=mass, limit=Limit(0.1, 0.1),
+    cloth = Cloth(resolution=(n - 1, n - 1), size=(10.0, 10.0), orientation="vertical", mass=mass,
+                  limit=None if variant == SPRINGS_ONLY else Limit(0.1, 0.1),
                   pins=(Pin(edges=("top",)),), structural=spring, shear=spring,
                   bend=SpringKind(stiffness, damping, "compression", "compression"))
     spheres = (Sphere(name="ball", center=(5.0, 5.0, 1.5), radius=2.0),) if variant in ("sphere", "self") else ()
@@ -251,9 +260,11 @@ def matrix_frames(n: int, device: str) -> int:
 
 
 def matrix_cases(device: str) -> list[Case]:
-    return [Case(f"{variant} {n}^2 {integrator}", matrix_scene(variant, n, integrator), matrix_frames(n, device),
-                 fresh=False)
-            for variant in MATRIX_VARIANTS for n in matrix_sizes(device) for integrator in ("symplectic", "implicit")]
+    cases = [Case(f"{variant} {n}^2 {integrator}", matrix_scene(variant, n, integrator), matrix_frames(n, device),
+                  fresh=False)
+             for variant in MATRIX_VARIANTS for n in matrix_sizes(device) for integrator in ("symplectic", "implicit")]
+    return cases + [Case(f"{SPRINGS_ONLY} {n}^2 symplectic", matrix_scene(SPRINGS_ONLY, n, "symplectic"),
+                         matrix_frames(n, device), fresh=False) for n in matrix_sizes(device)]
 
 
 SUITES: dict[str, Callable[[str], list[Case]]] = {"core": core_cases, "collision": collision_cases,

@@ -195,6 +195,7 @@ class ParticleCollision:
         # Neighbour lists are remade only when some particle has moved more than this since they were made:
         # a pair left out was farther than SEARCH_SCALE contact distances apart, so it cannot touch before.
         self.rebuild_distance = 0.5 * (self.SEARCH_SCALE - 1.0) * settings.separation * float(contacts.radius.min())
+        self.remake_every_substep = False  # for benchmarks of the broad phase
         self.x_built = wp.full(n, wp.vec3(1.0e30), dtype=wp.vec3, device=device)
         self.rebuild = wp.zeros(1, dtype=int, device=device)
         self.use_hash = settings.broad_phase == "hash_grid" or (
@@ -245,11 +246,14 @@ class ParticleCollision:
             self.resting.zero_()
             for collider in self.colliders:
                 collider.run(state)
-        self.rebuild.zero_()
-        launch(particle_collision.displacement_exceeds, self.n, state,
-               inputs=[state.x, self.x_built, self.rebuild_distance], outputs=[self.rebuild])
-        positions = state.x
-        wp.capture_if(self.rebuild, on_true=lambda: self.make_lists(positions))
+        if self.remake_every_substep:
+            self.make_lists(state.x)
+        else:
+            self.rebuild.zero_()
+            launch(particle_collision.displacement_exceeds, self.n, state,
+                   inputs=[state.x, self.x_built, self.rebuild_distance], outputs=[self.rebuild])
+            positions = state.x
+            wp.capture_if(self.rebuild, on_true=lambda: self.make_lists(positions))
         for remaining in range(self.passes, 0, -1):
             if self.limit is not None and remaining <= self.limit.iterations:
                 self.limit.run_pass(state)
