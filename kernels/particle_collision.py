@@ -50,8 +50,9 @@ def may_collide(i: int, j: int, cloth_id: wp.array(dtype=int), self_collision: i
 
 
 @wp.func
-def keep_sorted(neighbors: wp.array(dtype=int), start: int, count: int):
-    """Insertion sort of one particle's list: the order, and so the float sums over it, are then the
+def sort_and_drop_repeats(neighbors: wp.array(dtype=int), start: int, count: int) -> int:
+    """Insertion sort of one particle's list, then repeats dropped (a bucket two cells of the block hash to
+    is visited twice); returns the new count. The order, and so the float sums over the list, are then the
     same on every run and device, whatever order atomics filled the buckets in."""
     for a in range(1, count):
         value = neighbors[start + a]
@@ -60,6 +61,12 @@ def keep_sorted(neighbors: wp.array(dtype=int), start: int, count: int):
             neighbors[start + b + 1] = neighbors[start + b]
             b -= 1
         neighbors[start + b + 1] = value
+    kept = wp.min(count, 1)
+    for a in range(1, count):
+        if neighbors[start + a] != neighbors[start + kept - 1]:
+            neighbors[start + kept] = neighbors[start + a]
+            kept += 1
+    return kept
 
 
 @wp.kernel
@@ -78,8 +85,6 @@ def gather_neighbors(x: wp.array(dtype=wp.vec3), radius: wp.array(dtype=float), 
     count = int(0)
     for k in range(27):
         bucket = spatial_hash.neighbour_bucket(center, k, mask)
-        if spatial_hash.bucket_seen_before(center, k, bucket, mask):
-            continue
         for s in range(wp.min(bucket_size[bucket], capacity)):
             j = bucket_items[bucket * capacity + s]
             if j == i:
@@ -94,8 +99,7 @@ def gather_neighbors(x: wp.array(dtype=wp.vec3), radius: wp.array(dtype=float), 
                 count += 1
             else:
                 wp.atomic_add(overflow, 0, 1)
-    counts[i] = count
-    keep_sorted(neighbors, i * max_neighbors, count)
+    counts[i] = sort_and_drop_repeats(neighbors, i * max_neighbors, count)
 
 
 @wp.func

@@ -1,8 +1,8 @@
 """A spatial hash of particles, built from kernels alone so that it can be rebuilt inside a conditional
 node of a captured graph: cells of a given width are hashed (Teschner et al. 2003) into a power-of-two table
 of buckets of fixed capacity, and each particle is appended to its cell's bucket. A query visits the 27
-cells around a point. Cells that hash to the same bucket are visited once, and points from other cells in
-a bucket are candidates like any other (callers test the distance)."""
+cells around a point; points from other cells in a bucket are candidates like any other (callers test the
+distance), and a bucket that two of the 27 cells share is visited twice (callers drop the repeats)."""
 
 import warp as wp
 
@@ -23,15 +23,6 @@ def bucket_of(cell: wp.vec3i, mask: int) -> int:
 def neighbour_bucket(center: wp.vec3i, k: int, mask: int) -> int:
     """The bucket of the k-th (0..26) cell of the 3x3x3 block around ``center``."""
     return bucket_of(center + wp.vec3i(k % 3 - 1, (k / 3) % 3 - 1, k / 9 - 1), mask)
-
-
-@wp.func
-def bucket_seen_before(center: wp.vec3i, k: int, bucket: int, mask: int) -> bool:
-    """Whether an earlier cell of the block hashes to the same bucket (so its points were visited)."""
-    for earlier in range(k):
-        if neighbour_bucket(center, earlier, mask) == bucket:
-            return True
-    return False
 
 
 @wp.kernel

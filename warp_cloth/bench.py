@@ -252,7 +252,7 @@ def matrix_scene(variant: str, n: int, integrator: str) -> Scene:
 
 
 def matrix_sizes(device: str) -> list[int]:
-    return [64, 256] if device == "cpu" else [64, 256, 1024, 2048]
+    return [64, 128] if device == "cpu" else [64, 256, 1024, 2048]
 
 
 def matrix_frames(n: int, device: str) -> int:
