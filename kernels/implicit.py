@@ -15,8 +15,7 @@ in every residual and search direction, so the solve never moves them.
 import warp as wp
 
 from .cg import CG_RZ, CG_RZ0, ITERATIONS
-from .springs import (DAMPING_COMPRESSION, DAMPING_TENSION, ELASTIC_COMPRESSION, ELASTIC_TENSION,
-                      gather_spring_forces)
+from .springs import damping_acts, elastic_acts, gather_spring_forces
 
 
 @wp.func
@@ -31,10 +30,10 @@ def spring_system_block(xi: wp.vec3, xj: wp.vec3, rest: float, stiffness: float,
     nn = wp.outer(n, n)
     stretched = length > rest
     block = wp.mat33(0.0)
-    if (stretched and (flags & ELASTIC_TENSION) != 0) or (not stretched and (flags & ELASTIC_COMPRESSION) != 0):
+    if elastic_acts(stretched, flags):
         transverse = wp.max(0.0, 1.0 - rest / length)
         block = block + (h * h * stiffness / rest) * (nn + transverse * (wp.identity(n=3, dtype=float) - nn))
-    if (stretched and (flags & DAMPING_TENSION) != 0) or (not stretched and (flags & DAMPING_COMPRESSION) != 0):
+    if damping_acts(stretched, flags):
         block = block + (h * damping) * nn
     return block
 
@@ -47,8 +46,7 @@ def stiffness_times(xi: wp.vec3, xj: wp.vec3, rest: float, stiffness: float, fla
     if length < 1.0e-12:
         return wp.vec3(0.0)
     n = d / length
-    stretched = length > rest
-    if (stretched and (flags & ELASTIC_TENSION) != 0) or (not stretched and (flags & ELASTIC_COMPRESSION) != 0):
+    if elastic_acts(length > rest, flags):
         transverse = wp.max(0.0, 1.0 - rest / length)
         along = wp.dot(n, u) * n
         return (stiffness / rest) * (along + transverse * (u - along))

@@ -50,6 +50,27 @@ def may_collide(i: int, j: int, cloth_id: wp.array(dtype=int), self_collision: i
 
 
 @wp.func
+def add_candidate(i: int, j: int, x: wp.array(dtype=wp.vec3), radius: wp.array(dtype=float), separation: float,
+                  search_scale: float, cloth_id: wp.array(dtype=int), self_collision: int, between_cloths: int,
+                  grid_xy: wp.array(dtype=int), exclude_adjacent: wp.array(dtype=int), max_neighbors: int,
+                  neighbors: wp.array(dtype=int), count: int, overflow: wp.array(dtype=int)) -> int:
+    """Appends j to i's list if the pair may collide and is within search_scale contact distances;
+    returns the list's new length (a full list counts an overflow instead)."""
+    if j == i:
+        return count
+    reach = search_scale * contact_distance(radius[i], radius[j], separation)
+    if wp.length_sq(x[i] - x[j]) >= reach * reach:
+        return count
+    if not may_collide(i, j, cloth_id, self_collision, between_cloths, grid_xy, exclude_adjacent):
+        return count
+    if count < max_neighbors:
+        neighbors[i * max_neighbors + count] = j
+        return count + 1
+    wp.atomic_add(overflow, 0, 1)
+    return count
+
+
+@wp.func
 def sort_and_drop_repeats(neighbors: wp.array(dtype=int), start: int, count: int) -> int:
     """Insertion sort of one particle's list, then repeats dropped (a bucket two cells of the block hash to
     is visited twice); returns the new count. The order, and so the float sums over the list, are then the
@@ -79,26 +100,14 @@ def gather_neighbors(x: wp.array(dtype=wp.vec3), radius: wp.array(dtype=float), 
     """Each particle's candidates, from the spatial hash: pairs allowed to collide and closer than
     search_scale contact distances, in index order."""
     i = wp.tid()
-    xi = x[i]
-    ri = radius[i]
-    center = spatial_hash.cell_of(xi, inv_cell)
+    center = spatial_hash.cell_of(x[i], inv_cell)
     count = int(0)
     for k in range(27):
         bucket = spatial_hash.neighbour_bucket(center, k, mask)
         for s in range(wp.min(bucket_size[bucket], capacity)):
-            j = bucket_items[bucket * capacity + s]
-            if j == i:
-                continue
-            reach = search_scale * contact_distance(ri, radius[j], separation)
-            if wp.length_sq(xi - x[j]) >= reach * reach:
-                continue
-            if not may_collide(i, j, cloth_id, self_collision, between_cloths, grid_xy, exclude_adjacent):
-                continue
-            if count < max_neighbors:
-                neighbors[i * max_neighbors + count] = j
-                count += 1
-            else:
-                wp.atomic_add(overflow, 0, 1)
+            count = add_candidate(i, bucket_items[bucket * capacity + s], x, radius, separation, search_scale,
+                                  cloth_id, self_collision, between_cloths, grid_xy, exclude_adjacent,
+                                  max_neighbors, neighbors, count, overflow)
     counts[i] = sort_and_drop_repeats(neighbors, i * max_neighbors, count)
 
 
@@ -227,22 +236,10 @@ def gather_neighbors_brute_force(x: wp.array(dtype=wp.vec3), radius: wp.array(dt
                                  neighbors: wp.array(dtype=int), counts: wp.array(dtype=int),
                                  overflow: wp.array(dtype=int)):
     """The O(n^2) way to fill the same lists as ``gather_neighbors`` (every particle against every other,
-    as the seed did): only for the benchmark that shows what the hash grid saves."""
+    as the seed did), for small scenes and to measure what the spatial hash saves."""
     i = wp.tid()
-    xi = x[i]
-    ri = radius[i]
     count = int(0)
     for j in range(x.shape[0]):
-        if j == i:
-            continue
-        reach = search_scale * contact_distance(ri, radius[j], separation)
-        if wp.length_sq(xi - x[j]) >= reach * reach:
-            continue
-        if not may_collide(i, j, cloth_id, self_collision, between_cloths, grid_xy, exclude_adjacent):
-            continue
-        if count < max_neighbors:
-            neighbors[i * max_neighbors + count] = j
-            count += 1
-        else:
-            wp.atomic_add(overflow, 0, 1)
+        count = add_candidate(i, j, x, radius, separation, search_scale, cloth_id, self_collision, between_cloths,
+                              grid_xy, exclude_adjacent, max_neighbors, neighbors, count, overflow)
     counts[i] = count

@@ -15,6 +15,16 @@ DAMPING_COMPRESSION = wp.constant(8)
 
 
 @wp.func
+def elastic_acts(stretched: bool, flags: int) -> bool:
+    return (stretched and (flags & ELASTIC_TENSION) != 0) or (not stretched and (flags & ELASTIC_COMPRESSION) != 0)
+
+
+@wp.func
+def damping_acts(stretched: bool, flags: int) -> bool:
+    return (stretched and (flags & DAMPING_TENSION) != 0) or (not stretched and (flags & DAMPING_COMPRESSION) != 0)
+
+
+@wp.func
 def spring_force(xi: wp.vec3, xj: wp.vec3, vi: wp.vec3, vj: wp.vec3, rest: float, stiffness: float,
                  damping: float, flags: int) -> wp.vec3:
     """Force on particle i of the spring i-j: -k (l/L0 - 1) n - b (n . (vi - vj)) n, n = (xi - xj)/l."""
@@ -25,9 +35,9 @@ def spring_force(xi: wp.vec3, xj: wp.vec3, vi: wp.vec3, vj: wp.vec3, rest: float
     n = d / length
     stretched = length > rest
     f = wp.vec3(0.0)
-    if (stretched and (flags & ELASTIC_TENSION) != 0) or (not stretched and (flags & ELASTIC_COMPRESSION) != 0):
+    if elastic_acts(stretched, flags):
         f = f - stiffness * (length / rest - 1.0) * n
-    if (stretched and (flags & DAMPING_TENSION) != 0) or (not stretched and (flags & DAMPING_COMPRESSION) != 0):
+    if damping_acts(stretched, flags):
         f = f - damping * wp.dot(n, vi - vj) * n
     return f
 
