@@ -16,7 +16,7 @@ from warp_cloth.stages import ParticleCollision
 
 # Jacobi passes with averaging leave pairs that are squeezed from several sides slightly inside contact:
 # at worst 0.93 of the contact distance in fold and pile; seed_default, whose 60 m cloth folds onto itself
-# at 30 m/s, reaches 0.85 (CPU and H200) over its whole length.
+# at 30 m/s, reaches 0.85 on this CPU and 0.86 on an H200 over its whole length.
 CONTACT_TOLERANCE = {"seed_default": 0.20}
 DEFAULT_CONTACT_TOLERANCE = 0.10
 
@@ -137,8 +137,9 @@ def test_collision_scene_over_its_whole_length_on_cuda(name):
 # seed_default cannot reach zero: where the falling cloth folds flat onto itself on the ground, particles
 # stay apart but an edge of one layer can slip across a triangle of the other (particle spheres guard
 # points, not edges). Runs are deterministic per device but part ways between devices, as chaotic runs
-# do: over its 240 frames at most 10 pairs on the CPU (frames 111-122) and 20 on an H200.
-KNOWN_INTERSECTIONS = {("seed_default", "cpu"): 10, ("seed_default", "cuda"): 20}
+# do: over its 240 frames at most 4 pairs on this CPU and 1 on an H200 (the code before resting particles
+# and inelastic contacts let up to 26 through).
+KNOWN_INTERSECTIONS = {("seed_default", "cpu"): 4, ("seed_default", "cuda"): 1}
 
 
 def check_scene_every_frame(name: str, frames: int, device: str) -> None:
