@@ -8,11 +8,11 @@ from typing import TextIO
 
 
 class Progress:
-    def __init__(self, total: int, label: str, stream: TextIO | None = None, force: bool = False) -> None:
+    def __init__(self, total: int, label: str, stream: TextIO | None = None) -> None:
         self.total = max(1, total)
         self.label = label
         self.stream = stream or sys.stderr
-        self.enabled = force or self.stream.isatty()
+        self.enabled = self.stream.isatty()
         self.started = time.perf_counter()
         self._last_draw = 0.0
         self.done = 0
