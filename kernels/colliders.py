@@ -5,9 +5,24 @@ changes by that correction over h (so a particle that sank in during the substep
 moving sphere takes the sphere's normal speed). What is still approaching the collider after that is
 removed, and friction takes tangential speed relative to the collider in proportion to the normal speed
 taken away (Coulomb), so a cloth sliding on the ground decelerates at mu g.
+
+All of a scene's colliders travel in one ``RigidColliders`` and act through ``collide_particle``, so that
+the kernels that move particles (the strain limit's and the collision's passes) can end with them
+instead of launching another kernel: every collider acts on one particle alone.
 """
 
 import warp as wp
+
+
+@wp.struct
+class RigidColliders:
+    ground: int  # 1 when the scene has a ground plane
+    ground_height: float
+    ground_friction: float
+    center: wp.array(dtype=wp.vec3)  # spheres (none: empty arrays)
+    velocity: wp.array(dtype=wp.vec3)
+    radius: wp.array(dtype=float)
+    friction: wp.array(dtype=float)
 
 
 @wp.func
@@ -27,43 +42,38 @@ def contact_velocity(v: wp.vec3, collider_velocity: wp.vec3, normal: wp.vec3, pu
     return collider_velocity + relative
 
 
-@wp.kernel
-def collide_ground(height: float, friction: float, h: float, inv_mass: wp.array(dtype=float),
-                   x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), resting: wp.array(dtype=int)):
-    """``resting`` (empty without particle collision) marks the particles a collider holds up."""
-    i = wp.tid()
-    p = x[i]
-    if p[1] >= height or inv_mass[i] == 0.0:
-        return
-    if resting.shape[0] > 0:
-        resting[i] = 1
-    depth = height - p[1]
-    x[i] = wp.vec3(p[0], height, p[2])
-    normal = wp.vec3(0.0, 1.0, 0.0)
-    v[i] = contact_velocity(v[i] + normal * (depth / h), wp.vec3(0.0), normal, depth / h, friction)
-
-
-@wp.kernel
-def collide_spheres(center: wp.array(dtype=wp.vec3), sphere_velocity: wp.array(dtype=wp.vec3),
-                    radius: wp.array(dtype=float), friction: wp.array(dtype=float), h: float,
-                    inv_mass: wp.array(dtype=float), x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3),
-                    resting: wp.array(dtype=int)):
-    i = wp.tid()
-    if inv_mass[i] == 0.0:
-        return
-    p = x[i]
-    vel = v[i]
-    for s in range(center.shape[0]):
-        d = p - center[s]
+@wp.func
+def collide_particle(p: wp.vec3, vel: wp.vec3, colliders: RigidColliders, h: float):
+    """A free particle's position and velocity after the ground, then each sphere; and 1 if any of them
+    touched it."""
+    hit = int(0)
+    if colliders.ground != 0 and p[1] < colliders.ground_height:
+        depth = colliders.ground_height - p[1]
+        p = wp.vec3(p[0], colliders.ground_height, p[2])
+        up = wp.vec3(0.0, 1.0, 0.0)
+        vel = contact_velocity(vel + up * (depth / h), wp.vec3(0.0), up, depth / h, colliders.ground_friction)
+        hit = 1
+    for s in range(colliders.center.shape[0]):
+        d = p - colliders.center[s]
         dist = wp.length(d)
-        if dist < radius[s]:
+        if dist < colliders.radius[s]:
             normal = wp.vec3(0.0, 1.0, 0.0)
             if dist > 1.0e-12:
                 normal = d / dist
-            depth = radius[s] - dist
-            if resting.shape[0] > 0:
-                resting[i] = 1
-            p = center[s] + radius[s] * normal
-            vel = contact_velocity(vel + normal * (depth / h), sphere_velocity[s], normal, depth / h, friction[s])
+            depth = colliders.radius[s] - dist
+            p = colliders.center[s] + colliders.radius[s] * normal
+            vel = contact_velocity(vel + normal * (depth / h), colliders.velocity[s], normal, depth / h,
+                                   colliders.friction[s])
+            hit = 1
+    return p, vel, hit
+
+
+@wp.kernel
+def collide(colliders: RigidColliders, h: float, inv_mass: wp.array(dtype=float), x: wp.array(dtype=wp.vec3),
+            v: wp.array(dtype=wp.vec3)):
+    i = wp.tid()
+    if inv_mass[i] == 0.0:
+        return
+    p, vel, hit = collide_particle(x[i], v[i], colliders, h)
     x[i] = p
     v[i] = vel

@@ -3,17 +3,35 @@
 Each particle gathers the corrections of its limited springs that are out of range, weighted by inverse
 mass (a pinned end does not move), and moves by their average. Reading one buffer and writing another
 keeps the pass free of races and deterministic. The velocity gets the same correction divided by h, so
-that it stays consistent with the positions (as the seed's velocity fix does).
+that it stays consistent with the positions (as the seed's velocity fix does). A pass ends with the
+rigid colliders (an empty ``RigidColliders`` for none), which act on each particle alone.
 """
 
 import warp as wp
+
+from .colliders import RigidColliders, collide_particle
+
+
+UNROLLED_LIMITS = wp.constant(12)  # as many as a grid particle has springs (see springs.py)
+
+
+@wp.func
+def limit_correction(xi: wp.vec3, wi: float, xj: wp.vec3, wj: float, min_length: float, max_length: float):
+    """Particle i's share of the correction that brings the pair i-j within its limits, and 1 if the pair
+    is out of them (else zero and 0)."""
+    d = xi - xj
+    length = wp.length(d)
+    target = wp.clamp(length, min_length, max_length)
+    if target != length and length > 1.0e-12:
+        return (wi / (wi + wj)) * (target - length) * (d / length), 1
+    return wp.vec3(0.0), 0
 
 
 @wp.kernel
 def project_strain_limits(x: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float),
                           offsets: wp.array(dtype=int), other: wp.array(dtype=int),
                           min_length: wp.array(dtype=float), max_length: wp.array(dtype=float), h: float,
-                          x_out: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3)):
+                          colliders: RigidColliders, x_out: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3)):
     i = wp.tid()
     xi = x[i]
     wi = inv_mass[i]
@@ -22,16 +40,26 @@ def project_strain_limits(x: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=f
         return
     correction = wp.vec3(0.0)
     violated = int(0)
-    for k in range(offsets[i], offsets[i + 1]):
-        j = other[k]
-        d = xi - x[j]
-        length = wp.length(d)
-        target = wp.clamp(length, min_length[k], max_length[k])
-        if target != length and length > 1.0e-12:
-            share = wi / (wi + inv_mass[j])
-            correction = correction + share * (target - length) * (d / length)
-            violated += 1
+    start = offsets[i]
+    end = offsets[i + 1]
+    if end > start:
+        last = other.shape[0] - 1
+        for k in range(UNROLLED_LIMITS):  # unrolled: all loads at once (see springs.py)
+            e = wp.min(start + k, last)
+            j = other[e]
+            c, out = limit_correction(xi, wi, x[j], inv_mass[j], min_length[e], max_length[e])
+            if start + k < end:
+                correction = correction + c
+                violated += out
+        for e in range(start + UNROLLED_LIMITS, end):
+            j = other[e]
+            c, out = limit_correction(xi, wi, x[j], inv_mass[j], min_length[e], max_length[e])
+            correction = correction + c
+            violated += out
+    vel = v[i]
     if violated > 0:
         correction = correction / float(violated)
-        v[i] = v[i] + correction / h
-    x_out[i] = xi + correction
+        vel = vel + correction / h
+    p, vel, hit = collide_particle(xi + correction, vel, colliders, h)
+    x_out[i] = p
+    v[i] = vel

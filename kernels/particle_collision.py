@@ -11,14 +11,30 @@ Two particles i, j touch when closer than ``separation * (r_i + r_j) / 2``.
 import warp as wp
 
 from . import spatial_hash
+from .colliders import RigidColliders, collide_particle
 
 
 @wp.kernel
-def displacement_exceeds(x: wp.array(dtype=wp.vec3), x_built: wp.array(dtype=wp.vec3), threshold: float,
-                         rebuild: wp.array(dtype=int)):
-    """Sets rebuild[0] if any particle moved farther than ``threshold`` since the neighbour lists were made."""
+def begin_contacts(inv_mass: wp.array(dtype=float), colliders: RigidColliders, h: float,
+                   x_built: wp.array(dtype=wp.vec3), rebuild_distance: float, x: wp.array(dtype=wp.vec3),
+                   v: wp.array(dtype=wp.vec3), v_start: wp.array(dtype=wp.vec3), resting: wp.array(dtype=int),
+                   rebuild: wp.array(dtype=int)):
+    """The collision stage's first pass over the particles: remembers the velocities the contacts start
+    from, puts particles out of the rigid colliders and marks those the colliders hold up (``resting``,
+    empty without colliders), and sets rebuild[0] if a particle has moved farther than
+    ``rebuild_distance`` since the neighbour lists were made."""
     i = wp.tid()
-    if wp.length_sq(x[i] - x_built[i]) > threshold * threshold:
+    p = x[i]
+    vel = v[i]
+    v_start[i] = vel
+    hit = int(0)
+    if inv_mass[i] != 0.0:
+        p, vel, hit = collide_particle(p, vel, colliders, h)
+        x[i] = p
+        v[i] = vel
+    if resting.shape[0] > 0:
+        resting[i] = hit
+    if wp.length_sq(p - x_built[i]) > rebuild_distance * rebuild_distance:
         rebuild[0] = 1
 
 
@@ -123,12 +139,47 @@ def separating_direction(d: wp.vec3, dist: float, i: int, j: int) -> wp.vec3:
     return -direction
 
 
+# A particle's first candidates are handled in straight-line code, the rest in a loop: unrolled, their
+# loads are issued at once instead of one neighbour after another (see springs.py). A cloth particle has
+# about 4 to 8 candidates where its cloth lies flat.
+UNROLLED_NEIGHBORS = wp.constant(8)
+
+
+@wp.func
+def neighbor_slot(i: int, k: int, max_neighbors: int, neighbors: wp.array(dtype=int)) -> int:
+    """The k-th entry of i's list; past the list's length an entry of no meaning but a valid index, which
+    the caller computes with and leaves out (so that the unrolled loads need no branch)."""
+    return neighbors[wp.min(i * max_neighbors + k, neighbors.shape[0] - 1)]
+
+
+@wp.func
+def push_out(i: int, j: int, xi: wp.vec3, wi: float, rests: bool, ri: float, x: wp.array(dtype=wp.vec3),
+             inv_mass: wp.array(dtype=float), radius: wp.array(dtype=float), separation: float,
+             resting: wp.array(dtype=int)):
+    """Particle i's push out of its overlap with j, and 1 if they overlap (else zero and 0)."""
+    d = xi - x[j]
+    dist = wp.length(d)
+    target = contact_distance(ri, radius[j], separation)
+    if dist >= target:
+        return wp.vec3(0.0), 0
+    n = separating_direction(d, dist, i, j)
+    share = wi / (wi + inv_mass[j])
+    if resting.shape[0] > 0:
+        other_rests = resting[j] != 0
+        if rests and not other_rests:
+            share = 0.0
+        elif other_rests and not rests:
+            share = 1.0
+    return share * (target - dist) * n, 1
+
+
 @wp.kernel
 def separate_particles(x: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float), radius: wp.array(dtype=float),
                        separation: float, h: float, neighbors: wp.array(dtype=int), counts: wp.array(dtype=int),
-                       max_neighbors: int, resting: wp.array(dtype=int), x_out: wp.array(dtype=wp.vec3),
-                       v: wp.array(dtype=wp.vec3), pushed: wp.array(dtype=float)):
-    """One Jacobi pass: move each particle by the mean of the pushes out of its overlapping pairs.
+                       max_neighbors: int, resting: wp.array(dtype=int), colliders: RigidColliders,
+                       x_out: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), pushed: wp.array(dtype=float)):
+    """One Jacobi pass: move each particle by the mean of the pushes out of its overlapping pairs, then
+    out of the rigid colliders (an empty ``RigidColliders`` for none).
 
     A particle that a rigid collider holds up (``resting``) does not give way to one that is not: the
     other takes the whole push, as if the resting one were as heavy as the ground under it. Without this,
@@ -144,27 +195,53 @@ def separate_particles(x: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=floa
     ri = radius[i]
     correction = wp.vec3(0.0)
     touching = int(0)
-    for k in range(counts[i]):
-        j = neighbors[i * max_neighbors + k]
-        d = xi - x[j]
-        dist = wp.length(d)
-        target = contact_distance(ri, radius[j], separation)
-        if dist < target:
-            n = separating_direction(d, dist, i, j)
-            share = wi / (wi + inv_mass[j])
-            if resting.shape[0] > 0:
-                other_rests = resting[j] != 0
-                if rests and not other_rests:
-                    share = 0.0
-                elif other_rests and not rests:
-                    share = 1.0
-            correction = correction + share * (target - dist) * n
-            touching += 1
+    count = counts[i]
+    for k in range(UNROLLED_NEIGHBORS):
+        c, t = push_out(i, neighbor_slot(i, k, max_neighbors, neighbors), xi, wi, rests, ri, x, inv_mass, radius,
+                        separation, resting)
+        if k < count:
+            correction = correction + c
+            touching += t
+    for k in range(UNROLLED_NEIGHBORS, count):
+        c, t = push_out(i, neighbors[i * max_neighbors + k], xi, wi, rests, ri, x, inv_mass, radius, separation,
+                        resting)
+        correction = correction + c
+        touching += t
+    vel = v[i]
     if touching > 0:
         correction = correction / float(touching)
-        v[i] = v[i] + correction / h
+        vel = vel + correction / h
         pushed[i] = pushed[i] + wp.length(correction)
-    x_out[i] = xi + correction
+    p, vel, hit = collide_particle(xi + correction, vel, colliders, h)
+    x_out[i] = p
+    v[i] = vel
+
+
+@wp.func
+def inelastic_change(i: int, j: int, xi: wp.vec3, vi: wp.vec3, wi: float, ri: float, pushed_speed: float,
+                     x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), v_start: wp.array(dtype=wp.vec3),
+                     inv_mass: wp.array(dtype=float), radius: wp.array(dtype=float), separation: float,
+                     contact_slack: float, friction: float):
+    """Particle i's velocity change from its contact with j, as its normal part and the friction taken off
+    (kept apart so that sums over contacts round the same way on every device), and 1 if they touch (else
+    zeros and 0)."""
+    d = xi - x[j]
+    dist = wp.length(d)
+    if dist >= contact_slack * contact_distance(ri, radius[j], separation):
+        return wp.vec3(0.0), wp.vec3(0.0), 0
+    n = separating_direction(d, dist, i, j)
+    relative = vi - v[j]
+    vn = wp.dot(relative, n)
+    allowed = wp.max(0.0, wp.dot(v_start[i] - v_start[j], n))
+    target = wp.clamp(vn, 0.0, allowed)
+    share = wi / (wi + inv_mass[j])
+    stopped = pushed_speed + wp.max(0.0, -vn)
+    tangential = relative - vn * n
+    speed = wp.length(tangential)
+    taken = wp.vec3(0.0)
+    if speed > 0.0:
+        taken = share * tangential * wp.min(1.0, friction * stopped / speed)
+    return share * (target - vn) * n, taken, 1
 
 
 @wp.kernel
@@ -189,25 +266,19 @@ def resolve_contact_velocities(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.
     pushed_speed = pushed[i] / h
     change = wp.vec3(0.0)
     touching = int(0)
-    for k in range(counts[i]):
-        j = neighbors[i * max_neighbors + k]
-        d = xi - x[j]
-        dist = wp.length(d)
-        if dist >= contact_slack * contact_distance(ri, radius[j], separation):
-            continue
-        n = separating_direction(d, dist, i, j)
-        relative = vi - v[j]
-        vn = wp.dot(relative, n)
-        allowed = wp.max(0.0, wp.dot(v_start[i] - v_start[j], n))
-        target = wp.clamp(vn, 0.0, allowed)
-        share = wi / (wi + inv_mass[j])
-        change = change + share * (target - vn) * n
-        stopped = pushed_speed + wp.max(0.0, -vn)
-        tangential = relative - vn * n
-        speed = wp.length(tangential)
-        if speed > 0.0:
-            change = change - share * tangential * wp.min(1.0, friction * stopped / speed)
-        touching += 1
+    count = counts[i]
+    for k in range(UNROLLED_NEIGHBORS):
+        c, taken, t = inelastic_change(i, neighbor_slot(i, k, max_neighbors, neighbors), xi, vi, wi, ri,
+                                       pushed_speed, x, v, v_start, inv_mass, radius, separation, contact_slack,
+                                       friction)
+        if k < count:
+            change = change + c - taken
+            touching += t
+    for k in range(UNROLLED_NEIGHBORS, count):
+        c, taken, t = inelastic_change(i, neighbors[i * max_neighbors + k], xi, vi, wi, ri, pushed_speed, x, v,
+                                       v_start, inv_mass, radius, separation, contact_slack, friction)
+        change = change + c - taken
+        touching += t
     if touching > 0:
         change = change / float(touching)
     v_out[i] = vi + change

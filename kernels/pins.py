@@ -1,17 +1,9 @@
-"""Pinned particles: held at their rest position, or driven along an oscillation with its velocity."""
+"""Driven pins: moved along their oscillation, with its velocity. (A fixed pin needs no kernel: its
+particle has inverse mass 0, starts at rest at its anchor, and nothing moves it.)"""
 
 import warp as wp
 
 from .motion import clock_time, oscillation_offset, oscillation_velocity
-
-
-@wp.kernel
-def hold_pins(index: wp.array(dtype=int), anchor: wp.array(dtype=wp.vec3), x: wp.array(dtype=wp.vec3),
-              v: wp.array(dtype=wp.vec3)):
-    p = wp.tid()
-    i = index[p]
-    x[i] = anchor[p]
-    v[i] = wp.vec3(0.0)
 
 
 @wp.kernel

@@ -28,28 +28,27 @@ def launches(monkeypatch):
 
 
 LIMIT_ITERATIONS = 4
+# Fixed pins cost nothing (a pinned particle has inverse mass 0 and nothing moves it); the colliders run
+# inside the strain limit's last pass.
 EXPECTED = {
-    "hanging": {"euler_step": 1, "hold_pins": 1, "project_strain_limits": LIMIT_ITERATIONS},
-    "ground": {"euler_step": 1, "project_strain_limits": LIMIT_ITERATIONS, "collide_ground": 1},
-    "drape": {"euler_step": 1, "project_strain_limits": LIMIT_ITERATIONS, "collide_ground": 1,
-              "collide_spheres": 1},
-    "sphere_push": {"euler_step": 1, "hold_pins": 1, "project_strain_limits": LIMIT_ITERATIONS,
-                    "move_spheres": 1, "collide_spheres": 1, "advance_clock": 1},
+    "hanging": {"euler_step": 1, "project_strain_limits": LIMIT_ITERATIONS},
+    "ground": {"euler_step": 1, "project_strain_limits": LIMIT_ITERATIONS},
+    "drape": {"euler_step": 1, "project_strain_limits": LIMIT_ITERATIONS},
+    "sphere_push": {"euler_step": 1, "project_strain_limits": LIMIT_ITERATIONS, "move_spheres": 1,
+                    "advance_clock": 1},
     "oscillating_pins": {"euler_step": 1, "drive_pins": 1, "project_strain_limits": LIMIT_ITERATIONS,
                          "advance_clock": 1},
 }
 # With particle collision, limits, separation and colliders are projected together in 8 passes (the
-# larger of the collision's 8 and the limit's 4 iterations): colliders once before the passes (to know
-# which particles rest on them) and in every pass, the limit in the last 4. The neighbour lists (spatial
-# hash, gather) are remade only when a particle has moved far enough.
+# larger of the collision's 8 and the limit's 4 iterations): colliders once before the passes (in the
+# kernel that begins the stage) and at the end of every pass's last kernel, the limit in the last 4. The
+# neighbour lists (spatial hash, gather) are remade only when a particle has moved far enough.
 PASSES = 8
 LISTS = {"insert_points": 1, "gather_neighbors": 1}
 EXPECTED_WITH_COLLISION = {
-    "fold": {"euler_step": 1, "displacement_exceeds": 1, "project_strain_limits": LIMIT_ITERATIONS,
-             "separate_particles": PASSES, "collide_ground": PASSES + 1, "resolve_contact_velocities": 1},
-    "pile": {"euler_step": 1, "displacement_exceeds": 1, "project_strain_limits": LIMIT_ITERATIONS,
-             "separate_particles": PASSES, "collide_ground": PASSES + 1, "collide_spheres": PASSES + 1,
-             "resolve_contact_velocities": 1},
+    name: {"euler_step": 1, "begin_contacts": 1, "project_strain_limits": LIMIT_ITERATIONS,
+           "separate_particles": PASSES, "resolve_contact_velocities": 1}
+    for name in ("fold", "pile")
 }
 
 
@@ -99,7 +98,18 @@ def test_bare_cloth_launches_one_kernel_and_holds_no_effect_arrays(launches):
 def test_limit_iterations_and_integrator_change_the_launches(launches):
     scene = with_simulation(wc.load_scene("hanging"), limit_iterations=7, integrator="symplectic")
     sim = wc.Simulator(scene, device="cpu")
-    assert sim.stage_names == ["integrate:symplectic", "pins:fixed", "limits:7"]
+    assert sim.stage_names == ["integrate:symplectic", "limits:7"]
     launches.clear()
     sim.substep()
     assert launches["project_strain_limits"] == 7
+
+
+def test_colliders_without_limit_launch_once_for_ground_and_spheres(launches):
+    cloth = wc.Cloth(resolution=(3, 3), limit=None, structural=OFF, shear=OFF, bend=OFF)
+    spheres = (wc.Sphere(name="a", center=(0.0, -5.0, 0.0), radius=1.0),
+               wc.Sphere(name="b", center=(3.0, -5.0, 0.0), radius=1.0))
+    sim = wc.Simulator(wc.Scene(cloths=(cloth,), ground=wc.Ground(), spheres=spheres), device="cpu")
+    assert sim.stage_names == ["integrate:symplectic", "ground+spheres"]
+    launches.clear()
+    sim.substep()
+    assert dict(launches) == {"euler_step": 1, "collide": 1}

@@ -146,6 +146,15 @@ class NewtonCloth:
         return bool(np.isfinite(self.positions()).all() and np.isfinite(self.state_0.particle_qd.numpy()).all())
 
 
+def max_edge_strain(positions: np.ndarray, n: int) -> float:
+    """The largest strain of the grid's structural edges (row and column neighbours) of an n x n cloth of
+    this module's size; particles in row-major grid order, as both engines number them."""
+    grid = positions.reshape(n, n, 3)
+    across = np.linalg.norm(grid[:, 1:] - grid[:, :-1], axis=2).max()
+    down = np.linalg.norm(grid[1:] - grid[:-1], axis=2).max()
+    return float(max(across, down) / (SIZE / (n - 1)) - 1.0)
+
+
 def time_newton(variant: str, n: int, solver: str, device: str, frames: int = 24, substeps: int = 10,
                 repeats: int = 3) -> dict[str, Any]:
     """Median wall time of ``frames`` frames of one scene in one Newton solver, after 2 warm-up frames,
@@ -182,4 +191,5 @@ def time_newton(variant: str, n: int, solver: str, device: str, frames: int = 24
             "substeps": substeps, "frames": frames, "median_seconds": median, "ms_per_frame": 1e3 * median / frames,
             "particle_substeps_per_second": particles * substeps * frames / median, "graph": graph is not None,
             "self_contact": cloth.self_contact, "finite": cloth.finite(), "build_seconds": build_seconds,
+            "max_strain": max_edge_strain(cloth.positions(), n),
             "notes": notes}

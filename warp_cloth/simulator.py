@@ -19,7 +19,7 @@ from .model import Model, build_model
 from .progress import Progress
 from .scene import Scene
 from .implicit import BackwardEuler, SolveStats
-from .stages import ParticleCollision, SphereColliders, Stage, build_stages
+from .stages import ParticleCollision, RigidCollision, Stage, build_stages
 from .state import DeviceState
 
 # Rough upper bounds per particle, to refuse a scene before allocating: host arrays while building
@@ -173,9 +173,9 @@ class Simulator:
     def sphere_centers(self) -> np.ndarray:
         """Sphere centres at the current time, shape (spheres, 3)."""
         for stage in self.stages:
-            for part in [stage, *getattr(stage, "colliders", [])]:
-                if isinstance(part, SphereColliders):
-                    return part.center.numpy()
+            for part in (stage, getattr(stage, "colliders", None)):
+                if isinstance(part, RigidCollision) and part.bundle.center.shape[0] > 0:
+                    return part.bundle.center.numpy()
         return np.zeros((0, 3), dtype=np.float32)
 
     def solver_stats(self) -> "SolveStats | None":

@@ -50,19 +50,9 @@ class ExplicitIntegration:
         state.swap_velocities()
 
 
-class HoldPins:
-    def __init__(self, model: Model, device) -> None:
-        self.name = "pins:fixed"
-        self.index = _upload(model.pins.index, int, device)
-        self.anchor = _upload(model.pins.anchor, wp.vec3, device)
-
-    def run(self, state: DeviceState) -> None:
-        launch(pins.hold_pins, self.index.shape[0], state, inputs=[self.index, self.anchor],
-                  outputs=[state.x, state.v])
-
-
 class DrivePins:
-    """Pins moving along their oscillation (fixed pins are the ones with zero amplitude)."""
+    """Pins moving along their oscillation. Fixed pins need no stage: a pinned particle has inverse mass 0,
+    starts at its anchor at rest, and no stage moves it."""
 
     def __init__(self, model: Model, h: float, device) -> None:
         self.name = "pins:oscillating"
@@ -77,75 +67,87 @@ class DrivePins:
                   outputs=[state.x, state.v])
 
 
+def rigid_colliders(model: Model | None, device) -> colliders.RigidColliders:
+    """The scene's ground and spheres as the kernels take them (``None``: no collider, for passes that
+    end without them); spheres at their initial centres, at rest."""
+    bundle = colliders.RigidColliders()
+    ground = model.scene.ground if model is not None else None
+    bundle.ground = int(ground is not None)
+    bundle.ground_height = ground.height if ground is not None else 0.0
+    bundle.ground_friction = ground.friction if ground is not None else 0.0
+    spheres = model.spheres if model is not None else None
+    if spheres is None:
+        bundle.center = wp.zeros(0, dtype=wp.vec3, device=device)
+        bundle.velocity = wp.zeros(0, dtype=wp.vec3, device=device)
+        bundle.radius = wp.zeros(0, dtype=float, device=device)
+        bundle.friction = wp.zeros(0, dtype=float, device=device)
+    else:
+        bundle.center = _upload(spheres.initial_center, wp.vec3, device)
+        bundle.velocity = wp.zeros(len(spheres.center), dtype=wp.vec3, device=device)
+        bundle.radius = _upload(spheres.radius, float, device)
+        bundle.friction = _upload(spheres.friction, float, device)
+    return bundle
+
+
+class RigidCollision:
+    """The ground and all spheres in one launch. Kernels that move particles end with them instead where
+    they run last (``bundle``), so this stage runs alone only where nothing else moves particles after
+    integration."""
+
+    def __init__(self, model: Model, inv_mass: wp.array, h: float, device) -> None:
+        self.name = "+".join((["ground"] if model.scene.ground is not None else [])
+                             + (["spheres"] if model.spheres is not None else []))
+        self.inv_mass = inv_mass
+        self.h = h
+        self.bundle = rigid_colliders(model, device)
+
+    def run(self, state: DeviceState) -> None:
+        launch(colliders.collide, state.x.shape[0], state, inputs=[self.bundle, self.h, self.inv_mass],
+               outputs=[state.x, state.v])
+
+
 class StrainLimit:
-    def __init__(self, model: Model, inv_mass: wp.array, iterations: int, h: float, device) -> None:
-        self.name = f"limits:{iterations}"
+    """Provot's limit in ``iterations`` Jacobi passes; the last one ends with the ``rigid`` colliders, if
+    given (the collision stage instead chooses per pass)."""
+
+    def __init__(self, model: Model, inv_mass: wp.array, iterations: int, h: float,
+                 rigid: RigidCollision | None, device) -> None:
+        self.name = f"limits:{iterations}" + (f"+{rigid.name}" if rigid is not None else "")
         lim = model.limits
         self.iterations = iterations
         self.h = h
         self.inv_mass = inv_mass
+        self.colliders = rigid
+        self.no_colliders = rigid_colliders(None, device)
         self.arrays = (_upload(lim.offsets, int, device), _upload(lim.other, int, device),
                        _upload(lim.min_length, float, device), _upload(lim.max_length, float, device))
 
     def run(self, state: DeviceState) -> None:
-        for _ in range(self.iterations):
-            self.run_pass(state)
+        for k in range(self.iterations):
+            last = k == self.iterations - 1
+            self.run_pass(state, self.colliders.bundle if last and self.colliders else self.no_colliders)
 
-    def run_pass(self, state: DeviceState) -> None:
+    def run_pass(self, state: DeviceState, bundle: colliders.RigidColliders) -> None:
+        """One pass, ending with the colliders in ``bundle``."""
         launch(limits.project_strain_limits, state.x.shape[0], state,
-               inputs=[state.x, self.inv_mass, *self.arrays, self.h], outputs=[state.x_next, state.v])
+               inputs=[state.x, self.inv_mass, *self.arrays, self.h, bundle], outputs=[state.x_next, state.v])
         state.swap_positions()
-
-
-class SphereColliders:
-    """All spheres in one launch, at the centres and velocities in ``center`` / ``velocity``."""
-
-    def __init__(self, model: Model, inv_mass: wp.array, h: float, device) -> None:
-        s = model.spheres
-        self.inv_mass = inv_mass
-        self.h = h
-        self.center = _upload(s.initial_center, wp.vec3, device)
-        self.velocity = wp.zeros(len(s.center), dtype=wp.vec3, device=device)
-        self.radius = _upload(s.radius, float, device)
-        self.friction = _upload(s.friction, float, device)
-        self.resting = wp.zeros(0, dtype=int, device=device)  # the collision stage's, when there is one
-        self.name = "spheres"
-
-    def run(self, state: DeviceState) -> None:
-        launch(colliders.collide_spheres, state.x.shape[0], state,
-               inputs=[self.center, self.velocity, self.radius, self.friction, self.h, self.inv_mass],
-               outputs=[state.x, state.v, self.resting])
 
 
 class MoveSpheres:
     """Puts moving spheres where their motion has them at the end of the substep, with its velocity."""
 
-    def __init__(self, model: Model, target: SphereColliders, h: float, device) -> None:
+    def __init__(self, model: Model, target: RigidCollision, h: float, device) -> None:
         s = model.spheres
         self.name = "spheres:move"
         self.h = h
-        self.target = target
+        self.target = target.bundle
         self.motion = (_upload(s.center, wp.vec3, device), _upload(s.amplitude, wp.vec3, device),
                        _upload(s.frequency, float, device), _upload(s.phase, float, device))
 
     def run(self, state: DeviceState) -> None:
         launch(motion.move_spheres, self.target.center.shape[0], state, inputs=[state.clock, self.h, *self.motion],
                outputs=[self.target.center, self.target.velocity])
-
-
-class GroundCollider:
-    def __init__(self, model: Model, inv_mass: wp.array, h: float, device) -> None:
-        self.name = "ground"
-        ground = model.scene.ground
-        self.height = ground.height
-        self.friction = ground.friction
-        self.h = h
-        self.inv_mass = inv_mass
-        self.resting = wp.zeros(0, dtype=int, device=device)  # the collision stage's, when there is one
-
-    def run(self, state: DeviceState) -> None:
-        launch(colliders.collide_ground, state.x.shape[0], state,
-               inputs=[self.height, self.friction, self.h, self.inv_mass], outputs=[state.x, state.v, self.resting])
 
 
 class ParticleCollision:
@@ -155,7 +157,9 @@ class ParticleCollision:
     sphere by the layers above can only give way sideways), so with collision they are projected together
     in ``passes`` passes, the larger of the limit's and the collision's iteration counts: every pass ends
     with the colliders, and the limit and the separation each run in the last of the passes as many
-    times as their own count says, so that the last pass runs all of them.
+    times as their own count says, so that the last pass runs all of them. The colliders run inside the
+    pass's last kernel, and once before the passes, in the kernel that starts the stage: the particles
+    they hold up then (``resting``) do not give way to others during the passes.
     """
 
     SEARCH_SCALE = 1.5  # candidates within 1.5 contact distances, so passes that move particles miss none
@@ -164,15 +168,17 @@ class ParticleCollision:
     BRUTE_FORCE_UP_TO = 512  # particles; below, checking all pairs costs less than the hash
 
     def __init__(self, model: Model, inv_mass: wp.array, cloth_id: wp.array, limit: StrainLimit | None,
-                 colliders: list[Stage], h: float, device) -> None:
+                 rigid: RigidCollision | None, h: float, device) -> None:
         settings = model.scene.collision
         contacts = model.contacts
         n = model.particle_count
         self.passes = max(settings.iterations, limit.iterations if limit else 0)
         self.name = "+".join([f"collision:{self.passes}", *(["limits"] if limit else []),
-                              *(c.name for c in colliders)])
+                              *([rigid.name] if rigid else [])])
         self.limit = limit
-        self.colliders = colliders
+        self.colliders = rigid
+        self.bundle = rigid.bundle if rigid is not None else rigid_colliders(None, device)
+        self.no_colliders = rigid_colliders(None, device)
         self.settings = settings
         self.h = h
         self.n = n
@@ -188,9 +194,7 @@ class ParticleCollision:
         self.counts = wp.zeros(n, dtype=int, device=device)
         self.pushed = wp.zeros(n, dtype=float, device=device)
         self.v_start = wp.zeros(n, dtype=wp.vec3, device=device)
-        self.resting = wp.zeros(n if colliders else 0, dtype=int, device=device)
-        for collider in colliders:
-            collider.resting = self.resting
+        self.resting = wp.zeros(n if rigid else 0, dtype=int, device=device)
         self.overflow = wp.zeros(1, dtype=int, device=device)
         # Neighbour lists are remade only when some particle has moved more than this since they were made:
         # a pair left out was farther than SEARCH_SCALE contact distances apart, so it cannot touch before.
@@ -239,32 +243,31 @@ class ParticleCollision:
                           self.settings.max_neighbors], outputs=[ratio], device=x.device)
         return float(ratio.numpy()[0])
 
+    def remake_lists(self, x: wp.array) -> None:
+        """The lists, remade when ``begin_contacts`` found a particle that moved far (then clears the flag)."""
+        self.make_lists(x)
+        self.rebuild.zero_()
+
     def run(self, state: DeviceState) -> None:
         s = self.settings
-        wp.copy(self.v_start, state.v)
-        if self.colliders:
-            self.resting.zero_()
-            for collider in self.colliders:
-                collider.run(state)
+        launch(particle_collision.begin_contacts, self.n, state,
+               inputs=[self.inv_mass, self.bundle, self.h, self.x_built, self.rebuild_distance],
+               outputs=[state.x, state.v, self.v_start, self.resting, self.rebuild])
         if self.remake_every_substep:
             self.make_lists(state.x)
         else:
-            self.rebuild.zero_()
-            launch(particle_collision.displacement_exceeds, self.n, state,
-                   inputs=[state.x, self.x_built, self.rebuild_distance], outputs=[self.rebuild])
             positions = state.x
-            wp.capture_if(self.rebuild, on_true=lambda: self.make_lists(positions))
+            wp.capture_if(self.rebuild, on_true=lambda: self.remake_lists(positions))
         for remaining in range(self.passes, 0, -1):
+            separates = remaining <= s.iterations
             if self.limit is not None and remaining <= self.limit.iterations:
-                self.limit.run_pass(state)
-            if remaining <= s.iterations:
+                self.limit.run_pass(state, self.no_colliders if separates else self.bundle)
+            if separates:
                 launch(particle_collision.separate_particles, self.n, state,
                        inputs=[state.x, self.inv_mass, self.radius, s.separation, self.h, self.neighbors,
-                               self.counts, s.max_neighbors, self.resting],
+                               self.counts, s.max_neighbors, self.resting, self.bundle],
                        outputs=[state.x_next, state.v, self.pushed])
                 state.swap_positions()
-            for collider in self.colliders:
-                collider.run(state)
         launch(particle_collision.resolve_contact_velocities, self.n, state,
                inputs=[state.x, state.v, self.v_start, self.inv_mass, self.radius, s.separation, self.CONTACT_SLACK,
                        s.friction, self.h, self.pushed, self.neighbors, self.counts, s.max_neighbors],
@@ -294,7 +297,7 @@ def upload_springs(model: Model, device) -> tuple:
 
 
 def build_stages(model: Model, device) -> list[Stage]:
-    """The substep, in order: integrate, pins, then strain limits and colliders, or, with particle
+    """The substep, in order: integrate, driven pins, then strain limits and colliders, or, with particle
     collision, those projected together with it, then the clock."""
     sim = model.scene.simulation
     h = sim.step
@@ -304,23 +307,21 @@ def build_stages(model: Model, device) -> list[Stage]:
         stages: list[Stage] = [BackwardEuler(model, inv_mass, springs, h, device)]
     else:
         stages = [ExplicitIntegration(model, inv_mass, springs, sim.integrator, h)]
-    if model.pins is not None:
-        stages.append(DrivePins(model, h, device) if model.pins.moving else HoldPins(model, device))
-    limit = StrainLimit(model, inv_mass, sim.limit_iterations, h, device) if model.limits is not None else None
-    colliders: list[Stage] = []
-    if model.scene.ground is not None:
-        colliders.append(GroundCollider(model, inv_mass, h, device))
-    if model.spheres is not None:
-        spheres = SphereColliders(model, inv_mass, h, device)
-        colliders.append(spheres)
-        if model.spheres.moving:
-            stages.append(MoveSpheres(model, spheres, h, device))
+    if model.pins is not None and model.pins.moving:
+        stages.append(DrivePins(model, h, device))
+    rigid = None
+    if model.scene.ground is not None or model.spheres is not None:
+        rigid = RigidCollision(model, inv_mass, h, device)
+        if model.spheres is not None and model.spheres.moving:
+            stages.append(MoveSpheres(model, rigid, h, device))
     if model.contacts is not None:
-        stages.append(ParticleCollision(model, inv_mass, _upload(model.cloth_id, int, device), limit, colliders, h,
+        limit = StrainLimit(model, inv_mass, sim.limit_iterations, h, None, device) if model.limits is not None else None
+        stages.append(ParticleCollision(model, inv_mass, _upload(model.cloth_id, int, device), limit, rigid, h,
                                         device))
-    else:
-        stages.extend([limit] if limit is not None else [])
-        stages.extend(colliders)
+    elif model.limits is not None:
+        stages.append(StrainLimit(model, inv_mass, sim.limit_iterations, h, rigid, device))
+    elif rigid is not None:
+        stages.append(rigid)
     if (model.pins is not None and model.pins.moving) or (model.spheres is not None and model.spheres.moving):
         stages.append(AdvanceClock())
     return stages
