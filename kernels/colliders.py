@@ -9,6 +9,11 @@ taken away (Coulomb), so a cloth sliding on the ground decelerates at mu g.
 All of a scene's colliders travel in one ``RigidColliders`` and act through ``collide_particle``, so that
 the kernels that move particles (the strain limit's and the collision's passes) can end with them
 instead of launching another kernel: every collider acts on one particle alone.
+
+With particle collision, the colliders also mark the particles they hold up (``resting``), which the
+collision passes read. A pass reads one bit of it (``read_bit``, 1 or 2) and its colliders write the
+other, so a kernel that reads its neighbours' flags never sees them change under it; the passes
+alternate the bits.
 """
 
 import warp as wp
@@ -66,6 +71,21 @@ def collide_particle(p: wp.vec3, vel: wp.vec3, colliders: RigidColliders, h: flo
                                    colliders.friction[s])
             hit = 1
     return p, vel, hit
+
+
+@wp.func
+def collide_and_mark(i: int, p: wp.vec3, vel: wp.vec3, colliders: RigidColliders, h: float,
+                     resting: wp.array(dtype=int), read_bit: int):
+    """``collide_particle``, then particle i is marked resting for the next pass if it was for this one or
+    a collider touched it now (``resting`` empty: no marks)."""
+    p, vel, hit = collide_particle(p, vel, colliders, h)
+    if resting.shape[0] > 0:
+        seen = resting[i] & read_bit
+        if seen != 0 or hit != 0:
+            resting[i] = seen | (3 - read_bit)
+        else:
+            resting[i] = 0
+    return p, vel
 
 
 @wp.kernel

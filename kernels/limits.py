@@ -4,15 +4,13 @@ Each particle gathers the corrections of its limited springs that are out of ran
 mass (a pinned end does not move), and moves by their average. Reading one buffer and writing another
 keeps the pass free of races and deterministic. The velocity gets the same correction divided by h, so
 that it stays consistent with the positions (as the seed's velocity fix does). A pass ends with the
-rigid colliders (an empty ``RigidColliders`` for none), which act on each particle alone.
+rigid colliders (an empty ``RigidColliders`` for none), which act on each particle alone, and mark the
+particles they hold up in ``resting`` (see colliders.py; empty where no collision stage reads it).
 """
 
 import warp as wp
 
-from .colliders import RigidColliders, collide_particle
-
-
-UNROLLED_LIMITS = wp.constant(12)  # as many as a grid particle has springs (see springs.py)
+from .colliders import RigidColliders, collide_and_mark
 
 
 @wp.func
@@ -31,7 +29,8 @@ def limit_correction(xi: wp.vec3, wi: float, xj: wp.vec3, wj: float, min_length:
 def project_strain_limits(x: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float),
                           offsets: wp.array(dtype=int), other: wp.array(dtype=int),
                           min_length: wp.array(dtype=float), max_length: wp.array(dtype=float), h: float,
-                          colliders: RigidColliders, x_out: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3)):
+                          colliders: RigidColliders, resting: wp.array(dtype=int), read_bit: int,
+                          x_out: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3)):
     i = wp.tid()
     xi = x[i]
     wi = inv_mass[i]
@@ -40,26 +39,15 @@ def project_strain_limits(x: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=f
         return
     correction = wp.vec3(0.0)
     violated = int(0)
-    start = offsets[i]
-    end = offsets[i + 1]
-    if end > start:
-        last = other.shape[0] - 1
-        for k in range(UNROLLED_LIMITS):  # unrolled: all loads at once (see springs.py)
-            e = wp.min(start + k, last)
-            j = other[e]
-            c, out = limit_correction(xi, wi, x[j], inv_mass[j], min_length[e], max_length[e])
-            if start + k < end:
-                correction = correction + c
-                violated += out
-        for e in range(start + UNROLLED_LIMITS, end):
-            j = other[e]
-            c, out = limit_correction(xi, wi, x[j], inv_mass[j], min_length[e], max_length[e])
-            correction = correction + c
-            violated += out
+    for e in range(offsets[i], offsets[i + 1]):
+        j = other[e]
+        c, out = limit_correction(xi, wi, x[j], inv_mass[j], min_length[e], max_length[e])
+        correction = correction + c
+        violated += out
     vel = v[i]
     if violated > 0:
         correction = correction / float(violated)
         vel = vel + correction / h
-    p, vel, hit = collide_particle(xi + correction, vel, colliders, h)
+    p, vel = collide_and_mark(i, xi + correction, vel, colliders, h, resting, read_bit)
     x_out[i] = p
     v[i] = vel

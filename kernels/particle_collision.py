@@ -11,7 +11,7 @@ Two particles i, j touch when closer than ``separation * (r_i + r_j) / 2``.
 import warp as wp
 
 from . import spatial_hash
-from .colliders import RigidColliders, collide_particle
+from .colliders import RigidColliders, collide_and_mark, collide_particle
 
 
 @wp.kernel
@@ -33,7 +33,7 @@ def begin_contacts(inv_mass: wp.array(dtype=float), colliders: RigidColliders, h
         x[i] = p
         v[i] = vel
     if resting.shape[0] > 0:
-        resting[i] = hit
+        resting[i] = 3 * hit  # both bits: the first pass reads either
     if wp.length_sq(p - x_built[i]) > rebuild_distance * rebuild_distance:
         rebuild[0] = 1
 
@@ -139,23 +139,10 @@ def separating_direction(d: wp.vec3, dist: float, i: int, j: int) -> wp.vec3:
     return -direction
 
 
-# A particle's first candidates are handled in straight-line code, the rest in a loop: unrolled, their
-# loads are issued at once instead of one neighbour after another (see springs.py). A cloth particle has
-# about 4 to 8 candidates where its cloth lies flat.
-UNROLLED_NEIGHBORS = wp.constant(8)
-
-
-@wp.func
-def neighbor_slot(i: int, k: int, max_neighbors: int, neighbors: wp.array(dtype=int)) -> int:
-    """The k-th entry of i's list; past the list's length an entry of no meaning but a valid index, which
-    the caller computes with and leaves out (so that the unrolled loads need no branch)."""
-    return neighbors[wp.min(i * max_neighbors + k, neighbors.shape[0] - 1)]
-
-
 @wp.func
 def push_out(i: int, j: int, xi: wp.vec3, wi: float, rests: bool, ri: float, x: wp.array(dtype=wp.vec3),
              inv_mass: wp.array(dtype=float), radius: wp.array(dtype=float), separation: float,
-             resting: wp.array(dtype=int)):
+             resting: wp.array(dtype=int), read_bit: int):
     """Particle i's push out of its overlap with j, and 1 if they overlap (else zero and 0)."""
     d = xi - x[j]
     dist = wp.length(d)
@@ -165,7 +152,7 @@ def push_out(i: int, j: int, xi: wp.vec3, wi: float, rests: bool, ri: float, x: 
     n = separating_direction(d, dist, i, j)
     share = wi / (wi + inv_mass[j])
     if resting.shape[0] > 0:
-        other_rests = resting[j] != 0
+        other_rests = (resting[j] & read_bit) != 0
         if rests and not other_rests:
             share = 0.0
         elif other_rests and not rests:
@@ -176,10 +163,10 @@ def push_out(i: int, j: int, xi: wp.vec3, wi: float, rests: bool, ri: float, x: 
 @wp.kernel
 def separate_particles(x: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float), radius: wp.array(dtype=float),
                        separation: float, h: float, neighbors: wp.array(dtype=int), counts: wp.array(dtype=int),
-                       max_neighbors: int, resting: wp.array(dtype=int), colliders: RigidColliders,
+                       max_neighbors: int, resting: wp.array(dtype=int), read_bit: int, colliders: RigidColliders,
                        x_out: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), pushed: wp.array(dtype=float)):
     """One Jacobi pass: move each particle by the mean of the pushes out of its overlapping pairs, then
-    out of the rigid colliders (an empty ``RigidColliders`` for none).
+    out of the rigid colliders (an empty ``RigidColliders`` for none), which mark whom they hold up.
 
     A particle that a rigid collider holds up (``resting``) does not give way to one that is not: the
     other takes the whole push, as if the resting one were as heavy as the ground under it. Without this,
@@ -191,20 +178,13 @@ def separate_particles(x: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=floa
     if wi == 0.0:
         x_out[i] = xi
         return
-    rests = resting.shape[0] > 0 and resting[i] != 0
+    rests = resting.shape[0] > 0 and (resting[i] & read_bit) != 0
     ri = radius[i]
     correction = wp.vec3(0.0)
     touching = int(0)
-    count = counts[i]
-    for k in range(UNROLLED_NEIGHBORS):
-        c, t = push_out(i, neighbor_slot(i, k, max_neighbors, neighbors), xi, wi, rests, ri, x, inv_mass, radius,
-                        separation, resting)
-        if k < count:
-            correction = correction + c
-            touching += t
-    for k in range(UNROLLED_NEIGHBORS, count):
+    for k in range(counts[i]):
         c, t = push_out(i, neighbors[i * max_neighbors + k], xi, wi, rests, ri, x, inv_mass, radius, separation,
-                        resting)
+                        resting, read_bit)
         correction = correction + c
         touching += t
     vel = v[i]
@@ -212,7 +192,7 @@ def separate_particles(x: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=floa
         correction = correction / float(touching)
         vel = vel + correction / h
         pushed[i] = pushed[i] + wp.length(correction)
-    p, vel, hit = collide_particle(xi + correction, vel, colliders, h)
+    p, vel = collide_and_mark(i, xi + correction, vel, colliders, h, resting, read_bit)
     x_out[i] = p
     v[i] = vel
 
@@ -223,8 +203,8 @@ def inelastic_change(i: int, j: int, xi: wp.vec3, vi: wp.vec3, wi: float, ri: fl
                      inv_mass: wp.array(dtype=float), radius: wp.array(dtype=float), separation: float,
                      contact_slack: float, friction: float):
     """Particle i's velocity change from its contact with j, as its normal part and the friction taken off
-    (kept apart so that sums over contacts round the same way on every device), and 1 if they touch (else
-    zeros and 0)."""
+    (added to the sum one after the other, as they always were, so results stay as they were), and 1 if
+    they touch (else zeros and 0)."""
     d = xi - x[j]
     dist = wp.length(d)
     if dist >= contact_slack * contact_distance(ri, radius[j], separation):
@@ -266,15 +246,7 @@ def resolve_contact_velocities(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.
     pushed_speed = pushed[i] / h
     change = wp.vec3(0.0)
     touching = int(0)
-    count = counts[i]
-    for k in range(UNROLLED_NEIGHBORS):
-        c, taken, t = inelastic_change(i, neighbor_slot(i, k, max_neighbors, neighbors), xi, vi, wi, ri,
-                                       pushed_speed, x, v, v_start, inv_mass, radius, separation, contact_slack,
-                                       friction)
-        if k < count:
-            change = change + c - taken
-            touching += t
-    for k in range(UNROLLED_NEIGHBORS, count):
+    for k in range(counts[i]):
         c, taken, t = inelastic_change(i, neighbors[i * max_neighbors + k], xi, vi, wi, ri, pushed_speed, x, v,
                                        v_start, inv_mass, radius, separation, contact_slack, friction)
         change = change + c - taken

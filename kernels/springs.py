@@ -42,36 +42,18 @@ def spring_force(xi: wp.vec3, xj: wp.vec3, vi: wp.vec3, vj: wp.vec3, rest: float
     return f
 
 
-# Springs of a particle gathered in straight-line code before the rest in a loop: a grid particle has 4
-# structural, 4 shear and 4 bend springs. Unrolled, every spring's loads are issued at once instead of
-# one spring after another, which is what a small cloth's substep waits on (a loop of dependent loads).
-UNROLLED_SPRINGS = wp.constant(12)
-
-
 @wp.func
 def gather_spring_forces(i: int, x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3),
                          offsets: wp.array(dtype=int), other: wp.array(dtype=int),
                          spring: wp.array(dtype=int), rest: wp.array(dtype=float),
                          stiffness: wp.array(dtype=float), damping: wp.array(dtype=float),
                          flags: wp.array(dtype=int)) -> wp.vec3:
-    """Sum of the spring forces on particle i, in the order of its adjacency list."""
+    """Sum of the spring forces on particle i."""
     xi = x[i]
     vi = v[i]
     f = wp.vec3(0.0)
-    start = offsets[i]
-    end = offsets[i + 1]
-    if end == start:
-        return f
-    last = other.shape[0] - 1
-    for k in range(UNROLLED_SPRINGS):
-        e = wp.min(start + k, last)  # past the end: another particle's spring, computed and left out
-        j = other[e]
-        s = spring[e]
-        fk = spring_force(xi, x[j], vi, v[j], rest[s], stiffness[s], damping[s], flags[s])
-        if start + k < end:
-            f = f + fk
-    for e in range(start + UNROLLED_SPRINGS, end):
-        j = other[e]
-        s = spring[e]
+    for k in range(offsets[i], offsets[i + 1]):
+        j = other[k]
+        s = spring[k]
         f = f + spring_force(xi, x[j], vi, v[j], rest[s], stiffness[s], damping[s], flags[s])
     return f

@@ -100,7 +100,7 @@ def test_hash_grid_stage_matches_brute_force(seed, limit_a, self_on, between_on)
     stage.pushed.zero_()
     wp.launch(particle_collision.separate_particles, n,
               inputs=[x_dev, stage.inv_mass, stage.radius, s.separation, sim.dt, stage.neighbors, stage.counts,
-                      s.max_neighbors, stage.resting, stage.no_colliders],
+                      s.max_neighbors, stage.resting, 1, stage.no_colliders],
               outputs=[x_out, v_dev, stage.pushed])
     x_ref, v_ref = brute_force_separation(x.astype(np.float64), v.astype(np.float64), sim.model.inv_mass, radius,
                                           s.separation, reference, sim.dt)

@@ -119,6 +119,7 @@ class StrainLimit:
         self.inv_mass = inv_mass
         self.colliders = rigid
         self.no_colliders = rigid_colliders(None, device)
+        self.no_resting = wp.zeros(0, dtype=int, device=device)
         self.arrays = (_upload(lim.offsets, int, device), _upload(lim.other, int, device),
                        _upload(lim.min_length, float, device), _upload(lim.max_length, float, device))
 
@@ -127,10 +128,13 @@ class StrainLimit:
             last = k == self.iterations - 1
             self.run_pass(state, self.colliders.bundle if last and self.colliders else self.no_colliders)
 
-    def run_pass(self, state: DeviceState, bundle: colliders.RigidColliders) -> None:
-        """One pass, ending with the colliders in ``bundle``."""
+    def run_pass(self, state: DeviceState, bundle: colliders.RigidColliders, resting: wp.array | None = None,
+                 read_bit: int = 1) -> None:
+        """One pass, ending with the colliders in ``bundle``, which mark ``resting`` (see colliders.py)."""
         launch(limits.project_strain_limits, state.x.shape[0], state,
-               inputs=[state.x, self.inv_mass, *self.arrays, self.h, bundle], outputs=[state.x_next, state.v])
+               inputs=[state.x, self.inv_mass, *self.arrays, self.h, bundle,
+                       self.no_resting if resting is None else resting, read_bit],
+               outputs=[state.x_next, state.v])
         state.swap_positions()
 
 
@@ -158,8 +162,8 @@ class ParticleCollision:
     in ``passes`` passes, the larger of the limit's and the collision's iteration counts: every pass ends
     with the colliders, and the limit and the separation each run in the last of the passes as many
     times as their own count says, so that the last pass runs all of them. The colliders run inside the
-    pass's last kernel, and once before the passes, in the kernel that starts the stage: the particles
-    they hold up then (``resting``) do not give way to others during the passes.
+    pass's last kernel, and once before the passes, in the kernel that starts the stage; the particles
+    they hold up (``resting``) do not give way to others in the passes that follow.
     """
 
     SEARCH_SCALE = 1.5  # candidates within 1.5 contact distances, so passes that move particles miss none
@@ -260,12 +264,16 @@ class ParticleCollision:
             wp.capture_if(self.rebuild, on_true=lambda: self.remake_lists(positions))
         for remaining in range(self.passes, 0, -1):
             separates = remaining <= s.iterations
+            read_bit = 1 if (self.passes - remaining) % 2 == 0 else 2  # resting flags: see colliders.py
             if self.limit is not None and remaining <= self.limit.iterations:
-                self.limit.run_pass(state, self.no_colliders if separates else self.bundle)
+                if separates:
+                    self.limit.run_pass(state, self.no_colliders)
+                else:
+                    self.limit.run_pass(state, self.bundle, self.resting, read_bit)
             if separates:
                 launch(particle_collision.separate_particles, self.n, state,
                        inputs=[state.x, self.inv_mass, self.radius, s.separation, self.h, self.neighbors,
-                               self.counts, s.max_neighbors, self.resting, self.bundle],
+                               self.counts, s.max_neighbors, self.resting, read_bit, self.bundle],
                        outputs=[state.x_next, state.v, self.pushed])
                 state.swap_positions()
         launch(particle_collision.resolve_contact_velocities, self.n, state,
