@@ -136,10 +136,13 @@ def test_collision_scene_over_its_whole_length_on_cuda(name):
 
 # seed_default cannot reach zero: where the falling cloth folds flat onto itself on the ground, particles
 # stay apart but an edge of one layer can slip across a triangle of the other (particle spheres guard
-# points, not edges). Runs are deterministic per device but part ways between devices, as chaotic runs
-# do: over its 240 frames at most 4 pairs on this CPU and 1 on an H200 (the code before resting particles
-# and inelastic contacts let up to 26 through).
-KNOWN_INTERSECTIONS = {("seed_default", "cpu"): 4, ("seed_default", "cuda"): 1}
+# points, not edges). How many do is chaotic: runs are deterministic per device, but the count swings with
+# rounding. With gravity scaled by 1 + k 1e-6 (k = 0..7), the most pairs crossing at once over the 240
+# frames on an H200 were 11, 16, 2, 14, 6, 30, 10 and 5 (docs/results/seed-default-crossings-h200.jsonl),
+# so one run's count says little and the bound is the spread's top. The first 48 frames, which CI runs on
+# the CPU, had none in each of 6 such runs (seed-default-crossings-cpu.jsonl). The closest contact stayed
+# at 0.885 or more.
+KNOWN_INTERSECTIONS = {("seed_default", "cpu"): 0, ("seed_default", "cuda"): 30}
 
 
 def check_scene_every_frame(name: str, frames: int, device: str) -> None:
