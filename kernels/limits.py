@@ -6,6 +6,8 @@ keeps the pass free of races and deterministic. The velocity gets the same corre
 that it stays consistent with the positions (as the seed's velocity fix does). A pass ends with the
 rigid colliders (an empty ``RigidColliders`` for none), which act on each particle alone, and mark the
 particles they hold up in ``resting`` (see colliders.py; empty where no collision stage reads it).
+Long-range attachments (``attachment_pin``, empty for none) then pull each particle back within reach of
+its pin; a pin does not move in the pass, so this needs no averaging.
 """
 
 import warp as wp
@@ -25,10 +27,23 @@ def limit_correction(xi: wp.vec3, wi: float, xj: wp.vec3, wj: float, min_length:
     return wp.vec3(0.0), 0
 
 
+@wp.func
+def attachment_correction(p: wp.vec3, pin: int, max_length: float, x: wp.array(dtype=wp.vec3)) -> wp.vec3:
+    """What brings p back within ``max_length`` of its pin (none for pin -1 or a particle within reach)."""
+    if pin < 0:
+        return wp.vec3(0.0)
+    d = p - x[pin]
+    length = wp.length(d)
+    if length <= max_length:
+        return wp.vec3(0.0)
+    return d * (max_length / length - 1.0)
+
+
 @wp.kernel
 def project_strain_limits(x: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float),
                           offsets: wp.array(dtype=int), other: wp.array(dtype=int),
-                          min_length: wp.array(dtype=float), max_length: wp.array(dtype=float), h: float,
+                          min_length: wp.array(dtype=float), max_length: wp.array(dtype=float),
+                          attachment_pin: wp.array(dtype=int), attachment_length: wp.array(dtype=float), h: float,
                           colliders: RigidColliders, resting: wp.array(dtype=int), read_bit: int,
                           x_out: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3)):
     i = wp.tid()
@@ -44,10 +59,11 @@ def project_strain_limits(x: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=f
         c, out = limit_correction(xi, wi, x[j], inv_mass[j], min_length[e], max_length[e])
         correction = correction + c
         violated += out
-    vel = v[i]
     if violated > 0:
         correction = correction / float(violated)
-        vel = vel + correction / h
+    if attachment_pin.shape[0] > 0:
+        correction = correction + attachment_correction(xi + correction, attachment_pin[i], attachment_length[i], x)
+    vel = v[i] + correction / h
     p, vel = collide_and_mark(i, xi + correction, vel, colliders, h, resting, read_bit)
     x_out[i] = p
     v[i] = vel

@@ -70,12 +70,16 @@ class Pins:
 
 @dataclass(frozen=True)
 class StrainLimits:
-    """Limited (structural and shear) springs as incidence lists with allowed length ranges."""
+    """Limited (structural and shear) springs as incidence lists with allowed length ranges, and each
+    particle's long-range attachment: the nearest pin of its cloth (-1: none) and how far from it the
+    particle may be. The attachment arrays are empty when no cloth has one."""
 
     offsets: np.ndarray
     other: np.ndarray
     min_length: np.ndarray
     max_length: np.ndarray
+    attachment_pin: np.ndarray  # (n,) int32 or (0,)
+    attachment_length: np.ndarray  # (n,) float32 or (0,)
 
 
 @dataclass(frozen=True)
@@ -149,7 +153,7 @@ def build_model(scene: Scene) -> Model:
         velocities[pins.index] = pins.amplitude * omega * np.cos(pins.phase)[:, None]
     springs = _springs(scene, grids, offsets, n)
     return Model(scene, grids, tuple(offsets), positions, velocities, masses, inv_mass, cloth_id, springs,
-                 _limits(springs, n), pins, _spheres(scene), _contacts(scene, grids))
+                 _limits(springs, n, _attachments(scene, offsets)), pins, _spheres(scene), _contacts(scene, grids))
 
 
 def _springs(scene: Scene, grids, offsets, n: int) -> Springs | None:
@@ -177,7 +181,7 @@ def _springs(scene: Scene, grids, offsets, n: int) -> Springs | None:
                    Adjacency.of(pairs, n))
 
 
-def _limits(springs: Springs | None, n: int) -> StrainLimits | None:
+def _limits(springs: Springs | None, n: int, attachments: tuple[np.ndarray, np.ndarray]) -> StrainLimits | None:
     if springs is None:
         return None
     limited = np.isfinite(springs.limit_max)
@@ -185,7 +189,59 @@ def _limits(springs: Springs | None, n: int) -> StrainLimits | None:
         return None
     adjacency = Adjacency.of(springs.pairs[limited], n)
     chosen = np.nonzero(limited)[0][adjacency.spring]
-    return StrainLimits(adjacency.offsets, adjacency.other, springs.limit_min[chosen], springs.limit_max[chosen])
+    return StrainLimits(adjacency.offsets, adjacency.other, springs.limit_min[chosen], springs.limit_max[chosen],
+                        *attachments)
+
+
+def _attachments(scene: Scene, offsets: list[int]) -> tuple[np.ndarray, np.ndarray]:
+    """Per particle, the nearest pin of its cloth in the flat rest grid and (1 + stretch) times the rest
+    distance to it (empty arrays when no limited, pinned cloth asks for attachments)."""
+    n = offsets[-1]
+    pin_of = np.full(n, -1, dtype=np.int32)
+    length = np.zeros(n, dtype=np.float32)
+    attached = False
+    for c, (cloth, chosen_per_pin) in enumerate(zip(scene.cloths, select_pins(scene))):
+        if cloth.limit is None or not cloth.limit.attachments or not chosen_per_pin:
+            continue
+        attached = True
+        nx, ny = cloth.resolution
+        dx, dy = cloth.size[0] / nx, cloth.size[1] / ny
+        count = cloth.particle_count
+        gx, gy = np.arange(count) % (nx + 1), np.arange(count) // (nx + 1)
+        pinned = np.unique(np.concatenate(chosen_per_pin))
+        nearest, distance = _nearest_on_grid(gx, gy, gx[pinned], gy[pinned], dx, dy)
+        free = np.ones(count, dtype=bool)
+        free[pinned] = False
+        sl = slice(offsets[c], offsets[c + 1])
+        pin_of[sl] = np.where(free, pinned[nearest] + offsets[c], -1)
+        length[sl] = (1.0 + cloth.limit.stretch) * distance
+    if not attached:
+        return np.zeros(0, dtype=np.int32), np.zeros(0, dtype=np.float32)
+    return pin_of, length
+
+
+def _nearest_on_grid(gx: np.ndarray, gy: np.ndarray, px: np.ndarray, py: np.ndarray, dx: float,
+                     dy: float) -> tuple[np.ndarray, np.ndarray]:
+    """For grid points (gx, gy), the index into (px, py) of the nearest point in the metric of cells dx by
+    dy, and the distance. Points are grouped into grid lines (rows or columns, whichever are fewer) and
+    the nearest of each line found by bisection, so an edge of pins costs one sweep."""
+    if len(np.unique(py)) > len(np.unique(px)):  # fewer columns than rows: swap the axes
+        return _nearest_on_grid(gy, gx, py, px, dy, dx)
+    best = np.full(len(gx), np.inf)
+    best_index = np.zeros(len(gx), dtype=np.int64)
+    for row in np.unique(py):
+        in_row = np.nonzero(py == row)[0]
+        order = in_row[np.argsort(px[in_row])]
+        xs = px[order]
+        right = np.clip(np.searchsorted(xs, gx), 0, len(xs) - 1)
+        left = np.clip(right - 1, 0, len(xs) - 1)
+        across = ((gy - row) * dy) ** 2
+        for side in (left, right):
+            d2 = ((gx - xs[side]) * dx) ** 2 + across
+            closer = d2 < best
+            best[closer] = d2[closer]
+            best_index[closer] = order[side[closer]]
+    return best_index, np.sqrt(best)
 
 
 def select_pins(scene: Scene) -> list[list[np.ndarray]]:

@@ -103,10 +103,16 @@ SEED_BEND = SpringKind(10.0, 1.0, "compression", "compression")
 
 @dataclass(frozen=True)
 class Limit:
-    """Provot-style strain limit on structural and shear springs, as fractions of the rest length."""
+    """Provot-style strain limit on structural and shear springs, as fractions of the rest length.
+
+    With ``attachments`` (the default), each particle of a pinned cloth also stays within (1 + stretch)
+    times its rest distance across the cloth from its nearest pin (long-range attachments, Kim, Chentanez
+    and Mueller 2012), projected in every limit pass: the limit's passes then hold a hanging cloth's
+    length whatever its resolution, where springs alone pass a pull on one row per pass."""
 
     stretch: float = 0.10
     compression: float = 0.10
+    attachments: bool = True
 
     def __post_init__(self) -> None:
         _require(0 < self.stretch <= 10, "stretch", "a fraction in (0, 10]", self.stretch)

@@ -121,7 +121,8 @@ class StrainLimit:
         self.no_colliders = rigid_colliders(None, device)
         self.no_resting = wp.zeros(0, dtype=int, device=device)
         self.arrays = (_upload(lim.offsets, int, device), _upload(lim.other, int, device),
-                       _upload(lim.min_length, float, device), _upload(lim.max_length, float, device))
+                       _upload(lim.min_length, float, device), _upload(lim.max_length, float, device),
+                       _upload(lim.attachment_pin, int, device), _upload(lim.attachment_length, float, device))
 
     def run(self, state: DeviceState) -> None:
         for k in range(self.iterations):

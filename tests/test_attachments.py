@@ -1,0 +1,70 @@
+"""Long-range attachments: each particle of a pinned, limited cloth stays within (1 + stretch) times its
+rest distance from its nearest pin, which holds a hanging cloth's length at any resolution."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+import warp_cloth as wc
+from warp_cloth.bench import matrix_scene
+from warp_cloth.model import _nearest_on_grid
+from warp_cloth.newton_compare import max_edge_strain
+
+
+def with_attachments(scene: wc.Scene, on: bool) -> wc.Scene:
+    cloths = tuple(dataclasses.replace(c, limit=dataclasses.replace(c.limit, attachments=on)) for c in scene.cloths)
+    return dataclasses.replace(scene, cloths=cloths)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_nearest_pin_on_grid_matches_brute_force(seed):
+    rng = np.random.default_rng(seed)
+    nx, ny, dx, dy = 17, 11, 0.3, 0.7
+    gx, gy = np.arange((nx + 1) * (ny + 1)) % (nx + 1), np.arange((nx + 1) * (ny + 1)) // (nx + 1)
+    pins = rng.choice(len(gx), size=rng.integers(1, 30), replace=False)
+    nearest, distance = _nearest_on_grid(gx, gy, gx[pins], gy[pins], dx, dy)
+    all_d = np.hypot((gx[:, None] - gx[pins][None]) * dx, (gy[:, None] - gy[pins][None]) * dy)
+    np.testing.assert_allclose(distance, all_d.min(axis=1), rtol=1e-12)
+    np.testing.assert_allclose(all_d[np.arange(len(gx)), nearest], all_d.min(axis=1), rtol=1e-12)
+
+
+def test_hanging_cloth_stays_within_reach_of_its_pins():
+    # The speed matrix's 64 x 64 cloth: soft springs and two limit passes a substep. Without attachments
+    # its top rows stretch ~19 % (the limit passes a pull on one row per pass); with them every particle
+    # stays within 1.1 times its rest distance from its pin, and no edge stretches much past 10 %.
+    n = 64
+    strains = {}
+    for on in (True, False):
+        sim = wc.Simulator(with_attachments(matrix_scene("hanging", n, "symplectic"), on), device="cpu")
+        sim.run(48)
+        x = sim.positions()
+        strains[on] = max_edge_strain(x, n)
+        if on:
+            limits = sim.model.limits
+            attached = limits.attachment_pin >= 0
+            reach = np.linalg.norm(x[attached] - x[limits.attachment_pin[attached]], axis=1)
+            assert (reach <= limits.attachment_length[attached] * (1 + 1e-5)).all()
+            # the pull reaches the bottom: the cloth hangs at nearly its full allowed length
+            assert x[:, 1].min() < -0.9
+    assert strains[True] <= 0.105
+    assert strains[False] > 0.15
+
+
+def test_attachments_go_to_the_nearest_pin_of_the_same_cloth_only():
+    cloth = wc.Cloth(resolution=(4, 4), size=(4.0, 4.0), limit=wc.Limit(), pins=(wc.Pin(corners=("top-left",)),))
+    other = dataclasses.replace(cloth, name="other", origin=(10.0, 0.0, 0.0), pins=(wc.Pin(corners=("top-right",)),))
+    model = wc.Simulator(wc.Scene(cloths=(cloth, other)), device="cpu").model
+    pin, length = model.limits.attachment_pin, model.limits.attachment_length
+    top_left, top_right = 4 * 5, 4 * 5 + 4
+    assert pin[top_left] == -1 and pin[25 + top_right] == -1
+    assert pin[0] == top_left and length[0] == pytest.approx(1.1 * 4.0)  # bottom-left, 4 m below its pin
+    assert pin[25 + 0] == 25 + top_right and length[25] == pytest.approx(1.1 * np.hypot(4.0, 4.0))
+    assert set(pin[:25][pin[:25] >= 0]) == {top_left} and set(pin[25:][pin[25:] >= 0]) == {25 + top_right}
+
+
+def test_without_pins_or_with_attachments_off_nothing_is_allocated():
+    free = wc.Simulator(wc.Scene(cloths=(wc.Cloth(resolution=(3, 3), limit=wc.Limit()),)), device="cpu").model
+    assert free.limits.attachment_pin.shape == (0,)
+    seed = wc.Simulator(wc.load_scene("seed_default"), device="cpu").model
+    assert seed.limits.attachment_pin.shape == (0,)  # the seed's scene keeps the seed's behaviour
