@@ -107,6 +107,24 @@ def test_guard_names_frame_and_substep_and_suggests_a_fix():
     assert "--integrator implicit" in str(error) and "smaller step" in str(error)
 
 
+@pytest.mark.parametrize("graph", [True, False])
+def test_run_without_writers_names_the_same_frame_as_step(graph):
+    # run() without writers checks a frame while the next one runs: the error must still name the frame
+    # and substep that step() by step finds, and a stable run must not raise at its end.
+    scene = with_simulation(wc.load_scene("hanging"), dt=0.0104)
+    stepped = wc.Simulator(scene, device="cpu", graph=graph)
+    with pytest.raises(UnstableSimulation) as by_step:
+        for _ in range(240):
+            stepped.step()
+    ran = wc.Simulator(scene, device="cpu", graph=graph)
+    with pytest.raises(UnstableSimulation) as by_run:
+        ran.run(240)
+    assert (by_run.value.frame, by_run.value.substep) == (by_step.value.frame, by_step.value.substep)
+    assert ran.frame == by_run.value.frame + 1  # the one frame queued behind the failing one
+    summary = wc.Simulator(wc.load_scene("hanging"), device="cpu", graph=graph).run(by_step.value.frame + 3)
+    assert summary.frames == by_step.value.frame + 3
+
+
 def test_unstable_run_keeps_every_written_frame_valid_and_writes_no_nan(tmp_path):
     result = run_cli("run", "hanging", "--dt", "0.0104", "--out", str(tmp_path), "--quiet", cwd=tmp_path)
     assert result.returncode == 3, result.stderr

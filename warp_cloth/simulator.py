@@ -127,9 +127,14 @@ class Simulator:
         self.frame = 0
         self.substep_count = 0
         self.use_graph = graph
-        self._graphs: dict[int, tuple[wp.Graph, int]] = {}
-        # One flag per substep of a frame, set by the blow-up guard (see kernels/guard.py).
-        self._guard_status = wp.zeros(self.substeps_per_frame, dtype=int, device=self.device)
+        self._graphs: dict[tuple[int, int], tuple[wp.Graph, int]] = {}
+        # One flag per substep of a frame, set by the blow-up guard (see kernels/guard.py), in two slots
+        # that alternate by frame, so that a frame can run while the one before it is checked. On a GPU
+        # each frame ends by copying its slot to pinned host memory, and an event says when it is there.
+        self._guard_status = wp.zeros((2, self.substeps_per_frame), dtype=int, device=self.device)
+        if self.device.is_cuda:
+            self._guard_host = wp.zeros((2, self.substeps_per_frame), dtype=int, device="cpu", pinned=True)
+            self._frame_done = [wp.Event(self.device), wp.Event(self.device)]
         self._refuse_initial_overlap()
 
     def _refuse_initial_overlap(self) -> None:
@@ -193,28 +198,43 @@ class Simulator:
     def step(self) -> None:
         """Advance one frame.
 
-        A frame's launches are captured once for each buffer parity and replayed (a CUDA graph on a GPU, a
-        Warp CPU graph on the CPU); ``graph=False`` launches stage by stage instead.
+        A frame's launches are captured once for each buffer parity and guard slot and replayed (a CUDA
+        graph on a GPU, a Warp CPU graph on the CPU); ``graph=False`` launches stage by stage instead.
+        Raises ``UnstableSimulation`` if the blow-up guard flagged any of its substeps.
         """
+        self._check_frame(self._launch_frame())
+
+    def _launch_frame(self) -> int:
+        """Queue the next frame and return its number (its check is ``_check_frame``'s)."""
+        slot = self.frame % 2
         if not self.use_graph:
-            self._frame_substeps()
+            self._frame_substeps(slot)
         else:
-            entry = self._graphs.get(self.state.parity)
+            key = (self.state.parity, slot)
+            entry = self._graphs.get(key)
             if entry is None:
                 before = self.state.parity
                 with wp.ScopedCapture(device=self.device) as capture:
-                    self._frame_substeps()
-                entry = self._graphs[before] = (capture.graph, self.state.parity)
+                    self._frame_substeps(slot)
+                entry = self._graphs[key] = (capture.graph, self.state.parity)
                 self.state.parity = before
             graph, parity_after = entry
             wp.capture_launch(graph)
             self.state.parity = parity_after
+        if self.device.is_cuda:
+            wp.record_event(self._frame_done[slot])
         self.substep_count += self.substeps_per_frame
         self.frame += 1
-        self._raise_if_unstable()
+        return self.frame
 
-    def _raise_if_unstable(self) -> None:
-        status = self._guard_status.numpy()
+    def _check_frame(self, frame: int) -> None:
+        """Wait for frame ``frame``'s guard flags and raise ``UnstableSimulation`` if any is set."""
+        slot = (frame - 1) % 2
+        if self.device.is_cuda:
+            wp.synchronize_event(self._frame_done[slot])
+            status = self._guard_host.numpy()[slot]
+        else:
+            status = self._guard_status.numpy()[slot]
         bad = np.nonzero(status)[0]
         if len(bad) == 0:
             return
@@ -226,17 +246,20 @@ class Simulator:
             reason = f"a particle moves faster than max_speed = {sim.max_speed:g} m/s"
         if sim.integrator == "implicit":
             advice = (f"Try a smaller step than h = {self.dt:.4g} s (--dt or --substeps), or raise "
-                      f"implicit.cg_max_iterations; frames up to {self.frame - 1} are valid.")
+                      f"implicit.cg_max_iterations; frames up to {frame - 1} are valid.")
         else:
             advice = (f"Try a smaller step than h = {self.dt:.4g} s (--dt or --substeps) or the implicit integrator "
-                      f"(--integrator implicit); frames up to {self.frame - 1} are valid.")
-        raise UnstableSimulation(self.frame, first + 1, reason, advice)
+                      f"(--integrator implicit); frames up to {frame - 1} are valid.")
+        raise UnstableSimulation(frame, first + 1, reason, advice)
 
     def run(self, frames: int | None = None, writers: Iterable[FrameWriter] = (), progress: bool = False) -> RunSummary:
         """Simulate ``frames`` frames (default: the scene's), handing every frame to the writers.
 
         Writers get the initial state as frame 0 when the simulation has not moved yet. They are finished
-        whatever happens, so an interrupted run (Ctrl-C) leaves every completed frame written.
+        whatever happens, so an interrupted run (Ctrl-C) leaves every completed frame written. Without
+        writers, each frame's blow-up check waits until the next frame is queued, so the device never idles
+        between frames; ``UnstableSimulation`` then names the same frame, but the state has gone one
+        frame further.
         """
         frames = self.scene.simulation.frames if frames is None else frames
         writers = list(writers)
@@ -251,15 +274,23 @@ class Simulator:
         started = time.perf_counter()
         try:
             with StopOnInterrupt() as stop:
+                unchecked = None  # without writers, a frame is checked while the next one runs
                 for _ in range(frames):
                     if stop.requested:
                         break
-                    self.step()
+                    launched = self._launch_frame()
+                    if writers:
+                        self._check_frame(launched)
+                    elif unchecked is not None:
+                        self._check_frame(unchecked)
+                    unchecked = None if writers else launched
                     for w in writers:
                         w.write_frame(self, self.frame)
                     written += 1
                     if bar:
                         bar.update(written)
+                if unchecked is not None:
+                    self._check_frame(unchecked)
                 wp.synchronize_device(self.device)
             interrupted = stop.requested
         finally:
@@ -270,11 +301,14 @@ class Simulator:
         wall = time.perf_counter() - started
         return RunSummary(written, self.substep_count - start_substeps, self.model.particle_count, wall, interrupted)
 
-    def _frame_substeps(self) -> None:
-        self._guard_status.zero_()
+    def _frame_substeps(self, slot: int) -> None:
+        status = self._guard_status[slot]
+        status.zero_()
         for k in range(self.substeps_per_frame):
             for stage in self.stages:
                 stage.run(self.state)
             wp.launch(guard.check_state, dim=self.model.particle_count,
                       inputs=[self.state.x, self.state.v, self.scene.simulation.max_speed, k],
-                      outputs=[self._guard_status], device=self.device)
+                      outputs=[status], device=self.device)
+        if self.device.is_cuda:
+            wp.copy(self._guard_host[slot], status)
