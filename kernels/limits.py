@@ -28,15 +28,18 @@ def limit_correction(xi: wp.vec3, wi: float, xj: wp.vec3, wj: float, min_length:
 
 
 @wp.func
-def attachment_correction(p: wp.vec3, pin: int, max_length: float, x: wp.array(dtype=wp.vec3)) -> wp.vec3:
-    """What brings p back within ``max_length`` of its pin (none for pin -1 or a particle within reach)."""
+def hold_to_pin(p: wp.vec3, vel: wp.vec3, pin: int, max_length: float, h: float, x: wp.array(dtype=wp.vec3)):
+    """A particle farther than ``max_length`` from its pin (-1: none) is put back at that distance, its
+    velocity changed by that correction over h, as for every projection here. (Only removing its speed
+    away from the pin instead left the fast_sphere hard case at 50 % strain with 24 crossing pairs.)"""
     if pin < 0:
-        return wp.vec3(0.0)
+        return p, vel
     d = p - x[pin]
     length = wp.length(d)
     if length <= max_length:
-        return wp.vec3(0.0)
-    return d * (max_length / length - 1.0)
+        return p, vel
+    correction = d * (max_length / length - 1.0)
+    return p + correction, vel + correction / h
 
 
 @wp.kernel
@@ -61,9 +64,10 @@ def project_strain_limits(x: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=f
         violated += out
     if violated > 0:
         correction = correction / float(violated)
-    if attachment_pin.shape[0] > 0:
-        correction = correction + attachment_correction(xi + correction, attachment_pin[i], attachment_length[i], x)
+    p = xi + correction
     vel = v[i] + correction / h
-    p, vel = collide_and_mark(i, xi + correction, vel, colliders, h, resting, read_bit)
+    if attachment_pin.shape[0] > 0:
+        p, vel = hold_to_pin(p, vel, attachment_pin[i], attachment_length[i], h, x)
+    p, vel = collide_and_mark(i, p, vel, colliders, h, resting, read_bit)
     x_out[i] = p
     v[i] = vel

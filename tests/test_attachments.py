@@ -52,7 +52,8 @@ def test_hanging_cloth_stays_within_reach_of_its_pins():
 
 
 def test_attachments_go_to_the_nearest_pin_of_the_same_cloth_only():
-    cloth = wc.Cloth(resolution=(4, 4), size=(4.0, 4.0), limit=wc.Limit(), pins=(wc.Pin(corners=("top-left",)),))
+    cloth = wc.Cloth(resolution=(4, 4), size=(4.0, 4.0), limit=wc.Limit(attachments=True),
+                     pins=(wc.Pin(corners=("top-left",)),))
     other = dataclasses.replace(cloth, name="other", origin=(10.0, 0.0, 0.0), pins=(wc.Pin(corners=("top-right",)),))
     model = wc.Simulator(wc.Scene(cloths=(cloth, other)), device="cpu").model
     pin, length = model.limits.attachment_pin, model.limits.attachment_length
@@ -64,7 +65,8 @@ def test_attachments_go_to_the_nearest_pin_of_the_same_cloth_only():
 
 
 def test_without_pins_or_with_attachments_off_nothing_is_allocated():
-    free = wc.Simulator(wc.Scene(cloths=(wc.Cloth(resolution=(3, 3), limit=wc.Limit()),)), device="cpu").model
+    free = wc.Simulator(wc.Scene(cloths=(wc.Cloth(resolution=(3, 3), limit=wc.Limit(attachments=True)),)),
+                        device="cpu").model
     assert free.limits.attachment_pin.shape == (0,)
-    seed = wc.Simulator(wc.load_scene("seed_default"), device="cpu").model
-    assert seed.limits.attachment_pin.shape == (0,)  # the seed's scene keeps the seed's behaviour
+    pinned = wc.Simulator(wc.load_scene("hanging"), device="cpu").model  # off by default
+    assert pinned.pins is not None and pinned.limits.attachment_pin.shape == (0,)
