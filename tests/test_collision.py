@@ -138,10 +138,10 @@ def test_collision_scene_over_its_whole_length_on_cuda(name):
 # stay apart but an edge of one layer can slip across a triangle of the other (particle spheres guard
 # points, not edges). How many do is chaotic: runs are deterministic per device, but the count swings with
 # rounding. With gravity scaled by 1 + k 1e-6 (k = 0..7), the most pairs crossing at once over the 240
-# frames on an H200 were 11, 16, 2, 14, 6, 30, 10 and 5 (docs/results/seed-default-crossings-h200.jsonl),
-# so one run's count says little and the bound is the spread's top. The first 48 frames, which CI runs on
-# the CPU, had none in each of 6 such runs (seed-default-crossings-cpu.jsonl). The closest contact stayed
-# at 0.885 or more.
+# frames on an H200 were 11, 16, 2, 14, 6, 30, 10 and 5 (tools/crossing_spread.py,
+# docs/results/seed-default-crossings-h200.jsonl), so one run's count says little and the bound is the
+# spread's top. The first 48 frames, which CI runs on the CPU, had none in each of 6 such runs
+# (seed-default-crossings-cpu.jsonl). The closest contact stayed at 0.885 or more.
 KNOWN_INTERSECTIONS = {("seed_default", "cpu"): 0, ("seed_default", "cuda"): 30}
 
 

@@ -27,6 +27,7 @@ from .progress import Progress
 from .scene import Cloth, Collision, Ground, Limit, Oscillation, Pin, Scene, Simulation, Sphere, SpringKind
 from .scene_file import load_scene
 from .errors import UnstableSimulation
+from .newton_compare import max_edge_strain
 from .simulator import Simulator
 from .stages import ParticleCollision
 from .writers import PolyWriter, UsdWriter
@@ -77,6 +78,7 @@ class Case:
     frames: int
     outputs: bool = False
     fresh: bool = True  # each repeat starts from t = 0 (else frames continue on one warmed simulator)
+    grid: int | None = None  # the matrix's n x n cloths: measure the worst edge strain after the runs
 
 
 @dataclass(frozen=True)
@@ -91,6 +93,7 @@ class Result:
     outputs: bool
     seconds: list[float]
     stable: bool = True
+    max_strain: float | None = None  # worst edge strain after the runs (matrix cloths only)
 
     @property
     def median_seconds(self) -> float:
@@ -262,10 +265,10 @@ def matrix_frames(n: int, device: str) -> int:
 
 def matrix_cases(device: str) -> list[Case]:
     cases = [Case(f"{variant} {n}^2 {integrator}", matrix_scene(variant, n, integrator), matrix_frames(n, device),
-                  fresh=False)
+                  fresh=False, grid=n)
              for variant in MATRIX_VARIANTS for n in matrix_sizes(device) for integrator in ("symplectic", "implicit")]
     return cases + [Case(f"{SPRINGS_ONLY} {n}^2 symplectic", matrix_scene(SPRINGS_ONLY, n, "symplectic"),
-                         matrix_frames(n, device), fresh=False) for n in matrix_sizes(device)]
+                         matrix_frames(n, device), fresh=False, grid=n) for n in matrix_sizes(device)]
 
 
 SUITES: dict[str, Callable[[str], list[Case]]] = {"core": core_cases, "collision": collision_cases,
@@ -291,7 +294,10 @@ def time_case(case: Case, device: str, repeats: int) -> Result:
                 seconds.append(time.perf_counter() - started)
     except UnstableSimulation:
         return result([], stable=False)
-    return result(seconds)
+    timed = result(seconds)
+    if case.grid is None:
+        return timed
+    return dataclasses.replace(timed, max_strain=max_edge_strain(sim.positions(), case.grid))
 
 
 def environment(device: str) -> dict:
@@ -315,8 +321,10 @@ def environment(device: str) -> dict:
 
 def format_table(results: list[Result]) -> str:
     width = max(22, *(len(r.case) for r in results))
+    strains = any(r.max_strain is not None for r in results)
     header = f"{'case':<{width}} {'device':<8} {'particles':>9} {'substeps':>8} {'frames':>6} {'median s':>9} " \
-             f"{'ms/frame':>9} {'particle-substeps/s':>20} {'seed C++ s':>10} {'speed-up':>9}"
+             f"{'ms/frame':>9} {'particle-substeps/s':>20} {'seed C++ s':>10} {'speed-up':>9}" + \
+             (f" {'worst strain':>12}" if strains else "")
     lines = [header, "-" * len(header)]
     for r in results:
         seed = SEED_CPP_SECONDS.get(r.case)
@@ -326,9 +334,10 @@ def format_table(results: list[Result]) -> str:
                          f"{'unstable (blew up)':>40} {seed_text:>10}")
             continue
         ratio = f"{seed / r.median_seconds:8.1f}x" if seed and not r.outputs else ""
+        strain = f" {100 * r.max_strain:>11.1f}%" if r.max_strain is not None else ""
         lines.append(f"{r.case:<{width}} {r.device:<8} {r.particles:>9} {r.substeps_per_frame:>8} {r.frames:>6} "
                      f"{r.median_seconds:>9.3f} {r.ms_per_frame:>9.3f} {r.particle_substeps_per_second:>20.3g} "
-                     f"{seed_text:>10} {ratio:>9}")
+                     f"{seed_text:>10} {ratio:>9}{strain}")
     return "\n".join(lines)
 
 
@@ -361,13 +370,15 @@ def newton_comparison(results: list[Result], device: str, repeats: int) -> list[
 
 def format_newton_table(rows: list[dict]) -> str:
     header = f"{'variant':<8} {'n^2':>9} {'Newton solver':<14} {'graph':>5} {'ms/frame':>9} " \
-             f"{'particle-substeps/s':>20} {'ours (symplectic)':>18} {'ours / Newton':>13} finite"
+             f"{'particle-substeps/s':>20} {'ours (symplectic)':>18} {'ours / Newton':>13} " \
+             f"{'worst strain':>12} finite"
     lines = [header, "-" * len(header)]
     for r in rows:
         ratio = f"{r['ratio']:12.1f}x" if r["ratio"] else f"{'-':>13}"
         lines.append(f"{r['variant']:<8} {r['particles']:>9} {r['solver']:<14} {str(r['graph']):>5} "
                      f"{r['ms_per_frame']:>9.3f} {r['particle_substeps_per_second']:>20.3g} "
-                     f"{r['ours_symplectic_particle_substeps_per_second']:>18.3g} {ratio} {r['finite']}")
+                     f"{r['ours_symplectic_particle_substeps_per_second']:>18.3g} {ratio} "
+                     f"{100 * r['max_strain']:>11.1f}% {r['finite']}")
     return "\n".join(lines)
 
 

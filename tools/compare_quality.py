@@ -1,0 +1,67 @@
+"""Time per frame and worst edge strain of the speed matrix's cloths, in ours and in Newton's solvers.
+
+    python tools/compare_quality.py OUT.jsonl ITEM...      ITEM = variant:n:engine[:substeps]
+
+variant is hanging, sphere or self; engine is ours, semi_implicit, xpbd or vbd; substeps (Newton only,
+default 10) sets Newton's step, its springs stiffening with 1/dt^2 as newton_compare sets them. Each row is
+2 warm-up frames, then the median of 3 x 48 timed frames (8 for VBD from 1024^2 on), then the strain.
+Writes one JSON line per row after a line with the environment. Used for docs/benchmarks.md's strain and
+equal-quality tables (docs/results/strain-ours-h200.jsonl, newton-strain-h200.jsonl,
+newton-substeps-h200.jsonl).
+"""
+
+import json
+import statistics
+import sys
+import time
+
+import warp as wp
+
+from warp_cloth.bench import environment, matrix_scene
+from warp_cloth.newton_compare import max_edge_strain, time_newton
+from warp_cloth.simulator import Simulator
+
+REPEATS = 3
+
+
+def time_ours(variant: str, n: int, device: str, frames: int) -> dict:
+    sim = Simulator(matrix_scene(variant, n, "symplectic"), device=device)
+    sim.run(2)
+    seconds = []
+    for _ in range(REPEATS):
+        wp.synchronize_device(sim.device)
+        started = time.perf_counter()
+        sim.run(frames)
+        wp.synchronize_device(sim.device)
+        seconds.append(time.perf_counter() - started)
+    median = statistics.median(seconds)
+    return {"solver": "ours", "variant": variant, "n": n, "substeps": sim.substeps_per_frame, "frames": frames,
+            "ms_per_frame": 1e3 * median / frames,
+            "particle_substeps_per_second": n * n * sim.substeps_per_frame * frames / median,
+            "max_strain": max_edge_strain(sim.positions(), n)}
+
+
+def main(out_path: str, items: list[str]) -> None:
+    wp.config.log_level = wp.LOG_ERROR
+    device = "cuda" if wp.is_cuda_available() else "cpu"
+    with open(out_path, "a") as out:
+        print(json.dumps({"environment": environment(device)}), file=out, flush=True)
+        for item in items:
+            variant, n, engine, *rest = item.split(":")
+            n, substeps = int(n), int(rest[0]) if rest else 10
+            frames = 8 if engine == "vbd" and n >= 1024 else 48
+            started = time.perf_counter()
+            try:
+                row = (time_ours(variant, n, device, frames) if engine == "ours" else
+                       time_newton(variant, n, engine, device, frames=frames, substeps=substeps, repeats=REPEATS))
+            except Exception as error:  # one failing solver must not lose the other rows
+                row = {"solver": engine, "variant": variant, "n": n, "substeps": substeps,
+                       "error": f"{type(error).__name__}: {error}"}
+            row["wall_including_build_s"] = time.perf_counter() - started
+            print(json.dumps(row), file=out, flush=True)
+            print(f"{item}: {row.get('ms_per_frame', float('nan')):.3f} ms/frame, worst edge strain "
+                  f"{row.get('max_strain', float('nan')):.3f} {row.get('error', '')}", flush=True)
+
+
+if __name__ == "__main__":
+    main(sys.argv[1], sys.argv[2:])

@@ -1,0 +1,104 @@
+"""Where a small frame's time goes on a GPU: per frame with run() (no writers), with step(), and as bare
+graph replay; per kernel, the device time of one frame launched stage by stage (CUDA events); and what an
+empty graph node costs. For docs/benchmarks.md's section on 64^2 frames.
+
+    python tools/frame_profile.py OUT.json
+"""
+
+import collections
+import json
+import statistics
+import sys
+import time
+
+import warp as wp
+
+from warp_cloth.bench import matrix_scene
+from warp_cloth.simulator import Simulator
+
+FRAMES, REPEATS = 200, 5
+
+
+def ms_per_frame(advance) -> float:
+    """Median over repeats of the wall time per frame of ``advance(FRAMES)``."""
+    times = []
+    for _ in range(REPEATS):
+        wp.synchronize()
+        started = time.perf_counter()
+        advance(FRAMES)
+        wp.synchronize()
+        times.append((time.perf_counter() - started) / FRAMES * 1e3)
+    return statistics.median(times)
+
+
+def replay(sim: Simulator, frames: int) -> None:
+    """The current frame's graph replayed (guard flags unread), for the bare GPU time of a frame."""
+    graph, _ = sim._graphs[(sim.state.parity, sim.frame % 2)]
+    for _ in range(frames):
+        wp.capture_launch(graph)
+
+
+def kernel_times(sim: Simulator) -> dict:
+    wp.timing_begin(cuda_filter=wp.TIMING_ALL)
+    for _ in range(sim.substeps_per_frame):
+        sim.substep()
+    totals = collections.defaultdict(lambda: [0, 0.0])
+    for result in wp.timing_end():
+        totals[result.name][0] += 1
+        totals[result.name][1] += result.elapsed
+    return {name: {"count": c, "total_ms": t} for name, (c, t) in sorted(totals.items(), key=lambda kv: -kv[1][1])}
+
+
+@wp.kernel
+def add_one(a: wp.array(dtype=float)):
+    i = wp.tid()
+    a[i] = a[i] + 1.0
+
+
+@wp.kernel
+def add_twelve(a: wp.array(dtype=float), b: wp.array(dtype=float), c: wp.array(dtype=float),
+               d: wp.array(dtype=float), e: wp.array(dtype=float), f: wp.array(dtype=float),
+               g: wp.array(dtype=float), h: wp.array(dtype=float), k: wp.array(dtype=float),
+               m: wp.array(dtype=float), o: wp.array(dtype=float), p: wp.array(dtype=float)):
+    i = wp.tid()
+    a[i] = a[i] + b[i] + c[i] + d[i] + e[i] + f[i] + g[i] + h[i] + k[i] + m[i] + o[i] + p[i]
+
+
+def node_costs() -> dict:
+    """Microseconds per node of a graph of 100 launches of 4096 threads."""
+    a = wp.zeros(4096, dtype=float)
+    more = [wp.zeros(4096, dtype=float) for _ in range(11)]
+    launches = {"one array": lambda: wp.launch(add_one, 4096, inputs=[a]),
+                "twelve arrays": lambda: wp.launch(add_twelve, 4096, inputs=[a, *more]),
+                "memset": lambda: a.zero_()}
+    costs = {}
+    for name, launch in launches.items():
+        launch()
+        with wp.ScopedCapture() as capture:
+            for _ in range(100):
+                launch()
+        costs[name] = 1e3 / 100 * ms_per_frame(lambda frames: [wp.capture_launch(capture.graph) for _ in range(frames)])
+    return costs
+
+
+def main(out_path: str) -> None:
+    wp.config.log_level = wp.LOG_ERROR
+    results = {"device": wp.get_device("cuda").name}
+    for n in (64, 256):
+        for variant in ("springs", "hanging", "sphere", "self"):
+            sim = Simulator(matrix_scene(variant, n, "symplectic"), device="cuda")
+            sim.run(4)
+            row = {"step_ms": ms_per_frame(lambda frames: [sim.step() for _ in range(frames)]),
+                   "run_ms": ms_per_frame(sim.run),
+                   "replay_ms": ms_per_frame(lambda frames: replay(sim, frames)),
+                   "kernels": kernel_times(sim)}
+            results[f"{variant} {n}"] = row
+            print(variant, n, {k: round(v, 3) for k, v in row.items() if k != "kernels"}, flush=True)
+    results["node_us"] = node_costs()
+    print("us per graph node", results["node_us"], flush=True)
+    with open(out_path, "w") as out:
+        json.dump(results, out, indent=1)
+
+
+if __name__ == "__main__":
+    main(sys.argv[1])
