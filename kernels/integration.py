@@ -7,16 +7,6 @@ import warp as wp
 from .springs import gather_spring_forces
 
 
-@wp.func
-def advance(xi: wp.vec3, vi: wp.vec3, w: float, f: wp.vec3, gravity: wp.vec3, drag: float, h: float,
-            semi_implicit: int):
-    """One particle's new position and velocity from its spring force f (w: inverse mass)."""
-    v_new = vi + h * (gravity - drag * vi + w * f)
-    if semi_implicit != 0:
-        return xi + h * v_new, v_new
-    return xi + h * vi, v_new
-
-
 @wp.kernel
 def euler_step(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float),
                gravity: wp.vec3, drag: float, h: float, semi_implicit: int, offsets: wp.array(dtype=int),
@@ -32,6 +22,9 @@ def euler_step(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), inv_mass:
         v_out[i] = v[i]
         return
     f = gather_spring_forces(i, x, v, offsets, other, spring, rest, stiffness, damping, flags)
-    x_new, v_new = advance(x[i], v[i], w, f, gravity, drag, h, semi_implicit)
-    x_out[i] = x_new
+    v_new = v[i] + h * (gravity - drag * v[i] + w * f)
     v_out[i] = v_new
+    if semi_implicit != 0:
+        x_out[i] = x[i] + h * v_new
+    else:
+        x_out[i] = x[i] + h * v[i]

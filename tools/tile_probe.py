@@ -40,9 +40,12 @@ def euler_step_tiled(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), inv
             x_out[i] = xi
             v_out[i] = vi
         else:
-            x_new, v_new = integration.advance(xi, vi, w, total, gravity, drag, h, semi_implicit)
-            x_out[i] = x_new
+            v_new = vi + h * (gravity - drag * vi + w * total)  # as integration.euler_step
             v_out[i] = v_new
+            if semi_implicit != 0:
+                x_out[i] = xi + h * v_new
+            else:
+                x_out[i] = xi + h * vi
 
 def per_launch_us(launch, device):
     launch(); wp.synchronize_device(device)
