@@ -107,21 +107,23 @@ def test_guard_names_frame_and_substep_and_suggests_a_fix():
     assert "--integrator implicit" in str(error) and "smaller step" in str(error)
 
 
-@pytest.mark.parametrize("graph", [True, False])
-def test_run_without_writers_names_the_same_frame_as_step(graph):
-    # run() without writers checks a frame while the next one runs: the error must still name the frame
-    # and substep that step() by step finds, and a stable run must not raise at its end.
+@pytest.mark.parametrize("device, graph", [("cpu", True), ("cpu", False),
+                                           pytest.param("cuda", True, marks=pytest.mark.cuda)])
+def test_run_without_writers_names_the_same_frame_as_step(device, graph):
+    # run() without writers checks a frame while the next one runs (on a GPU through pinned memory and an
+    # event): the error must still name the frame and substep that step() by step finds, and a stable run
+    # must not raise at its end.
     scene = with_simulation(wc.load_scene("hanging"), dt=0.0104)
-    stepped = wc.Simulator(scene, device="cpu", graph=graph)
+    stepped = wc.Simulator(scene, device=device, graph=graph)
     with pytest.raises(UnstableSimulation) as by_step:
         for _ in range(240):
             stepped.step()
-    ran = wc.Simulator(scene, device="cpu", graph=graph)
+    ran = wc.Simulator(scene, device=device, graph=graph)
     with pytest.raises(UnstableSimulation) as by_run:
         ran.run(240)
     assert (by_run.value.frame, by_run.value.substep) == (by_step.value.frame, by_step.value.substep)
     assert ran.frame == by_run.value.frame + 1  # the one frame queued behind the failing one
-    summary = wc.Simulator(wc.load_scene("hanging"), device="cpu", graph=graph).run(by_step.value.frame + 3)
+    summary = wc.Simulator(wc.load_scene("hanging"), device=device, graph=graph).run(by_step.value.frame + 3)
     assert summary.frames == by_step.value.frame + 3
 
 
