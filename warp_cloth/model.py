@@ -143,7 +143,8 @@ def build_model(scene: Scene) -> Model:
                                  for c, g in zip(scene.cloths, grids)])
     masses = np.concatenate([g.masses for g in grids]).astype(np.float32)
     cloth_id = np.concatenate([np.full(len(g.positions), c, dtype=np.int32) for c, g in enumerate(grids)])
-    pins = _pins(scene, grids, offsets)
+    selections = select_pins(scene)
+    pins = _pins(scene, grids, offsets, selections)
     inv_mass = (1.0 / masses).astype(np.float32)
     if pins is not None:
         inv_mass[pins.index] = 0.0
@@ -152,8 +153,9 @@ def build_model(scene: Scene) -> Model:
         positions[pins.index] = pins.anchor + pins.amplitude * np.sin(pins.phase)[:, None]
         velocities[pins.index] = pins.amplitude * omega * np.cos(pins.phase)[:, None]
     springs = _springs(scene, grids, offsets, n)
-    return Model(scene, grids, tuple(offsets), positions, velocities, masses, inv_mass, cloth_id, springs,
-                 _limits(springs, n, _attachments(scene, offsets)), pins, _spheres(scene), _contacts(scene, grids))
+    limits = _limits(springs, n, _attachments(scene, offsets, selections))
+    return Model(scene, grids, tuple(offsets), positions, velocities, masses, inv_mass, cloth_id, springs, limits,
+                 pins, _spheres(scene), _contacts(scene, grids))
 
 
 def _springs(scene: Scene, grids, offsets, n: int) -> Springs | None:
@@ -193,14 +195,15 @@ def _limits(springs: Springs | None, n: int, attachments: tuple[np.ndarray, np.n
                         *attachments)
 
 
-def _attachments(scene: Scene, offsets: list[int]) -> tuple[np.ndarray, np.ndarray]:
+def _attachments(scene: Scene, offsets: list[int],
+                 selections: list[list[np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
     """Per particle, the nearest pin of its cloth in the flat rest grid and (1 + stretch) times the rest
     distance to it (empty arrays when no limited, pinned cloth asks for attachments)."""
     n = offsets[-1]
     pin_of = np.full(n, -1, dtype=np.int32)
     length = np.zeros(n, dtype=np.float32)
     attached = False
-    for c, (cloth, chosen_per_pin) in enumerate(zip(scene.cloths, select_pins(scene))):
+    for c, (cloth, chosen_per_pin) in enumerate(zip(scene.cloths, selections)):
         if cloth.limit is None or not cloth.limit.attachments or not chosen_per_pin:
             continue
         attached = True
@@ -268,9 +271,9 @@ def select_pins(scene: Scene) -> list[list[np.ndarray]]:
     return selections
 
 
-def _pins(scene: Scene, grids, offsets) -> Pins | None:
+def _pins(scene: Scene, grids, offsets, selections: list[list[np.ndarray]]) -> Pins | None:
     index, amplitude, frequency, phase = [], [], [], []
-    for c, (cloth, chosen_per_pin) in enumerate(zip(scene.cloths, select_pins(scene))):
+    for c, (cloth, chosen_per_pin) in enumerate(zip(scene.cloths, selections)):
         for pin, chosen in zip(cloth.pins, chosen_per_pin):
             motion = pin.motion
             amp = np.zeros(3) if motion is None else np.asarray(motion.unit_axis()) * motion.amplitude

@@ -182,8 +182,8 @@ class ParticleCollision:
                               *([rigid.name] if rigid else [])])
         self.limit = limit
         self.colliders = rigid
-        self.bundle = rigid.bundle if rigid is not None else rigid_colliders(None, device)
         self.no_colliders = rigid_colliders(None, device)
+        self.bundle = rigid.bundle if rigid is not None else self.no_colliders
         self.settings = settings
         self.h = h
         self.n = n
