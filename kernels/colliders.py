@@ -18,6 +18,10 @@ alternate the bits.
 
 import warp as wp
 
+from .lanes import FAST_MATH
+
+wp.set_module_options(FAST_MATH)
+
 
 @wp.struct
 class RigidColliders:

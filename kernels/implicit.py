@@ -69,7 +69,7 @@ def newton_rhs(y: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), v0: wp.ar
         rhs[i] = wp.vec3(0.0)
         return
     m = mass[i]
-    f = gather_spring_forces(i, y, v, offsets, other, spring, rest, stiffness, damping, flags)
+    f = gather_spring_forces(i, offsets[i], 1, y, v, offsets, other, spring, rest, stiffness, damping, flags)
     f = f + m * gravity - (drag * m) * v[i]
     out = h * f - m * (v[i] - v0[i])
     if linearized_at_start != 0:

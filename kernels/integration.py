@@ -2,9 +2,35 @@
 buffers, because a particle's spring forces read its neighbours' old positions. Particles with inverse
 mass 0 (pinned) are copied unchanged: the pin stage drives them."""
 
+import functools
+
 import warp as wp
 
+from .lanes import FAST_MATH, lane_layout
 from .springs import gather_spring_forces
+
+wp.set_module_options(FAST_MATH)
+
+
+@wp.func
+def integrate(i: int, f: wp.vec3, x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3),
+              inv_mass: wp.array(dtype=float), gravity: wp.vec3, drag: float, h: float, semi_implicit: int,
+              x_out: wp.array(dtype=wp.vec3), v_out: wp.array(dtype=wp.vec3)):
+    """v' = v + h a(x, v); x' = x + h v (forward Euler, the seed's) or x' = x + h v' (semi_implicit = 1,
+    symplectic Euler). a = gravity - drag v + f / m."""
+    w = inv_mass[i]
+    xi = x[i]
+    vi = v[i]
+    if w == 0.0:
+        x_out[i] = xi
+        v_out[i] = vi
+        return
+    v_new = vi + h * (gravity - drag * vi + w * f)
+    v_out[i] = v_new
+    if semi_implicit != 0:
+        x_out[i] = xi + h * v_new
+    else:
+        x_out[i] = xi + h * vi
 
 
 @wp.kernel
@@ -13,18 +39,36 @@ def euler_step(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), inv_mass:
                other: wp.array(dtype=int), spring: wp.array(dtype=int), rest: wp.array(dtype=float),
                stiffness: wp.array(dtype=float), damping: wp.array(dtype=float), flags: wp.array(dtype=int),
                x_out: wp.array(dtype=wp.vec3), v_out: wp.array(dtype=wp.vec3)):
-    """v' = v + h a(x, v); x' = x + h v (forward Euler, the seed's) or x' = x + h v' (semi_implicit = 1,
-    symplectic Euler). a = gravity - drag v + f / m."""
+    """Spring forces and one explicit or symplectic Euler step, a thread per particle."""
     i = wp.tid()
-    w = inv_mass[i]
-    if w == 0.0:
-        x_out[i] = x[i]
-        v_out[i] = v[i]
-        return
-    f = gather_spring_forces(i, x, v, offsets, other, spring, rest, stiffness, damping, flags)
-    v_new = v[i] + h * (gravity - drag * v[i] + w * f)
-    v_out[i] = v_new
-    if semi_implicit != 0:
-        x_out[i] = x[i] + h * v_new
-    else:
-        x_out[i] = x[i] + h * v[i]
+    f = wp.vec3(0.0)
+    if inv_mass[i] != 0.0:
+        f = gather_spring_forces(i, offsets[i], 1, x, v, offsets, other, spring, rest, stiffness, damping, flags)
+    integrate(i, f, x, v, inv_mass, gravity, drag, h, semi_implicit, x_out, v_out)
+
+
+@functools.cache
+def euler_step_lanes(lanes: int, block: int) -> wp.Kernel:
+    """``euler_step`` with ``lanes`` threads per particle (see lanes.py)."""
+    per_block = block // lanes
+
+    @wp.kernel(module="unique", module_options=FAST_MATH)
+    def euler_step(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float),
+                   gravity: wp.vec3, drag: float, h: float, semi_implicit: int, offsets: wp.array(dtype=int),
+                   other: wp.array(dtype=int), spring: wp.array(dtype=int), rest: wp.array(dtype=float),
+                   stiffness: wp.array(dtype=float), damping: wp.array(dtype=float), flags: wp.array(dtype=int),
+                   x_out: wp.array(dtype=wp.vec3), v_out: wp.array(dtype=wp.vec3)):
+        block_id, lane = wp.tid()
+        i, slot, owner = lane_layout(block_id, lane, wp.static(per_block), wp.static(lanes), x.shape[0])
+        f = wp.vec3(0.0)
+        if i >= 0:
+            if inv_mass[i] != 0.0:
+                f = gather_spring_forces(i, offsets[i] + slot, wp.static(lanes), x, v, offsets, other, spring, rest,
+                                         stiffness, damping, flags)
+        total = wp.tile_sum(wp.tile_reshape(wp.tile(f, preserve_type=True),
+                                            shape=(wp.static(per_block), wp.static(lanes))), axis=1)
+        if owner:
+            integrate(i, total[i % wp.static(per_block)], x, v, inv_mass, gravity, drag, h, semi_implicit, x_out,
+                      v_out)
+
+    return euler_step

@@ -10,9 +10,14 @@ Long-range attachments (``attachment_pin``, empty for none) then pull each parti
 its pin; a pin does not move in the pass, so this needs no averaging.
 """
 
+import functools
+
 import warp as wp
 
 from .colliders import RigidColliders, collide_and_mark
+from .lanes import FAST_MATH, lane_layout
+
+wp.set_module_options(FAST_MATH)
 
 
 @wp.func
@@ -42,6 +47,41 @@ def hold_to_pin(p: wp.vec3, vel: wp.vec3, pin: int, max_length: float, h: float,
     return p + correction, vel + correction / h
 
 
+@wp.func
+def gather_limit_corrections(i: int, first: int, stride: int, xi: wp.vec3, wi: float, x: wp.array(dtype=wp.vec3),
+                             inv_mass: wp.array(dtype=float), offsets: wp.array(dtype=int),
+                             other: wp.array(dtype=int), min_length: wp.array(dtype=float),
+                             max_length: wp.array(dtype=float)):
+    """Sum of particle i's shares of the corrections of its limited springs first, first + stride, ...,
+    and how many of them are out of their limits."""
+    correction = wp.vec3(0.0)
+    violated = int(0)
+    for e in range(first, offsets[i + 1], stride):
+        j = other[e]
+        c, out = limit_correction(xi, wi, x[j], inv_mass[j], min_length[e], max_length[e])
+        correction = correction + c
+        violated += out
+    return correction, violated
+
+
+@wp.func
+def finish_limit_pass(i: int, xi: wp.vec3, correction: wp.vec3, violated: int, x: wp.array(dtype=wp.vec3),
+                      attachment_pin: wp.array(dtype=int), attachment_length: wp.array(dtype=float), h: float,
+                      colliders: RigidColliders, resting: wp.array(dtype=int), read_bit: int,
+                      x_out: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3)):
+    """Moves free particle i by the mean of its corrections, then holds it to its pin and puts it out of
+    the colliders."""
+    if violated > 0:
+        correction = correction / float(violated)
+    p = xi + correction
+    vel = v[i] + correction / h
+    if attachment_pin.shape[0] > 0:
+        p, vel = hold_to_pin(p, vel, attachment_pin[i], attachment_length[i], h, x)
+    p, vel = collide_and_mark(i, p, vel, colliders, h, resting, read_bit)
+    x_out[i] = p
+    v[i] = vel
+
+
 @wp.kernel
 def project_strain_limits(x: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float),
                           offsets: wp.array(dtype=int), other: wp.array(dtype=int),
@@ -55,19 +95,46 @@ def project_strain_limits(x: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=f
     if wi == 0.0:
         x_out[i] = xi
         return
-    correction = wp.vec3(0.0)
-    violated = int(0)
-    for e in range(offsets[i], offsets[i + 1]):
-        j = other[e]
-        c, out = limit_correction(xi, wi, x[j], inv_mass[j], min_length[e], max_length[e])
-        correction = correction + c
-        violated += out
-    if violated > 0:
-        correction = correction / float(violated)
-    p = xi + correction
-    vel = v[i] + correction / h
-    if attachment_pin.shape[0] > 0:
-        p, vel = hold_to_pin(p, vel, attachment_pin[i], attachment_length[i], h, x)
-    p, vel = collide_and_mark(i, p, vel, colliders, h, resting, read_bit)
-    x_out[i] = p
-    v[i] = vel
+    correction, violated = gather_limit_corrections(i, offsets[i], 1, xi, wi, x, inv_mass, offsets, other,
+                                                    min_length, max_length)
+    finish_limit_pass(i, xi, correction, violated, x, attachment_pin, attachment_length, h, colliders, resting,
+                      read_bit, x_out, v)
+
+
+@functools.cache
+def project_strain_limits_lanes(lanes: int, block: int) -> wp.Kernel:
+    """``project_strain_limits`` with ``lanes`` threads per particle (see lanes.py)."""
+    per_block = block // lanes
+
+    @wp.kernel(module="unique", module_options=FAST_MATH)
+    def project_strain_limits(x: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float),
+                              offsets: wp.array(dtype=int), other: wp.array(dtype=int),
+                              min_length: wp.array(dtype=float), max_length: wp.array(dtype=float),
+                              attachment_pin: wp.array(dtype=int), attachment_length: wp.array(dtype=float),
+                              h: float, colliders: RigidColliders, resting: wp.array(dtype=int), read_bit: int,
+                              x_out: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3)):
+        block_id, lane = wp.tid()
+        i, slot, owner = lane_layout(block_id, lane, wp.static(per_block), wp.static(lanes), x.shape[0])
+        xi = wp.vec3(0.0)
+        wi = float(0.0)
+        correction = wp.vec3(0.0)
+        violated = int(0)
+        if i >= 0:
+            xi = x[i]
+            wi = inv_mass[i]
+            if wi != 0.0:
+                correction, violated = gather_limit_corrections(i, offsets[i] + slot, wp.static(lanes), xi, wi, x,
+                                                                inv_mass, offsets, other, min_length, max_length)
+        corrections = wp.tile_sum(wp.tile_reshape(wp.tile(correction, preserve_type=True),
+                                                  shape=(wp.static(per_block), wp.static(lanes))), axis=1)
+        counts = wp.tile_sum(wp.tile_reshape(wp.tile(violated), shape=(wp.static(per_block), wp.static(lanes))),
+                             axis=1)
+        if owner:
+            if wi == 0.0:
+                x_out[i] = xi
+            else:
+                k = i % wp.static(per_block)
+                finish_limit_pass(i, xi, corrections[k], counts[k], x, attachment_pin, attachment_length, h,
+                                  colliders, resting, read_bit, x_out, v)
+
+    return project_strain_limits

@@ -8,10 +8,15 @@ contact inelastic (averaged the same way), with friction in proportion to the no
 Two particles i, j touch when closer than ``separation * (r_i + r_j) / 2``.
 """
 
+import functools
+
 import warp as wp
 
 from . import spatial_hash
 from .colliders import RigidColliders, collide_and_mark, collide_particle
+from .lanes import FAST_MATH, lane_layout
+
+wp.set_module_options(FAST_MATH)
 
 
 @wp.kernel
@@ -66,18 +71,27 @@ def may_collide(i: int, j: int, cloth_id: wp.array(dtype=int), self_collision: i
 
 
 @wp.func
+def is_candidate(i: int, j: int, x: wp.array(dtype=wp.vec3), radius: wp.array(dtype=float), separation: float,
+                 search_scale: float, cloth_id: wp.array(dtype=int), self_collision: int, between_cloths: int,
+                 grid_xy: wp.array(dtype=int), exclude_adjacent: wp.array(dtype=int)) -> bool:
+    """Whether j belongs in i's list: a pair that may collide, within search_scale contact distances."""
+    if j == i:
+        return False
+    reach = search_scale * contact_distance(radius[i], radius[j], separation)
+    if wp.length_sq(x[i] - x[j]) >= reach * reach:
+        return False
+    return may_collide(i, j, cloth_id, self_collision, between_cloths, grid_xy, exclude_adjacent)
+
+
+@wp.func
 def add_candidate(i: int, j: int, x: wp.array(dtype=wp.vec3), radius: wp.array(dtype=float), separation: float,
                   search_scale: float, cloth_id: wp.array(dtype=int), self_collision: int, between_cloths: int,
                   grid_xy: wp.array(dtype=int), exclude_adjacent: wp.array(dtype=int), max_neighbors: int,
                   neighbors: wp.array(dtype=int), count: int, overflow: wp.array(dtype=int)) -> int:
-    """Appends j to i's list if the pair may collide and is within search_scale contact distances;
-    returns the list's new length (a full list counts an overflow instead)."""
-    if j == i:
-        return count
-    reach = search_scale * contact_distance(radius[i], radius[j], separation)
-    if wp.length_sq(x[i] - x[j]) >= reach * reach:
-        return count
-    if not may_collide(i, j, cloth_id, self_collision, between_cloths, grid_xy, exclude_adjacent):
+    """Appends j to i's list if it is a candidate; returns the list's new length (a full list counts an
+    overflow instead)."""
+    if not is_candidate(i, j, x, radius, separation, search_scale, cloth_id, self_collision, between_cloths,
+                        grid_xy, exclude_adjacent):
         return count
     if count < max_neighbors:
         neighbors[i * max_neighbors + count] = j
@@ -128,6 +142,67 @@ def gather_neighbors(x: wp.array(dtype=wp.vec3), radius: wp.array(dtype=float), 
 
 
 @wp.func
+def first_visit(center: wp.vec3i, k: int, bucket: int, mask: int) -> bool:
+    """Whether no cell before the k-th of the 27 around ``center`` hashes to ``bucket``."""
+    for earlier in range(k):
+        if spatial_hash.neighbour_bucket(center, earlier, mask) == bucket:
+            return False
+    return True
+
+
+@functools.cache
+def gather_neighbors_lanes(lanes: int, block: int) -> wp.Kernel:
+    """``gather_neighbors`` with ``lanes`` threads per particle (see lanes.py), making the same lists: lane
+    s visits cells s, s + lanes, ... of the 27 (a bucket once, at its first cell) and appends candidates
+    to ``unsorted`` through the atomic count in ``counts`` (zero on entry); after the block's barrier each
+    lane writes its entries at their rank, so the list is in index order."""
+    per_block = block // lanes
+
+    @wp.kernel(module="unique", module_options=FAST_MATH)
+    def gather_neighbors(x: wp.array(dtype=wp.vec3), radius: wp.array(dtype=float), inv_cell: float, mask: int,
+                         capacity: int, bucket_size: wp.array(dtype=int), bucket_items: wp.array(dtype=int),
+                         separation: float, search_scale: float, cloth_id: wp.array(dtype=int),
+                         self_collision: int, between_cloths: int, grid_xy: wp.array(dtype=int),
+                         exclude_adjacent: wp.array(dtype=int), max_neighbors: int, unsorted: wp.array(dtype=int),
+                         neighbors: wp.array(dtype=int), counts: wp.array(dtype=int),
+                         overflow: wp.array(dtype=int)):
+        block_id, lane = wp.tid()
+        i, slot, owner = lane_layout(block_id, lane, wp.static(per_block), wp.static(lanes), x.shape[0])
+        found = int(0)
+        if i >= 0:
+            center = spatial_hash.cell_of(x[i], inv_cell)
+            for k in range(slot, 27, wp.static(lanes)):
+                bucket = spatial_hash.neighbour_bucket(center, k, mask)
+                if first_visit(center, k, bucket, mask):
+                    for s in range(wp.min(bucket_size[bucket], capacity)):
+                        j = bucket_items[bucket * capacity + s]
+                        if is_candidate(i, j, x, radius, separation, search_scale, cloth_id, self_collision,
+                                        between_cloths, grid_xy, exclude_adjacent):
+                            at = wp.atomic_add(counts, i, 1)
+                            found += 1
+                            if at < max_neighbors:
+                                unsorted[i * max_neighbors + at] = j
+                            else:
+                                wp.atomic_add(overflow, 0, 1)
+        totals = wp.tile_sum(wp.tile_reshape(wp.tile(found), shape=(wp.static(per_block), wp.static(lanes))),
+                             axis=1)
+        if i >= 0:
+            count = wp.min(totals[i % wp.static(per_block)], max_neighbors)
+            start = i * max_neighbors
+            for e in range(slot, count, wp.static(lanes)):
+                j = unsorted[start + e]
+                rank = int(0)
+                for f in range(count):
+                    if unsorted[start + f] < j:
+                        rank += 1
+                neighbors[start + rank] = j
+            if owner:
+                counts[i] = count
+
+    return gather_neighbors
+
+
+@wp.func
 def separating_direction(d: wp.vec3, dist: float, i: int, j: int) -> wp.vec3:
     """The unit direction from j to i; for particles on top of each other, a fixed direction whose sign
     the pair's indices decide, so that the two are pushed apart rather than left coincident."""
@@ -160,6 +235,38 @@ def push_out(i: int, j: int, xi: wp.vec3, wi: float, rests: bool, ri: float, x: 
     return share * (target - dist) * n, 1
 
 
+@wp.func
+def gather_pushes(i: int, first: int, stride: int, xi: wp.vec3, wi: float, x: wp.array(dtype=wp.vec3),
+                  inv_mass: wp.array(dtype=float), radius: wp.array(dtype=float), separation: float,
+                  neighbors: wp.array(dtype=int), counts: wp.array(dtype=int), max_neighbors: int,
+                  resting: wp.array(dtype=int), read_bit: int):
+    """Sum of particle i's pushes out of its candidates first, first + stride, ..., and how many overlap."""
+    rests = resting.shape[0] > 0 and (resting[i] & read_bit) != 0
+    ri = radius[i]
+    correction = wp.vec3(0.0)
+    touching = int(0)
+    for k in range(first, counts[i], stride):
+        c, t = push_out(i, neighbors[i * max_neighbors + k], xi, wi, rests, ri, x, inv_mass, radius, separation,
+                        resting, read_bit)
+        correction = correction + c
+        touching += t
+    return correction, touching
+
+
+@wp.func
+def finish_separation(i: int, xi: wp.vec3, correction: wp.vec3, touching: int, h: float, read_bit: int,
+                      colliders: RigidColliders, resting: wp.array(dtype=int), x_out: wp.array(dtype=wp.vec3),
+                      v: wp.array(dtype=wp.vec3), pushed: wp.array(dtype=float)):
+    vel = v[i]
+    if touching > 0:
+        correction = correction / float(touching)
+        vel = vel + correction / h
+        pushed[i] = pushed[i] + wp.length(correction)
+    p, vel = collide_and_mark(i, xi + correction, vel, colliders, h, resting, read_bit)
+    x_out[i] = p
+    v[i] = vel
+
+
 @wp.kernel
 def separate_particles(x: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float), radius: wp.array(dtype=float),
                        separation: float, h: float, neighbors: wp.array(dtype=int), counts: wp.array(dtype=int),
@@ -178,23 +285,48 @@ def separate_particles(x: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=floa
     if wi == 0.0:
         x_out[i] = xi
         return
-    rests = resting.shape[0] > 0 and (resting[i] & read_bit) != 0
-    ri = radius[i]
-    correction = wp.vec3(0.0)
-    touching = int(0)
-    for k in range(counts[i]):
-        c, t = push_out(i, neighbors[i * max_neighbors + k], xi, wi, rests, ri, x, inv_mass, radius, separation,
-                        resting, read_bit)
-        correction = correction + c
-        touching += t
-    vel = v[i]
-    if touching > 0:
-        correction = correction / float(touching)
-        vel = vel + correction / h
-        pushed[i] = pushed[i] + wp.length(correction)
-    p, vel = collide_and_mark(i, xi + correction, vel, colliders, h, resting, read_bit)
-    x_out[i] = p
-    v[i] = vel
+    correction, touching = gather_pushes(i, 0, 1, xi, wi, x, inv_mass, radius, separation, neighbors, counts,
+                                         max_neighbors, resting, read_bit)
+    finish_separation(i, xi, correction, touching, h, read_bit, colliders, resting, x_out, v, pushed)
+
+
+@functools.cache
+def separate_particles_lanes(lanes: int, block: int) -> wp.Kernel:
+    """``separate_particles`` with ``lanes`` threads per particle (see lanes.py)."""
+    per_block = block // lanes
+
+    @wp.kernel(module="unique", module_options=FAST_MATH)
+    def separate_particles(x: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float),
+                           radius: wp.array(dtype=float), separation: float, h: float,
+                           neighbors: wp.array(dtype=int), counts: wp.array(dtype=int), max_neighbors: int,
+                           resting: wp.array(dtype=int), read_bit: int, colliders: RigidColliders,
+                           x_out: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3),
+                           pushed: wp.array(dtype=float)):
+        block_id, lane = wp.tid()
+        i, slot, owner = lane_layout(block_id, lane, wp.static(per_block), wp.static(lanes), x.shape[0])
+        xi = wp.vec3(0.0)
+        wi = float(0.0)
+        correction = wp.vec3(0.0)
+        touching = int(0)
+        if i >= 0:
+            xi = x[i]
+            wi = inv_mass[i]
+            if wi != 0.0:
+                correction, touching = gather_pushes(i, slot, wp.static(lanes), xi, wi, x, inv_mass, radius,
+                                                     separation, neighbors, counts, max_neighbors, resting, read_bit)
+        corrections = wp.tile_sum(wp.tile_reshape(wp.tile(correction, preserve_type=True),
+                                                  shape=(wp.static(per_block), wp.static(lanes))), axis=1)
+        touches = wp.tile_sum(wp.tile_reshape(wp.tile(touching), shape=(wp.static(per_block), wp.static(lanes))),
+                              axis=1)
+        if owner:
+            if wi == 0.0:
+                x_out[i] = xi
+            else:
+                k = i % wp.static(per_block)
+                finish_separation(i, xi, corrections[k], touches[k], h, read_bit, colliders, resting, x_out, v,
+                                  pushed)
+
+    return separate_particles
 
 
 @wp.func
@@ -224,6 +356,38 @@ def inelastic_change(i: int, j: int, xi: wp.vec3, vi: wp.vec3, wi: float, ri: fl
     return share * (target - vn) * n, taken, 1
 
 
+@wp.func
+def gather_velocity_changes(i: int, first: int, stride: int, x: wp.array(dtype=wp.vec3),
+                            v: wp.array(dtype=wp.vec3), v_start: wp.array(dtype=wp.vec3),
+                            inv_mass: wp.array(dtype=float), radius: wp.array(dtype=float), separation: float,
+                            contact_slack: float, friction: float, h: float, pushed: wp.array(dtype=float),
+                            neighbors: wp.array(dtype=int), counts: wp.array(dtype=int), max_neighbors: int):
+    """Sum of particle i's velocity changes from its candidates first, first + stride, ..., and how many
+    of them touch it."""
+    xi = x[i]
+    vi = v[i]
+    wi = inv_mass[i]
+    ri = radius[i]
+    pushed_speed = pushed[i] / h
+    change = wp.vec3(0.0)
+    touching = int(0)
+    for k in range(first, counts[i], stride):
+        c, taken, t = inelastic_change(i, neighbors[i * max_neighbors + k], xi, vi, wi, ri, pushed_speed, x, v,
+                                       v_start, inv_mass, radius, separation, contact_slack, friction)
+        change = change + c - taken
+        touching += t
+    return change, touching
+
+
+@wp.func
+def finish_velocities(i: int, change: wp.vec3, touching: int, v: wp.array(dtype=wp.vec3),
+                      pushed: wp.array(dtype=float), v_out: wp.array(dtype=wp.vec3)):
+    if touching > 0:
+        change = change / float(touching)
+    v_out[i] = v[i] + change
+    pushed[i] = 0.0
+
+
 @wp.kernel
 def resolve_contact_velocities(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), v_start: wp.array(dtype=wp.vec3),
                                inv_mass: wp.array(dtype=float), radius: wp.array(dtype=float), separation: float,
@@ -235,26 +399,45 @@ def resolve_contact_velocities(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.
     particle taking its mass share of the change, averaged over its contacts; friction takes tangential
     relative speed in proportion to the normal speed taken away, this substep's pushes included."""
     i = wp.tid()
-    vi = v[i]
-    wi = inv_mass[i]
-    if wi == 0.0:
-        v_out[i] = vi
-        pushed[i] = 0.0
-        return
-    xi = x[i]
-    ri = radius[i]
-    pushed_speed = pushed[i] / h
     change = wp.vec3(0.0)
     touching = int(0)
-    for k in range(counts[i]):
-        c, taken, t = inelastic_change(i, neighbors[i * max_neighbors + k], xi, vi, wi, ri, pushed_speed, x, v,
-                                       v_start, inv_mass, radius, separation, contact_slack, friction)
-        change = change + c - taken
-        touching += t
-    if touching > 0:
-        change = change / float(touching)
-    v_out[i] = vi + change
-    pushed[i] = 0.0
+    if inv_mass[i] != 0.0:
+        change, touching = gather_velocity_changes(i, 0, 1, x, v, v_start, inv_mass, radius, separation,
+                                                   contact_slack, friction, h, pushed, neighbors, counts,
+                                                   max_neighbors)
+    finish_velocities(i, change, touching, v, pushed, v_out)
+
+
+@functools.cache
+def resolve_contact_velocities_lanes(lanes: int, block: int) -> wp.Kernel:
+    """``resolve_contact_velocities`` with ``lanes`` threads per particle (see lanes.py)."""
+    per_block = block // lanes
+
+    @wp.kernel(module="unique", module_options=FAST_MATH)
+    def resolve_contact_velocities(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3),
+                                   v_start: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float),
+                                   radius: wp.array(dtype=float), separation: float, contact_slack: float,
+                                   friction: float, h: float, pushed: wp.array(dtype=float),
+                                   neighbors: wp.array(dtype=int), counts: wp.array(dtype=int), max_neighbors: int,
+                                   v_out: wp.array(dtype=wp.vec3)):
+        block_id, lane = wp.tid()
+        i, slot, owner = lane_layout(block_id, lane, wp.static(per_block), wp.static(lanes), x.shape[0])
+        change = wp.vec3(0.0)
+        touching = int(0)
+        if i >= 0:
+            if inv_mass[i] != 0.0:
+                change, touching = gather_velocity_changes(i, slot, wp.static(lanes), x, v, v_start, inv_mass,
+                                                           radius, separation, contact_slack, friction, h, pushed,
+                                                           neighbors, counts, max_neighbors)
+        changes = wp.tile_sum(wp.tile_reshape(wp.tile(change, preserve_type=True),
+                                              shape=(wp.static(per_block), wp.static(lanes))), axis=1)
+        touches = wp.tile_sum(wp.tile_reshape(wp.tile(touching), shape=(wp.static(per_block), wp.static(lanes))),
+                              axis=1)
+        if owner:
+            k = i % wp.static(per_block)
+            finish_velocities(i, changes[k], touches[k], v, pushed, v_out)
+
+    return resolve_contact_velocities
 
 
 @wp.kernel

@@ -43,16 +43,17 @@ def spring_force(xi: wp.vec3, xj: wp.vec3, vi: wp.vec3, vj: wp.vec3, rest: float
 
 
 @wp.func
-def gather_spring_forces(i: int, x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3),
+def gather_spring_forces(i: int, first: int, stride: int, x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3),
                          offsets: wp.array(dtype=int), other: wp.array(dtype=int),
                          spring: wp.array(dtype=int), rest: wp.array(dtype=float),
                          stiffness: wp.array(dtype=float), damping: wp.array(dtype=float),
                          flags: wp.array(dtype=int)) -> wp.vec3:
-    """Sum of the spring forces on particle i."""
+    """Sum of the spring forces on particle i from its incidences first, first + stride, ... (one thread
+    sums them all with offsets[i] and 1; see lanes.py for several)."""
     xi = x[i]
     vi = v[i]
     f = wp.vec3(0.0)
-    for k in range(offsets[i], offsets[i + 1]):
+    for k in range(first, offsets[i + 1], stride):
         j = other[k]
         s = spring[k]
         f = f + spring_force(xi, x[j], vi, v[j], rest[s], stiffness[s], damping[s], flags[s])

@@ -130,8 +130,9 @@ def test_collision_scene_keeps_particles_apart_and_triangles_uncrossed(name):
 @pytest.mark.slow
 @pytest.mark.cuda
 @pytest.mark.parametrize("name", sorted(SCENE_FRAMES))
-def test_collision_scene_over_its_whole_length_on_cuda(name):
-    check_scene_every_frame(name, wc.load_scene(name).simulation.frames, "cuda")
+@pytest.mark.parametrize("threads", [None, 1], ids=["threads_by_size", "one_thread"])
+def test_collision_scene_over_its_whole_length_on_cuda(name, threads):
+    check_scene_every_frame(name, wc.load_scene(name).simulation.frames, "cuda", threads)
 
 
 # seed_default cannot reach zero: where the falling cloth folds flat onto itself on the ground, particles
@@ -145,9 +146,9 @@ def test_collision_scene_over_its_whole_length_on_cuda(name):
 KNOWN_INTERSECTIONS = {("seed_default", "cpu"): 0, ("seed_default", "cuda"): 30}
 
 
-def check_scene_every_frame(name: str, frames: int, device: str) -> None:
+def check_scene_every_frame(name: str, frames: int, device: str, threads: int | None = None) -> None:
     scene = with_simulation(wc.load_scene(name), frames=frames)
-    sim = wc.Simulator(scene, device=device)
+    sim = wc.Simulator(scene, device=device, threads_per_particle=threads)
     crossings, gaps = TriangleIntersections(sim), ContactGaps(sim)
     worst_gap, worst_crossings = np.inf, 0
     for _ in range(frames):
@@ -225,3 +226,24 @@ def test_kept_neighbour_lists_hold_every_touching_pair():
         listed = {(i, int(j)) for i in range(len(x)) for j in lists[i, :counts[i]]}
         assert touching <= listed
     assert rebuilt > 0 and kept > 0  # both happened (falling at 5 m/s: remade every other substep)
+
+
+@pytest.mark.cuda
+@pytest.mark.parametrize("lanes", [2, 4, 16])
+def test_several_threads_a_particle_make_the_same_neighbour_lists(lanes):
+    scene = wc.load_scene("pile")
+    scene = dataclasses.replace(scene, collision=dataclasses.replace(scene.collision, broad_phase="hash_grid"))
+    one = wc.Simulator(scene, device="cuda", threads_per_particle=1)
+    one.run(24)  # layers on top of each other: full lists
+    several = wc.Simulator(scene, device="cuda", threads_per_particle=lanes)
+    lists = []
+    for sim in (one, several):
+        stage = next(s for s in sim.stages if isinstance(s, ParticleCollision))
+        assert stage.gather.lanes == (1 if sim is one else lanes)
+        stage.make_lists(one.state.x)
+        assert stage.overflow.numpy()[0] == 0
+        counts = stage.counts.numpy()
+        table = stage.neighbors.numpy().reshape(len(counts), -1)
+        lists.append([table[i, :c].tolist() for i, c in enumerate(counts)])
+    assert sum(len(entries) for entries in lists[0]) > len(lists[0])  # more than one candidate a particle
+    assert lists[0] == lists[1]

@@ -2,13 +2,14 @@
 
 import dataclasses
 from collections import Counter
+from types import SimpleNamespace
 
 import pytest
 import warp as wp
 
 import warp_cloth as wc
 from conftest import with_simulation
-from warp_cloth.stages import ParticleCollision
+from warp_cloth.stages import LIST_LANES_BY_SIZE, ParticleCollision, threads_per_particle
 
 OFF = wc.SpringKind(enabled=False)
 
@@ -113,3 +114,16 @@ def test_colliders_without_limit_launch_once_for_ground_and_spheres(launches):
     launches.clear()
     sim.substep()
     assert dict(launches) == {"euler_step": 1, "collide": 1}
+
+
+def test_threads_per_particle_follow_the_cloth_size_on_a_gpu_only():
+    gpu, cpu = SimpleNamespace(is_cuda=True), SimpleNamespace(is_cuda=False)
+    assert [threads_per_particle(n * n, gpu) for n in (16, 64, 128, 256, 1024)] == [16, 16, 4, 2, 1]
+    assert [threads_per_particle(n * n, gpu, LIST_LANES_BY_SIZE) for n in (64, 128, 256, 1024)] == [16, 4, 4, 1]
+    assert threads_per_particle(64 * 64, cpu) == 1
+
+
+@pytest.mark.parametrize("threads", [0, 3, 16, 128])
+def test_threads_per_particle_other_than_one_is_refused_on_the_cpu(threads):
+    with pytest.raises(ValueError, match="threads_per_particle must be None or a power of two up to 64"):
+        wc.Simulator(wc.load_scene("hanging"), device="cpu", threads_per_particle=threads)

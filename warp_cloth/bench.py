@@ -79,6 +79,7 @@ class Case:
     outputs: bool = False
     fresh: bool = True  # each repeat starts from t = 0 (else frames continue on one warmed simulator)
     grid: int | None = None  # the matrix's n x n cloths: measure the worst edge strain after the runs
+    threads_per_particle: int | None = None  # the Simulator's (None: chosen by size)
 
 
 @dataclass(frozen=True)
@@ -276,7 +277,7 @@ SUITES: dict[str, Callable[[str], list[Case]]] = {"core": core_cases, "collision
 
 
 def time_case(case: Case, device: str, repeats: int) -> Result:
-    warm = Simulator(case.scene, device=device)
+    warm = Simulator(case.scene, device=device, threads_per_particle=case.threads_per_particle)
     result = lambda seconds, stable=True: Result(  # noqa: E731
         case.name, str(warm.device), warm.model.particle_count, warm.substeps_per_frame, case.frames, case.outputs,
         seconds, stable)
@@ -284,7 +285,8 @@ def time_case(case: Case, device: str, repeats: int) -> Result:
         warm.run(2)  # compiles kernels, captures graphs
         seconds = []
         for _ in range(repeats):
-            sim = Simulator(case.scene, device=device) if case.fresh else warm
+            sim = (Simulator(case.scene, device=device, threads_per_particle=case.threads_per_particle)
+                   if case.fresh else warm)
             with tempfile.TemporaryDirectory() as tmp:
                 writers = [UsdWriter(Path(tmp) / "run.usdc"), PolyWriter(Path(tmp) / "poly")] if case.outputs else []
                 wp.synchronize_device(sim.device)

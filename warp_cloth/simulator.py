@@ -111,17 +111,24 @@ class Simulator:
 
     Each frame's launches are captured once as a graph and replayed, on a GPU or the CPU (``graph=False``
     turns that off). Positions and velocities read back as numpy arrays of shape (particles, 3).
+    ``threads_per_particle`` sets how many GPU threads gather each particle's springs, limits and contacts
+    (None: chosen by the cloth's size; see kernels/lanes.py); a power of two up to 64, 1 on the CPU.
     """
 
     INITIAL_OVERLAP_LIMIT = 0.5  # of the contact distance: closer starting pairs are refused
 
-    def __init__(self, scene: Scene, device: str | None = None, graph: bool = True) -> None:
+    def __init__(self, scene: Scene, device: str | None = None, graph: bool = True,
+                 threads_per_particle: int | None = None) -> None:
         self.device = resolve_device(device)
+        allowed = (1,) if self.device.is_cpu else (1, 2, 4, 8, 16, 32, 64)
+        if threads_per_particle is not None and threads_per_particle not in allowed:
+            raise ValueError(f"threads_per_particle must be None or a power of two up to 64 (1 on the CPU), "
+                             f"got {threads_per_particle!r}")
         check_memory(scene, self.device)
         self.scene = scene
         self.model: Model = build_model(scene)
         self.state = DeviceState(self.model.positions, self.model.velocities, self.device)
-        self.stages: list[Stage] = build_stages(self.model, self.device)
+        self.stages: list[Stage] = build_stages(self.model, self.device, threads_per_particle)
         self.substeps_per_frame = scene.simulation.substeps_per_frame
         self.dt = scene.simulation.step
         self.frame = 0

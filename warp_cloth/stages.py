@@ -28,11 +28,55 @@ def _upload(array, dtype, device):
     return wp.array(array, dtype=dtype, device=device)
 
 
+LANE_BLOCK = 128  # threads a block of a kernel with several threads per particle
+# Threads per particle on a GPU by particle count (up to the first number), from the spring kernel's
+# launch times on an H200 (docs/results/lanes-probe-h200.json): 16 are fastest at 64^2, 4 at 128^2, 2 at
+# 256^2; from 1024^2 on, one thread per particle is.
+LANES_BY_SIZE = ((8192, 16), (32768, 4), (131072, 2))
+# The neighbour lists' remake has more to gather (27 cells): 16 threads are fastest at 64^2, 4 at 256^2, one
+# at 1024^2 (docs/results/list-probe-h200.json).
+LIST_LANES_BY_SIZE = ((8192, 16), (131072, 4))
+
+
+def threads_per_particle(particles: int, device, table=LANES_BY_SIZE) -> int:
+    """How many threads gather each particle's springs, limits and contacts (see kernels/lanes.py)."""
+    if not device.is_cuda:
+        return 1
+    return next((lanes for most, lanes in table if particles <= most), 1)
+
+
+class PerParticle:
+    """A kernel that gathers over each particle's springs, limits or contacts, launched with a thread per
+    particle or, where ``lanes`` > 1, with that many (its ``lanes_factory`` builds that form); ``lanes``
+    None: as ``table`` has it for this many particles."""
+
+    def __init__(self, kernel, lanes_factory, lanes: int | None, particles: int, device,
+                 table=LANES_BY_SIZE) -> None:
+        self.lanes = lanes = threads_per_particle(particles, device, table) if lanes is None else lanes
+        if lanes == 1:
+            self.kernel = kernel
+        else:
+            # built and loaded now: a graph capture cannot compile it
+            self.kernel = lanes_factory(lanes, LANE_BLOCK)
+            self.kernel.module.load(device, block_dim=LANE_BLOCK)
+
+    def launch(self, n: int, device, inputs, outputs) -> None:
+        if self.lanes == 1:
+            wp.launch(self.kernel, dim=n, inputs=inputs, outputs=outputs, device=device)
+        else:
+            per_block = LANE_BLOCK // self.lanes
+            wp.launch_tiled(self.kernel, dim=[(n + per_block - 1) // per_block], inputs=inputs, outputs=outputs,
+                            block_dim=LANE_BLOCK, device=device)
+
+
 class ExplicitIntegration:
     """Spring forces and gravity, then one explicit or symplectic Euler step."""
 
-    def __init__(self, model: Model, inv_mass: wp.array, springs: tuple, integrator: str, h: float) -> None:
+    def __init__(self, model: Model, inv_mass: wp.array, springs: tuple, integrator: str, h: float,
+                 lanes: int | None, device) -> None:
         self.name = f"integrate:{integrator}"
+        self.kernel = PerParticle(integration.euler_step, integration.euler_step_lanes, lanes,
+                                  model.particle_count, device)
         self.h = h
         self.semi_implicit = 1 if integrator == "symplectic" else 0
         self.gravity = wp.vec3(*model.scene.simulation.gravity)
@@ -42,10 +86,10 @@ class ExplicitIntegration:
         self.springs = springs
 
     def run(self, state: DeviceState) -> None:
-        launch(integration.euler_step, self.n, state,
-               inputs=[state.x, state.v, self.inv_mass, self.gravity, self.drag, self.h, self.semi_implicit,
-                       *self.springs],
-                  outputs=[state.x_next, state.v_next])
+        self.kernel.launch(self.n, state.device,
+                           inputs=[state.x, state.v, self.inv_mass, self.gravity, self.drag, self.h,
+                                   self.semi_implicit, *self.springs],
+                           outputs=[state.x_next, state.v_next])
         state.swap_positions()
         state.swap_velocities()
 
@@ -111,8 +155,10 @@ class StrainLimit:
     given (the collision stage instead chooses per pass)."""
 
     def __init__(self, model: Model, inv_mass: wp.array, iterations: int, h: float,
-                 rigid: RigidCollision | None, device) -> None:
+                 rigid: RigidCollision | None, lanes: int | None, device) -> None:
         self.name = f"limits:{iterations}" + (f"+{rigid.name}" if rigid is not None else "")
+        self.kernel = PerParticle(limits.project_strain_limits, limits.project_strain_limits_lanes, lanes,
+                                  model.particle_count, device)
         lim = model.limits
         self.iterations = iterations
         self.h = h
@@ -132,10 +178,10 @@ class StrainLimit:
     def run_pass(self, state: DeviceState, bundle: colliders.RigidColliders, resting: wp.array | None = None,
                  read_bit: int = 1) -> None:
         """One pass, ending with the colliders in ``bundle``, which mark ``resting`` (see colliders.py)."""
-        launch(limits.project_strain_limits, state.x.shape[0], state,
-               inputs=[state.x, self.inv_mass, *self.arrays, self.h, bundle,
-                       self.no_resting if resting is None else resting, read_bit],
-               outputs=[state.x_next, state.v])
+        self.kernel.launch(state.x.shape[0], state.device,
+                           inputs=[state.x, self.inv_mass, *self.arrays, self.h, bundle,
+                                   self.no_resting if resting is None else resting, read_bit],
+                           outputs=[state.x_next, state.v])
         state.swap_positions()
 
 
@@ -173,10 +219,14 @@ class ParticleCollision:
     BRUTE_FORCE_UP_TO = 512  # particles; below, checking all pairs costs less than the hash
 
     def __init__(self, model: Model, inv_mass: wp.array, cloth_id: wp.array, limit: StrainLimit | None,
-                 rigid: RigidCollision | None, h: float, device) -> None:
+                 rigid: RigidCollision | None, h: float, lanes: int | None, device) -> None:
         settings = model.scene.collision
-        contacts = model.contacts
         n = model.particle_count
+        self.separate = PerParticle(particle_collision.separate_particles, particle_collision.separate_particles_lanes,
+                                    lanes, n, device)
+        self.resolve = PerParticle(particle_collision.resolve_contact_velocities,
+                                   particle_collision.resolve_contact_velocities_lanes, lanes, n, device)
+        contacts = model.contacts
         self.passes = max(settings.iterations, limit.iterations if limit else 0)
         self.name = "+".join([f"collision:{self.passes}", *(["limits"] if limit else []),
                               *([rigid.name] if rigid else [])])
@@ -215,6 +265,11 @@ class ParticleCollision:
         self.table_mask = table - 1
         self.bucket_size = wp.zeros(table if self.use_hash else 0, dtype=int, device=device)
         self.bucket_items = wp.zeros(table * self.BUCKET_CAPACITY if self.use_hash else 0, dtype=int, device=device)
+        self.gather = PerParticle(particle_collision.gather_neighbors, particle_collision.gather_neighbors_lanes,
+                                  lanes if self.use_hash else 1, n, device, LIST_LANES_BY_SIZE)
+        # the lists before their sort, where several threads a particle make them
+        self.unsorted = wp.zeros(n * settings.max_neighbors if self.gather.lanes > 1 else 0, dtype=int,
+                                 device=device)
 
     def make_lists(self, x: wp.array) -> None:
         """Remake every particle's candidate list from positions ``x`` (and remember them)."""
@@ -227,10 +282,13 @@ class ParticleCollision:
             wp.launch(spatial_hash.insert_points, dim=self.n,
                       inputs=[x, inv_cell, self.table_mask, self.BUCKET_CAPACITY],
                       outputs=[self.bucket_size, self.bucket_items, self.overflow], device=x.device)
-            wp.launch(particle_collision.gather_neighbors, dim=self.n,
-                      inputs=[x, self.radius, inv_cell, self.table_mask, self.BUCKET_CAPACITY, self.bucket_size,
-                              self.bucket_items, s.separation, self.SEARCH_SCALE, *pair_rules],
-                      outputs=lists, device=x.device)
+            grid = [x, self.radius, inv_cell, self.table_mask, self.BUCKET_CAPACITY, self.bucket_size,
+                    self.bucket_items, s.separation, self.SEARCH_SCALE, *pair_rules]
+            if self.gather.lanes == 1:
+                self.gather.launch(self.n, x.device, inputs=grid, outputs=lists)
+            else:
+                self.counts.zero_()  # the lanes' append counters
+                self.gather.launch(self.n, x.device, inputs=[*grid, self.unsorted], outputs=lists)
         else:
             wp.launch(particle_collision.gather_neighbors_brute_force, dim=self.n,
                       inputs=[x, self.radius, s.separation, self.SEARCH_SCALE, *pair_rules], outputs=lists,
@@ -272,15 +330,17 @@ class ParticleCollision:
                 else:
                     self.limit.run_pass(state, self.bundle, self.resting, read_bit)
             if separates:
-                launch(particle_collision.separate_particles, self.n, state,
-                       inputs=[state.x, self.inv_mass, self.radius, s.separation, self.h, self.neighbors,
-                               self.counts, s.max_neighbors, self.resting, read_bit, self.bundle],
-                       outputs=[state.x_next, state.v, self.pushed])
+                self.separate.launch(self.n, state.device,
+                                     inputs=[state.x, self.inv_mass, self.radius, s.separation, self.h,
+                                             self.neighbors, self.counts, s.max_neighbors, self.resting, read_bit,
+                                             self.bundle],
+                                     outputs=[state.x_next, state.v, self.pushed])
                 state.swap_positions()
-        launch(particle_collision.resolve_contact_velocities, self.n, state,
-               inputs=[state.x, state.v, self.v_start, self.inv_mass, self.radius, s.separation, self.CONTACT_SLACK,
-                       s.friction, self.h, self.pushed, self.neighbors, self.counts, s.max_neighbors],
-               outputs=[state.v_next])
+        self.resolve.launch(self.n, state.device,
+                            inputs=[state.x, state.v, self.v_start, self.inv_mass, self.radius, s.separation,
+                                    self.CONTACT_SLACK, s.friction, self.h, self.pushed, self.neighbors, self.counts,
+                                    s.max_neighbors],
+                            outputs=[state.v_next])
         state.swap_velocities()
 
 
@@ -305,9 +365,10 @@ def upload_springs(model: Model, device) -> tuple:
             _upload(springs.damping, float, device), _upload(springs.flags, int, device))
 
 
-def build_stages(model: Model, device) -> list[Stage]:
+def build_stages(model: Model, device, lanes: int | None = None) -> list[Stage]:
     """The substep, in order: integrate, driven pins, then strain limits and colliders, or, with particle
-    collision, those projected together with it, then the clock."""
+    collision, those projected together with it, then the clock. ``lanes``: threads per particle of the
+    gathering kernels (None: each chooses by size; see ``PerParticle``)."""
     sim = model.scene.simulation
     h = sim.step
     inv_mass = _upload(model.inv_mass, float, device)
@@ -315,7 +376,7 @@ def build_stages(model: Model, device) -> list[Stage]:
     if sim.integrator == "implicit":
         stages: list[Stage] = [BackwardEuler(model, inv_mass, springs, h, device)]
     else:
-        stages = [ExplicitIntegration(model, inv_mass, springs, sim.integrator, h)]
+        stages = [ExplicitIntegration(model, inv_mass, springs, sim.integrator, h, lanes, device)]
     if model.pins is not None and model.pins.moving:
         stages.append(DrivePins(model, h, device))
     rigid = None
@@ -324,11 +385,12 @@ def build_stages(model: Model, device) -> list[Stage]:
         if model.spheres is not None and model.spheres.moving:
             stages.append(MoveSpheres(model, rigid, h, device))
     if model.contacts is not None:
-        limit = StrainLimit(model, inv_mass, sim.limit_iterations, h, None, device) if model.limits is not None else None
+        limit = (StrainLimit(model, inv_mass, sim.limit_iterations, h, None, lanes, device)
+                 if model.limits is not None else None)
         stages.append(ParticleCollision(model, inv_mass, _upload(model.cloth_id, int, device), limit, rigid, h,
-                                        device))
+                                        lanes, device))
     elif model.limits is not None:
-        stages.append(StrainLimit(model, inv_mass, sim.limit_iterations, h, rigid, device))
+        stages.append(StrainLimit(model, inv_mass, sim.limit_iterations, h, rigid, lanes, device))
     elif rigid is not None:
         stages.append(rigid)
     if (model.pins is not None and model.pins.moving) or (model.spheres is not None and model.spheres.moving):

@@ -1,0 +1,34 @@
+"""Several threads ("lanes") per particle for the kernels that gather over a particle's springs, limits or
+contacts.
+
+A small cloth has too few particles to fill a GPU: with a thread per particle, 4096 threads run on 16 of
+an H200's 132 multiprocessors, and a kernel takes as long as one thread's chain of dependent loads and
+arithmetic over its 12 springs. With ``lanes`` threads per particle, lane s of particle i takes its
+incidences s, s + lanes, ..., and a tile sum along the lane axis adds the lanes' parts (``per_block``
+particles to a block of ``per_block * lanes`` threads). Lane 0 then finishes the particle as the
+one-thread kernel does. The kernels' factories take (lanes, block) and are compiled on first use.
+
+The sum's order differs from the one-thread loop's, so results differ by rounding; it is fixed for a
+given (lanes, block), so runs stay deterministic. Tiles need a GPU (a CPU block has one thread), and
+on the CPU the one-thread kernels run.
+
+FAST_MATH: the kernels of the explicit step, the strain limit, the colliders and particle collision compile
+for CUDA with fast math (division and square root to within 2 ulp, denormals flushed to zero), which
+took 15-30 % off the spring kernel on an H200 at every size (tools/lanes_probe.py); the CPU build ignores
+it. Not for kernels with sines (pins, sphere motion), whose fast form loses accuracy as the clock's
+argument grows.
+"""
+
+import warp as wp
+
+FAST_MATH = {"fast_math": True}
+
+
+@wp.func
+def lane_layout(block: int, lane: int, per_block: int, lanes: int, n: int):
+    """Particle (-1 past the end), lane slot, and whether this thread finishes the particle."""
+    i = block * per_block + lane / lanes
+    if i >= n:
+        i = -1
+    slot = lane % lanes
+    return i, slot, i >= 0 and slot == 0
