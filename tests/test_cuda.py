@@ -35,17 +35,21 @@ def test_builtin_scene_runs_on_cuda_and_respects_colliders(name):
             assert np.linalg.norm(x - center, axis=1).min() >= sphere.radius * (1 - 1e-5)
 
 
+def assert_within_rounding(a: wc.Simulator, b: wc.Simulator, label: str) -> None:
+    """Steps both for 48 frames; their positions stay within CPU_CUDA_TOLERANCE."""
+    for frame in range(1, 49):
+        a.step()
+        b.step()
+        if frame in CPU_CUDA_TOLERANCE:
+            difference = np.abs(a.positions() - b.positions()).max()
+            print(f"{label}: max difference after {frame} frames = {difference:.3g} m")
+            assert difference < CPU_CUDA_TOLERANCE[frame]
+
+
 def test_cpu_and_cuda_agree_without_collisions():
     scene = wc.load_scene("hanging")
     assert scene.ground is None and not scene.spheres
-    cpu, cuda = wc.Simulator(scene, device="cpu"), wc.Simulator(scene, device="cuda")
-    for frame in range(1, 49):
-        cpu.step()
-        cuda.step()
-        if frame in CPU_CUDA_TOLERANCE:
-            difference = np.abs(cpu.positions() - cuda.positions()).max()
-            print(f"hanging: max |x_cpu - x_cuda| after {frame} frames = {difference:.3g} m")
-            assert difference < CPU_CUDA_TOLERANCE[frame]
+    assert_within_rounding(wc.Simulator(scene, device="cpu"), wc.Simulator(scene, device="cuda"), "hanging, cpu-cuda")
 
 
 @pytest.mark.parametrize("name", wc.builtin_scene_names())
@@ -86,13 +90,7 @@ def test_threads_per_particle_change_only_rounding(lanes):
     on the same GPU, the hanging cloth differs no more than CPU and CUDA may."""
     scene = wc.load_scene("hanging")
     one, several = (wc.Simulator(scene, device="cuda", threads_per_particle=k) for k in (1, lanes))
-    for frame in range(1, 49):
-        one.step()
-        several.step()
-        if frame in CPU_CUDA_TOLERANCE:
-            difference = np.abs(one.positions() - several.positions()).max()
-            print(f"hanging, {lanes} threads a particle: max difference after {frame} frames = {difference:.3g} m")
-            assert difference < CPU_CUDA_TOLERANCE[frame]
+    assert_within_rounding(one, several, f"hanging, {lanes} threads a particle")
 
 
 @pytest.mark.parametrize("loop", ["device_while", "unrolled"])

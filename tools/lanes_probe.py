@@ -2,7 +2,8 @@
 threads, the lanes' partial forces summed by a tile reduction along the lane axis; against the product's
 kernel (one thread per particle), and against it compiled with fast math. A graph of 100 launches of each
 on the hanging matrix cloth; microseconds per launch and the largest position difference from the
-product's kernel. Not used by the package.
+product's kernel. Not used by the package. Run before fast math became the product's default
+(docs/results/lanes-probe-h200.json); since then "loop" is compiled with fast math as well.
 
     python tools/lanes_probe.py OUT.json [cuda|cpu]
 """
