@@ -6,7 +6,7 @@ import functools
 
 import warp as wp
 
-from .lanes import FAST_MATH, lane_layout
+from .lanes import FAST_MATH, lane_layout, lane_sum
 from .springs import gather_spring_forces
 
 wp.set_module_options(FAST_MATH)
@@ -51,6 +51,7 @@ def euler_step(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), inv_mass:
 def euler_step_lanes(lanes: int, block: int) -> wp.Kernel:
     """``euler_step`` with ``lanes`` threads per particle (see lanes.py)."""
     per_block = block // lanes
+    sum_over_lanes = lane_sum(per_block, lanes)
 
     @wp.kernel(module="unique", module_options=FAST_MATH)
     def euler_step(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float),
@@ -65,10 +66,8 @@ def euler_step_lanes(lanes: int, block: int) -> wp.Kernel:
             if inv_mass[i] != 0.0:
                 f = gather_spring_forces(i, offsets[i] + slot, wp.static(lanes), x, v, offsets, other, spring, rest,
                                          stiffness, damping, flags)
-        total = wp.tile_sum(wp.tile_reshape(wp.tile(f, preserve_type=True),
-                                            shape=(wp.static(per_block), wp.static(lanes))), axis=1)
+        total = sum_over_lanes(f, lane)
         if owner:
-            integrate(i, total[i % wp.static(per_block)], x, v, inv_mass, gravity, drag, h, semi_implicit, x_out,
-                      v_out)
+            integrate(i, total, x, v, inv_mass, gravity, drag, h, semi_implicit, x_out, v_out)
 
     return euler_step

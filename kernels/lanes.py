@@ -19,6 +19,9 @@ it. Not for kernels with sines (pins, sphere motion), whose fast form loses accu
 argument grows.
 """
 
+import functools
+from typing import Any
+
 import warp as wp
 
 FAST_MATH = {"fast_math": True}
@@ -32,3 +35,16 @@ def lane_layout(block: int, lane: int, per_block: int, lanes: int, n: int):
         i = -1
     slot = lane % lanes
     return i, slot, i >= 0 and slot == 0
+
+
+@functools.cache
+def lane_sum(per_block: int, lanes: int) -> wp.Function:
+    """A function that sums a value (a vector or a count) over each particle's lanes and gives every lane
+    its particle's sum. Every thread of the block must call it (the tile sum is cooperative)."""
+
+    @wp.func
+    def sum_over_lanes(value: Any, lane: int):
+        sums = wp.tile_sum(wp.tile_reshape(wp.tile(value, preserve_type=True), shape=(per_block, lanes)), axis=1)
+        return sums[lane / lanes]
+
+    return sum_over_lanes

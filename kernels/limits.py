@@ -15,7 +15,7 @@ import functools
 import warp as wp
 
 from .colliders import RigidColliders, collide_and_mark
-from .lanes import FAST_MATH, lane_layout
+from .lanes import FAST_MATH, lane_layout, lane_sum
 
 wp.set_module_options(FAST_MATH)
 
@@ -105,6 +105,7 @@ def project_strain_limits(x: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=f
 def project_strain_limits_lanes(lanes: int, block: int) -> wp.Kernel:
     """``project_strain_limits`` with ``lanes`` threads per particle (see lanes.py)."""
     per_block = block // lanes
+    sum_over_lanes = lane_sum(per_block, lanes)
 
     @wp.kernel(module="unique", module_options=FAST_MATH)
     def project_strain_limits(x: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float),
@@ -125,16 +126,13 @@ def project_strain_limits_lanes(lanes: int, block: int) -> wp.Kernel:
             if wi != 0.0:
                 correction, violated = gather_limit_corrections(i, offsets[i] + slot, wp.static(lanes), xi, wi, x,
                                                                 inv_mass, offsets, other, min_length, max_length)
-        corrections = wp.tile_sum(wp.tile_reshape(wp.tile(correction, preserve_type=True),
-                                                  shape=(wp.static(per_block), wp.static(lanes))), axis=1)
-        counts = wp.tile_sum(wp.tile_reshape(wp.tile(violated), shape=(wp.static(per_block), wp.static(lanes))),
-                             axis=1)
+        correction = sum_over_lanes(correction, lane)
+        violated = sum_over_lanes(violated, lane)
         if owner:
             if wi == 0.0:
                 x_out[i] = xi
             else:
-                k = i % wp.static(per_block)
-                finish_limit_pass(i, xi, corrections[k], counts[k], x, attachment_pin, attachment_length, h,
-                                  colliders, resting, read_bit, x_out, v)
+                finish_limit_pass(i, xi, correction, violated, x, attachment_pin, attachment_length, h, colliders,
+                                  resting, read_bit, x_out, v)
 
     return project_strain_limits

@@ -14,7 +14,7 @@ import warp as wp
 
 from . import spatial_hash
 from .colliders import RigidColliders, collide_and_mark, collide_particle
-from .lanes import FAST_MATH, lane_layout
+from .lanes import FAST_MATH, lane_layout, lane_sum
 
 wp.set_module_options(FAST_MATH)
 
@@ -153,10 +153,12 @@ def first_visit(center: wp.vec3i, k: int, bucket: int, mask: int) -> bool:
 @functools.cache
 def gather_neighbors_lanes(lanes: int, block: int) -> wp.Kernel:
     """``gather_neighbors`` with ``lanes`` threads per particle (see lanes.py), making the same lists: lane
-    s visits cells s, s + lanes, ... of the 27 (a bucket once, at its first cell) and appends candidates
-    to ``unsorted`` through the atomic count in ``counts`` (zero on entry); after the block's barrier each
-    lane writes its entries at their rank, so the list is in index order."""
+    s visits cells s, s + lanes, ... of the 27 and appends candidates to ``unsorted`` through the atomic
+    count in ``counts`` (zero on entry); after the block's barrier each lane writes its entries at their
+    rank, so the list is in index order. Ranks need distinct entries, so a bucket two cells share is
+    visited once, at its first cell (the one-thread kernel drops repeats after its sort instead)."""
     per_block = block // lanes
+    sum_over_lanes = lane_sum(per_block, lanes)
 
     @wp.kernel(module="unique", module_options=FAST_MATH)
     def gather_neighbors(x: wp.array(dtype=wp.vec3), radius: wp.array(dtype=float), inv_cell: float, mask: int,
@@ -184,10 +186,9 @@ def gather_neighbors_lanes(lanes: int, block: int) -> wp.Kernel:
                                 unsorted[i * max_neighbors + at] = j
                             else:
                                 wp.atomic_add(overflow, 0, 1)
-        totals = wp.tile_sum(wp.tile_reshape(wp.tile(found), shape=(wp.static(per_block), wp.static(lanes))),
-                             axis=1)
+        found = sum_over_lanes(found, lane)  # also the barrier after which the block's appends are seen
         if i >= 0:
-            count = wp.min(totals[i % wp.static(per_block)], max_neighbors)
+            count = wp.min(found, max_neighbors)
             start = i * max_neighbors
             for e in range(slot, count, wp.static(lanes)):
                 j = unsorted[start + e]
@@ -294,6 +295,7 @@ def separate_particles(x: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=floa
 def separate_particles_lanes(lanes: int, block: int) -> wp.Kernel:
     """``separate_particles`` with ``lanes`` threads per particle (see lanes.py)."""
     per_block = block // lanes
+    sum_over_lanes = lane_sum(per_block, lanes)
 
     @wp.kernel(module="unique", module_options=FAST_MATH)
     def separate_particles(x: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float),
@@ -314,17 +316,13 @@ def separate_particles_lanes(lanes: int, block: int) -> wp.Kernel:
             if wi != 0.0:
                 correction, touching = gather_pushes(i, slot, wp.static(lanes), xi, wi, x, inv_mass, radius,
                                                      separation, neighbors, counts, max_neighbors, resting, read_bit)
-        corrections = wp.tile_sum(wp.tile_reshape(wp.tile(correction, preserve_type=True),
-                                                  shape=(wp.static(per_block), wp.static(lanes))), axis=1)
-        touches = wp.tile_sum(wp.tile_reshape(wp.tile(touching), shape=(wp.static(per_block), wp.static(lanes))),
-                              axis=1)
+        correction = sum_over_lanes(correction, lane)
+        touching = sum_over_lanes(touching, lane)
         if owner:
             if wi == 0.0:
                 x_out[i] = xi
             else:
-                k = i % wp.static(per_block)
-                finish_separation(i, xi, corrections[k], touches[k], h, read_bit, colliders, resting, x_out, v,
-                                  pushed)
+                finish_separation(i, xi, correction, touching, h, read_bit, colliders, resting, x_out, v, pushed)
 
     return separate_particles
 
@@ -412,6 +410,7 @@ def resolve_contact_velocities(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.
 def resolve_contact_velocities_lanes(lanes: int, block: int) -> wp.Kernel:
     """``resolve_contact_velocities`` with ``lanes`` threads per particle (see lanes.py)."""
     per_block = block // lanes
+    sum_over_lanes = lane_sum(per_block, lanes)
 
     @wp.kernel(module="unique", module_options=FAST_MATH)
     def resolve_contact_velocities(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3),
@@ -429,13 +428,10 @@ def resolve_contact_velocities_lanes(lanes: int, block: int) -> wp.Kernel:
                 change, touching = gather_velocity_changes(i, slot, wp.static(lanes), x, v, v_start, inv_mass,
                                                            radius, separation, contact_slack, friction, h, pushed,
                                                            neighbors, counts, max_neighbors)
-        changes = wp.tile_sum(wp.tile_reshape(wp.tile(change, preserve_type=True),
-                                              shape=(wp.static(per_block), wp.static(lanes))), axis=1)
-        touches = wp.tile_sum(wp.tile_reshape(wp.tile(touching), shape=(wp.static(per_block), wp.static(lanes))),
-                              axis=1)
+        change = sum_over_lanes(change, lane)
+        touching = sum_over_lanes(touching, lane)
         if owner:
-            k = i % wp.static(per_block)
-            finish_velocities(i, changes[k], touches[k], v, pushed, v_out)
+            finish_velocities(i, change, touching, v, pushed, v_out)
 
     return resolve_contact_velocities
 

@@ -34,7 +34,8 @@ def set_fast_math(on: bool) -> None:
         loaded.options["fast_math"] = on
         loaded.mark_modified()  # else the module compiled with the other option stays loaded
     for factory in (integration.euler_step_lanes, limits.project_strain_limits_lanes,
-                    particle_collision.separate_particles_lanes, particle_collision.resolve_contact_velocities_lanes):
+                    particle_collision.separate_particles_lanes, particle_collision.resolve_contact_velocities_lanes,
+                    particle_collision.gather_neighbors_lanes):
         factory.cache_clear()
 
 
