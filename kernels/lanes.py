@@ -14,8 +14,8 @@ on the CPU the one-thread kernels run.
 
 FAST_MATH: the kernels of the explicit step, the strain limit, the colliders and particle collision compile
 for CUDA with fast math (division and square root to within 2 ulp, denormals flushed to zero), which
-took 15-30 % off the spring kernel on an H200 at every size (tools/lanes_probe.py); the CPU build ignores
-it. Not for kernels with sines (pins, sphere motion), whose fast form loses accuracy as the clock's
+took 8-31 % off the spring kernel on an H200, least at 1024^2, in two runs of tools/lanes_probe.py; the
+CPU build ignores it. Not for kernels with sines (pins, sphere motion), whose fast form loses accuracy as the clock's
 argument grows.
 """
 
