@@ -19,28 +19,36 @@ from .lanes import FAST_MATH, lane_layout, lane_sum
 wp.set_module_options(FAST_MATH)
 
 
-@wp.kernel
-def begin_contacts(inv_mass: wp.array(dtype=float), colliders: RigidColliders, h: float,
-                   x_built: wp.array(dtype=wp.vec3), rebuild_distance: float, x: wp.array(dtype=wp.vec3),
-                   v: wp.array(dtype=wp.vec3), v_start: wp.array(dtype=wp.vec3), resting: wp.array(dtype=int),
-                   rebuild: wp.array(dtype=int)):
-    """The collision stage's first pass over the particles: remembers the velocities the contacts start
-    from, puts particles out of the rigid colliders and marks those the colliders hold up (``resting``,
-    empty without colliders), and sets rebuild[0] if a particle has moved farther than
-    ``rebuild_distance`` since the neighbour lists were made."""
-    i = wp.tid()
-    p = x[i]
-    vel = v[i]
+@wp.func
+def begin_contact(i: int, p: wp.vec3, vel: wp.vec3, w: float, colliders: RigidColliders, h: float,
+                  x_built: wp.array(dtype=wp.vec3), rebuild_distance: float, v_start: wp.array(dtype=wp.vec3),
+                  resting: wp.array(dtype=int), rebuild: wp.array(dtype=int)):
+    """The collision stage's start for particle i at position p with velocity vel (inverse mass w):
+    remembers the velocity the contacts start from, puts the particle out of the rigid colliders and marks
+    it if they hold it up (``resting``, empty without colliders), and sets rebuild[0] if it has moved
+    farther than ``rebuild_distance`` since the neighbour lists were made. Returns its new p and vel."""
     v_start[i] = vel
     hit = int(0)
-    if inv_mass[i] != 0.0:
+    if w != 0.0:
         p, vel, hit = collide_particle(p, vel, colliders, h)
-        x[i] = p
-        v[i] = vel
     if resting.shape[0] > 0:
         resting[i] = 3 * hit  # both bits: the first pass reads either
     if wp.length_sq(p - x_built[i]) > rebuild_distance * rebuild_distance:
         rebuild[0] = 1
+    return p, vel
+
+
+@wp.kernel
+def begin_contacts(inv_mass: wp.array(dtype=float), h: float, colliders: RigidColliders,
+                   x_built: wp.array(dtype=wp.vec3), rebuild_distance: float, x: wp.array(dtype=wp.vec3),
+                   v: wp.array(dtype=wp.vec3), v_start: wp.array(dtype=wp.vec3), resting: wp.array(dtype=int),
+                   rebuild: wp.array(dtype=int)):
+    """``begin_contact`` for every particle, where the integration step cannot do it (see stages.py)."""
+    i = wp.tid()
+    p, vel = begin_contact(i, x[i], v[i], inv_mass[i], colliders, h, x_built, rebuild_distance, v_start, resting,
+                           rebuild)
+    x[i] = p
+    v[i] = vel
 
 
 @wp.func
@@ -120,15 +128,25 @@ def sort_and_drop_repeats(neighbors: wp.array(dtype=int), start: int, count: int
     return kept
 
 
+@wp.func
+def remember_list_positions(i: int, x: wp.array(dtype=wp.vec3), x_built: wp.array(dtype=wp.vec3),
+                            rebuild: wp.array(dtype=int)):
+    """What every list gather ends with for particle i: the position its list was made from, and the
+    remake flag cleared (by particle 0)."""
+    x_built[i] = x[i]
+    if i == 0:
+        rebuild[0] = 0
+
+
 @wp.kernel
 def gather_neighbors(x: wp.array(dtype=wp.vec3), radius: wp.array(dtype=float), inv_cell: float, mask: int,
                      capacity: int, bucket_size: wp.array(dtype=int), bucket_items: wp.array(dtype=int),
                      separation: float, search_scale: float, cloth_id: wp.array(dtype=int), self_collision: int,
                      between_cloths: int, grid_xy: wp.array(dtype=int), exclude_adjacent: wp.array(dtype=int),
                      max_neighbors: int, neighbors: wp.array(dtype=int), counts: wp.array(dtype=int),
-                     overflow: wp.array(dtype=int)):
+                     overflow: wp.array(dtype=int), x_built: wp.array(dtype=wp.vec3), rebuild: wp.array(dtype=int)):
     """Each particle's candidates, from the spatial hash: pairs allowed to collide and closer than
-    search_scale contact distances, in index order."""
+    search_scale contact distances, in index order (see ``remember_list_positions``)."""
     i = wp.tid()
     center = spatial_hash.cell_of(x[i], inv_cell)
     count = int(0)
@@ -139,6 +157,7 @@ def gather_neighbors(x: wp.array(dtype=wp.vec3), radius: wp.array(dtype=float), 
                                   cloth_id, self_collision, between_cloths, grid_xy, exclude_adjacent,
                                   max_neighbors, neighbors, count, overflow)
     counts[i] = sort_and_drop_repeats(neighbors, i * max_neighbors, count)
+    remember_list_positions(i, x, x_built, rebuild)
 
 
 @wp.func
@@ -154,8 +173,8 @@ def first_visit(center: wp.vec3i, k: int, bucket: int, mask: int) -> bool:
 def gather_neighbors_lanes(lanes: int, block: int) -> wp.Kernel:
     """``gather_neighbors`` with ``lanes`` threads per particle (see lanes.py), making the same lists: lane
     s visits cells s, s + lanes, ... of the 27 and appends candidates to ``unsorted`` through the atomic
-    count in ``counts`` (zero on entry); after the block's barrier each lane writes its entries at their
-    rank, so the list is in index order. Ranks need distinct entries, so a bucket two cells share is
+    count in ``appended`` (zero on entry, and left zero for the next gather); after the block's barrier
+    each lane writes its entries at their rank, so the list is in index order. Ranks need distinct entries, so a bucket two cells share is
     visited once, at its first cell (the one-thread kernel drops repeats after its sort instead)."""
     per_block = block // lanes
     sum_over_lanes = lane_sum(per_block, lanes)
@@ -166,8 +185,9 @@ def gather_neighbors_lanes(lanes: int, block: int) -> wp.Kernel:
                          separation: float, search_scale: float, cloth_id: wp.array(dtype=int),
                          self_collision: int, between_cloths: int, grid_xy: wp.array(dtype=int),
                          exclude_adjacent: wp.array(dtype=int), max_neighbors: int, unsorted: wp.array(dtype=int),
-                         neighbors: wp.array(dtype=int), counts: wp.array(dtype=int),
-                         overflow: wp.array(dtype=int)):
+                         appended: wp.array(dtype=int), neighbors: wp.array(dtype=int),
+                         counts: wp.array(dtype=int), overflow: wp.array(dtype=int),
+                         x_built: wp.array(dtype=wp.vec3), rebuild: wp.array(dtype=int)):
         block_id, lane = wp.tid()
         i, slot, owner = lane_layout(block_id, lane, wp.static(per_block), wp.static(lanes), x.shape[0])
         found = int(0)
@@ -180,7 +200,7 @@ def gather_neighbors_lanes(lanes: int, block: int) -> wp.Kernel:
                         j = bucket_items[bucket * capacity + s]
                         if is_candidate(i, j, x, radius, separation, search_scale, cloth_id, self_collision,
                                         between_cloths, grid_xy, exclude_adjacent):
-                            at = wp.atomic_add(counts, i, 1)
+                            at = wp.atomic_add(appended, i, 1)
                             found += 1
                             if at < max_neighbors:
                                 unsorted[i * max_neighbors + at] = j
@@ -199,6 +219,8 @@ def gather_neighbors_lanes(lanes: int, block: int) -> wp.Kernel:
                 neighbors[start + rank] = j
             if owner:
                 counts[i] = count
+                appended[i] = 0
+                remember_list_positions(i, x, x_built, rebuild)
 
     return gather_neighbors
 
@@ -456,7 +478,8 @@ def gather_neighbors_brute_force(x: wp.array(dtype=wp.vec3), radius: wp.array(dt
                                  between_cloths: int, grid_xy: wp.array(dtype=int),
                                  exclude_adjacent: wp.array(dtype=int), max_neighbors: int,
                                  neighbors: wp.array(dtype=int), counts: wp.array(dtype=int),
-                                 overflow: wp.array(dtype=int)):
+                                 overflow: wp.array(dtype=int), x_built: wp.array(dtype=wp.vec3),
+                                 rebuild: wp.array(dtype=int)):
     """The O(n^2) way to fill the same lists as ``gather_neighbors`` (every particle against every other,
     as the seed did), for small scenes and to measure what the spatial hash saves."""
     i = wp.tid()
@@ -465,3 +488,4 @@ def gather_neighbors_brute_force(x: wp.array(dtype=wp.vec3), radius: wp.array(dt
         count = add_candidate(i, j, x, radius, separation, search_scale, cloth_id, self_collision, between_cloths,
                               grid_xy, exclude_adjacent, max_neighbors, neighbors, count, overflow)
     counts[i] = count
+    remember_list_positions(i, x, x_built, rebuild)

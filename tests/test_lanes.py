@@ -22,7 +22,7 @@ def copies(args):
 
 
 def assert_same_lists(loop_outputs, lanes_outputs):
-    (neighbors_a, counts_a, _), (neighbors_b, counts_b, _) = loop_outputs, lanes_outputs
+    (neighbors_a, counts_a, *_), (neighbors_b, counts_b, *_) = loop_outputs, lanes_outputs
     counts = counts_a.numpy()
     np.testing.assert_array_equal(counts, counts_b.numpy())
     a, b = (n.numpy().reshape(len(counts), -1) for n in (neighbors_a, neighbors_b))
@@ -46,13 +46,15 @@ def test_lanes_forms_with_one_thread_give_the_one_thread_kernels_results(monkeyp
             loop_in, loop_out = copies(inputs), copies(outputs)
             real_launch(kernel, dim=dim, inputs=loop_in, outputs=loop_out, device=device)
             lanes_in, lanes_out = copies(inputs), copies(outputs)
-            if kernel.key == "gather_neighbors":
-                lanes_out[1].zero_()  # its append counters
-                lanes_in.append(wp.zeros_like(lanes_out[0]))
+            if kernel.key == "gather_neighbors":  # its unsorted lists and their lengths
+                lanes_in += [wp.zeros_like(lanes_out[0]), wp.zeros_like(lanes_out[1])]
             wp.launch_tiled(LANES_FORMS[kernel.key](1, 1), dim=[dim], inputs=lanes_in, outputs=lanes_out, block_dim=1,
                             device=device)
             if kernel.key == "gather_neighbors":
                 listed.append(assert_same_lists(loop_out, lanes_out))
+                for a, b in zip(loop_out[2:], lanes_out[2:]):  # overflow, list positions, remake flag
+                    np.testing.assert_array_equal(a.numpy(), b.numpy())
+                assert not lanes_in[-1].numpy().any(), "the append counts are left zero"
             else:
                 for a, b in zip(loop_in + loop_out, lanes_in + lanes_out):
                     if isinstance(a, wp.array):

@@ -4,12 +4,14 @@ import dataclasses
 from collections import Counter
 from types import SimpleNamespace
 
+import numpy as np
 import pytest
 import warp as wp
 
 import warp_cloth as wc
 from conftest import with_simulation
-from warp_cloth.stages import LIST_LANES_BY_SIZE, ParticleCollision, threads_per_particle
+from warp_cloth.stages import (LIST_LANES_BY_SIZE, ExplicitIntegration, MoveSpheres, ParticleCollision,
+                               no_contact_start, threads_per_particle)
 
 OFF = wc.SpringKind(enabled=False)
 
@@ -42,12 +44,12 @@ EXPECTED = {
 }
 # With particle collision, limits, separation and colliders are projected together in 8 passes (the
 # larger of the collision's 8 and the limit's 4 iterations): colliders once before the passes (in the
-# kernel that begins the stage) and at the end of every pass's last kernel, the limit in the last 4. The
+# integration step, which begins the contacts) and at the end of every pass's last kernel, the limit in the last 4. The
 # neighbour lists (spatial hash, gather) are remade only when a particle has moved far enough.
 PASSES = 8
 LISTS = {"insert_points": 1, "gather_neighbors": 1}
 EXPECTED_WITH_COLLISION = {
-    name: {"euler_step": 1, "begin_contacts": 1, "project_strain_limits": LIMIT_ITERATIONS,
+    name: {"euler_step": 1, "project_strain_limits": LIMIT_ITERATIONS,
            "separate_particles": PASSES, "resolve_contact_velocities": 1}
     for name in ("fold", "pile")
 }
@@ -127,3 +129,40 @@ def test_threads_per_particle_follow_the_cloth_size_on_a_gpu_only():
 def test_threads_per_particle_other_than_one_is_refused_on_the_cpu(threads):
     with pytest.raises(ValueError, match="threads_per_particle must be None or a power of two up to 64"):
         wc.Simulator(wc.load_scene("hanging"), device="cpu", threads_per_particle=threads)
+
+
+def unfused(sim: wc.Simulator) -> wc.Simulator:
+    """``sim``'s substep as it was before the integration step began the contacts: the spheres moved
+    after the step, and the collision stage's own kernel beginning its contacts."""
+    step = next(s for s in sim.stages if isinstance(s, ExplicitIntegration))
+    collision = next(s for s in sim.stages if isinstance(s, ParticleCollision))
+    step.contact_start = no_contact_start(sim.device)
+    collision.started_by_integration = False
+    movers = [s for s in sim.stages if isinstance(s, MoveSpheres)]
+    rest = [s for s in sim.stages if s is not step and s not in movers]
+    sim.stages = [step, *movers, *rest]
+    return sim
+
+
+@pytest.mark.parametrize("name, frames", [("pile", 20), ("seed_default", 6)])
+def test_contacts_begun_in_the_step_give_the_separate_kernels_results_exactly(name, frames, launches):
+    scene = wc.load_scene(name)
+    fused = wc.Simulator(scene, device="cpu")
+    assert any(stage.endswith("+contacts") for stage in fused.stage_names)
+    reference = unfused(wc.Simulator(scene, device="cpu"))
+    fused.run(frames)
+    launches.clear()
+    reference.run(frames)
+    assert launches["begin_contacts"] > 0
+    np.testing.assert_array_equal(fused.positions(), reference.positions())
+    np.testing.assert_array_equal(fused.velocities(), reference.velocities())
+
+
+def test_driven_pins_keep_the_collision_stage_beginning_its_contacts(launches):
+    scene = wc.load_scene("oscillating_pins")
+    scene = dataclasses.replace(scene, collision=wc.Collision())
+    sim = wc.Simulator(scene, device="cpu", graph=False)
+    assert sim.stage_names[:2] == ["integrate:symplectic", "pins:oscillating"]
+    launches.clear()
+    sim.substep()
+    assert launches["begin_contacts"] == 1

@@ -19,7 +19,7 @@ from gather_threads import set_fast_math
 from warp_cloth.bench import matrix_scene
 from warp_cloth.kernels import integration
 from warp_cloth.simulator import Simulator
-from warp_cloth.stages import upload_springs
+from warp_cloth.stages import no_contact_start, upload_springs
 
 wp.config.log_level = wp.LOG_ERROR
 
@@ -50,14 +50,16 @@ def main() -> None:
         sim = Simulator(matrix_scene("hanging", n, "symplectic"), device=device)
         sim.run(2)
         inv_mass = wp.array(sim.model.inv_mass, dtype=float, device=device)
+        start_inputs, start_outputs = no_contact_start(device)
         args = [sim.state.x, sim.state.v, inv_mass, wp.vec3(0.0, -9.81, 0.0), 0.0, 1.0 / 240, 1,
-                *upload_springs(sim.model, device)]
+                *upload_springs(sim.model, device), *start_inputs]
         x_out, v_out = wp.empty_like(sim.state.x), wp.empty_like(sim.state.v)
+        outputs = [x_out, v_out, *start_outputs]
         particles = sim.model.particle_count
         row = {}
 
         def one_thread() -> None:
-            wp.launch(integration.euler_step, particles, inputs=args, outputs=[x_out, v_out], device=device)
+            wp.launch(integration.euler_step, particles, inputs=args, outputs=outputs, device=device)
 
         set_fast_math(False)
         row["loop"] = per_launch_us(one_thread, device)
@@ -65,7 +67,7 @@ def main() -> None:
         for K, B in shapes:
             kernel, blocks = integration.euler_step_lanes(K, B), (particles + B // K - 1) // (B // K)
             row[f"K{K}_B{B}"] = per_launch_us(
-                lambda: wp.launch_tiled(kernel, dim=[blocks], inputs=args, outputs=[x_out, v_out], block_dim=B,
+                lambda: wp.launch_tiled(kernel, dim=[blocks], inputs=args, outputs=outputs, block_dim=B,
                                         device=device), device)
             row[f"K{K}_B{B}_max_diff"] = float(abs(x_out.numpy() - reference).max())
         set_fast_math(True)

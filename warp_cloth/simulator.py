@@ -193,8 +193,8 @@ class Simulator:
     def solver_stats(self) -> "SolveStats | None":
         """For the implicit integrator: the worst CG and Newton figures of the substeps since the last call
         (reading them waits for the device); None for the explicit integrators."""
-        integrator = self.stages[0]
-        return integrator.read_stats() if isinstance(integrator, BackwardEuler) else None
+        integrator = next((s for s in self.stages if isinstance(s, BackwardEuler)), None)
+        return integrator.read_stats() if integrator is not None else None
 
     def substep(self) -> None:
         """Advance one substep, launching stage by stage (for tests and debugging; frames are faster)."""

@@ -70,11 +70,12 @@ class PerParticle:
 
 
 class ExplicitIntegration:
-    """Spring forces and gravity, then one explicit or symplectic Euler step."""
+    """Spring forces and gravity, then one explicit or symplectic Euler step; and the start of the
+    particle collision's ``contacts`` where that stage follows directly (see integration.py)."""
 
     def __init__(self, model: Model, inv_mass: wp.array, springs: tuple, integrator: str, h: float,
-                 lanes: int | None, device) -> None:
-        self.name = f"integrate:{integrator}"
+                 lanes: int | None, device, contacts: "ParticleCollision | None" = None) -> None:
+        self.name = f"integrate:{integrator}" + ("+contacts" if contacts is not None else "")
         self.kernel = PerParticle(integration.euler_step, integration.euler_step_lanes, lanes,
                                   model.particle_count, device)
         self.h = h
@@ -84,14 +85,27 @@ class ExplicitIntegration:
         self.n = model.particle_count
         self.inv_mass = inv_mass
         self.springs = springs
+        if contacts is None:
+            self.contact_start = no_contact_start(device)
+        else:
+            self.contact_start = contacts.start_arguments()
+            contacts.started_by_integration = True
 
     def run(self, state: DeviceState) -> None:
+        start_inputs, start_outputs = self.contact_start
         self.kernel.launch(self.n, state.device,
                            inputs=[state.x, state.v, self.inv_mass, self.gravity, self.drag, self.h,
-                                   self.semi_implicit, *self.springs],
-                           outputs=[state.x_next, state.v_next])
+                                   self.semi_implicit, *self.springs, *start_inputs],
+                           outputs=[state.x_next, state.v_next, *start_outputs])
         state.swap_positions()
         state.swap_velocities()
+
+
+def no_contact_start(device) -> tuple[list, list]:
+    """The contacts' start arguments of an integration step that begins no contacts."""
+    empty_vec3 = wp.zeros(0, dtype=wp.vec3, device=device)
+    empty_int = wp.zeros(0, dtype=int, device=device)
+    return [rigid_colliders(None, device), empty_vec3, 0.0], [empty_vec3, empty_int, empty_int]
 
 
 class DrivePins:
@@ -257,6 +271,7 @@ class ParticleCollision:
         self.remake_every_substep = False  # for benchmarks of the broad phase
         self.x_built = wp.full(n, wp.vec3(1.0e30), dtype=wp.vec3, device=device)
         self.rebuild = wp.zeros(1, dtype=int, device=device)
+        self.started_by_integration = False  # set by an integration step that begins the contacts
         self.use_hash = settings.broad_phase == "hash_grid" or (
             settings.broad_phase == "auto" and n > self.BRUTE_FORCE_UP_TO)
         table = 64
@@ -267,15 +282,17 @@ class ParticleCollision:
         self.bucket_items = wp.zeros(table * self.BUCKET_CAPACITY if self.use_hash else 0, dtype=int, device=device)
         self.gather = PerParticle(particle_collision.gather_neighbors, particle_collision.gather_neighbors_lanes,
                                   lanes if self.use_hash else 1, n, device, LIST_LANES_BY_SIZE)
-        # the lists before their sort, where several threads a particle make them
-        self.unsorted = wp.zeros(n * settings.max_neighbors if self.gather.lanes > 1 else 0, dtype=int,
-                                 device=device)
+        # where several threads a particle make the lists: the lists before their sort, and their lengths
+        several = self.gather.lanes > 1
+        self.unsorted = wp.zeros(n * settings.max_neighbors if several else 0, dtype=int, device=device)
+        self.appended = wp.zeros(n if several else 0, dtype=int, device=device)
 
     def make_lists(self, x: wp.array) -> None:
-        """Remake every particle's candidate list from positions ``x`` (and remember them)."""
+        """Remake every particle's candidate list from positions ``x`` (remembering them, and clearing the
+        remake flag)."""
         s = self.settings
         pair_rules = [self.cloth_id, int(s.self_collision), int(s.between_cloths), *self.exclusion, s.max_neighbors]
-        lists = [self.neighbors, self.counts, self.overflow]
+        lists = [self.neighbors, self.counts, self.overflow, self.x_built, self.rebuild]
         if self.use_hash:
             inv_cell = 1.0 / self.search_radius
             self.bucket_size.zero_()
@@ -284,16 +301,12 @@ class ParticleCollision:
                       outputs=[self.bucket_size, self.bucket_items, self.overflow], device=x.device)
             grid = [x, self.radius, inv_cell, self.table_mask, self.BUCKET_CAPACITY, self.bucket_size,
                     self.bucket_items, s.separation, self.SEARCH_SCALE, *pair_rules]
-            if self.gather.lanes == 1:
-                self.gather.launch(self.n, x.device, inputs=grid, outputs=lists)
-            else:
-                self.counts.zero_()  # the lanes' append counters
-                self.gather.launch(self.n, x.device, inputs=[*grid, self.unsorted], outputs=lists)
+            scratch = [self.unsorted, self.appended] if self.gather.lanes > 1 else []
+            self.gather.launch(self.n, x.device, inputs=[*grid, *scratch], outputs=lists)
         else:
             wp.launch(particle_collision.gather_neighbors_brute_force, dim=self.n,
                       inputs=[x, self.radius, s.separation, self.SEARCH_SCALE, *pair_rules], outputs=lists,
                       device=x.device)
-        wp.copy(self.x_built, x)
 
     def closest_contact(self, x: wp.array) -> float:
         """The closest approach of two particles that may collide, as a fraction of their contact distance
@@ -306,21 +319,21 @@ class ParticleCollision:
                           self.settings.max_neighbors], outputs=[ratio], device=x.device)
         return float(ratio.numpy()[0])
 
-    def remake_lists(self, x: wp.array) -> None:
-        """The lists, remade when ``begin_contacts`` found a particle that moved far (then clears the flag)."""
-        self.make_lists(x)
-        self.rebuild.zero_()
+    def start_arguments(self) -> tuple[list, list]:
+        """What ``begin_contact`` takes besides the state, as (inputs, outputs)."""
+        return [self.bundle, self.x_built, self.rebuild_distance], [self.v_start, self.resting, self.rebuild]
 
     def run(self, state: DeviceState) -> None:
         s = self.settings
-        launch(particle_collision.begin_contacts, self.n, state,
-               inputs=[self.inv_mass, self.bundle, self.h, self.x_built, self.rebuild_distance],
-               outputs=[state.x, state.v, self.v_start, self.resting, self.rebuild])
+        if not self.started_by_integration:
+            start_inputs, start_outputs = self.start_arguments()
+            launch(particle_collision.begin_contacts, self.n, state, inputs=[self.inv_mass, self.h, *start_inputs],
+                   outputs=[state.x, state.v, *start_outputs])
         if self.remake_every_substep:
             self.make_lists(state.x)
         else:
             positions = state.x
-            wp.capture_if(self.rebuild, on_true=lambda: self.remake_lists(positions))
+            wp.capture_if(self.rebuild, on_true=lambda: self.make_lists(positions))
         for remaining in range(self.passes, 0, -1):
             separates = remaining <= s.iterations
             read_bit = 1 if (self.passes - remaining) % 2 == 0 else 2  # resting flags: see colliders.py
@@ -366,33 +379,40 @@ def upload_springs(model: Model, device) -> tuple:
 
 
 def build_stages(model: Model, device, lanes: int | None = None) -> list[Stage]:
-    """The substep, in order: integrate, driven pins, then strain limits and colliders, or, with particle
-    collision, those projected together with it, then the clock. ``lanes``: threads per particle of the
-    gathering kernels (None: each chooses by size; see ``PerParticle``)."""
+    """The substep, in order: moving spheres to the substep's end (nothing before the colliders reads
+    them), integrate, driven pins, then strain limits and colliders, or, with particle collision, those
+    projected together with it, then the clock. Where particle collision follows an explicit step
+    directly, the step begins its contacts. ``lanes``: threads per particle of the gathering kernels
+    (None: each chooses by size; see ``PerParticle``)."""
     sim = model.scene.simulation
     h = sim.step
     inv_mass = _upload(model.inv_mass, float, device)
     springs = upload_springs(model, device)
-    if sim.integrator == "implicit":
-        stages: list[Stage] = [BackwardEuler(model, inv_mass, springs, h, device)]
-    else:
-        stages = [ExplicitIntegration(model, inv_mass, springs, sim.integrator, h, lanes, device)]
-    if model.pins is not None and model.pins.moving:
-        stages.append(DrivePins(model, h, device))
+    driven_pins = model.pins is not None and model.pins.moving
+    moving_spheres = model.spheres is not None and model.spheres.moving
     rigid = None
     if model.scene.ground is not None or model.spheres is not None:
         rigid = RigidCollision(model, inv_mass, h, device)
-        if model.spheres is not None and model.spheres.moving:
-            stages.append(MoveSpheres(model, rigid, h, device))
+    limit = collision = None
     if model.contacts is not None:
         limit = (StrainLimit(model, inv_mass, sim.limit_iterations, h, None, lanes, device)
                  if model.limits is not None else None)
-        stages.append(ParticleCollision(model, inv_mass, _upload(model.cloth_id, int, device), limit, rigid, h,
-                                        lanes, device))
+        collision = ParticleCollision(model, inv_mass, _upload(model.cloth_id, int, device), limit, rigid, h,
+                                      lanes, device)
+    stages: list[Stage] = [MoveSpheres(model, rigid, h, device)] if moving_spheres else []
+    if sim.integrator == "implicit":
+        stages.append(BackwardEuler(model, inv_mass, springs, h, device))
+    else:
+        stages.append(ExplicitIntegration(model, inv_mass, springs, sim.integrator, h, lanes, device,
+                                          contacts=None if driven_pins else collision))
+    if driven_pins:
+        stages.append(DrivePins(model, h, device))
+    if collision is not None:
+        stages.append(collision)
     elif model.limits is not None:
         stages.append(StrainLimit(model, inv_mass, sim.limit_iterations, h, rigid, lanes, device))
     elif rigid is not None:
         stages.append(rigid)
-    if (model.pins is not None and model.pins.moving) or (model.spheres is not None and model.spheres.moving):
+    if driven_pins or moving_spheres:
         stages.append(AdvanceClock())
     return stages
