@@ -169,54 +169,13 @@ def first_visit(center: wp.vec3i, k: int, bucket: int, mask: int) -> bool:
     return True
 
 
-@wp.func
-def append_candidate(i: int, j: int, x: wp.array(dtype=wp.vec3), radius: wp.array(dtype=float), separation: float,
-                     search_scale: float, cloth_id: wp.array(dtype=int), self_collision: int, between_cloths: int,
-                     grid_xy: wp.array(dtype=int), exclude_adjacent: wp.array(dtype=int), max_neighbors: int,
-                     unsorted: wp.array(dtype=int), appended: wp.array(dtype=int), overflow: wp.array(dtype=int)):
-    """A lane's append of j to i's unsorted list if it is a candidate, through the atomic count in
-    ``appended``; 1 if it is one (a full list counts an overflow instead)."""
-    if not is_candidate(i, j, x, radius, separation, search_scale, cloth_id, self_collision, between_cloths, grid_xy,
-                        exclude_adjacent):
-        return 0
-    at = wp.atomic_add(appended, i, 1)
-    if at < max_neighbors:
-        unsorted[i * max_neighbors + at] = j
-    else:
-        wp.atomic_add(overflow, 0, 1)
-    return 1
-
-
-@wp.func
-def place_by_rank(i: int, slot: int, lanes: int, owner: bool, found: int, max_neighbors: int,
-                  unsorted: wp.array(dtype=int), appended: wp.array(dtype=int), x: wp.array(dtype=wp.vec3),
-                  neighbors: wp.array(dtype=int), counts: wp.array(dtype=int), x_built: wp.array(dtype=wp.vec3),
-                  rebuild: wp.array(dtype=int)):
-    """After the block's barrier: each lane writes its share of i's ``found`` (distinct) candidates at
-    their rank, so that the list is in index order; the owner lane sets the count, leaves ``appended``
-    zero for the next gather and remembers the list's position."""
-    count = wp.min(found, max_neighbors)
-    start = i * max_neighbors
-    for e in range(slot, count, lanes):
-        j = unsorted[start + e]
-        rank = int(0)
-        for f in range(count):
-            if unsorted[start + f] < j:
-                rank += 1
-        neighbors[start + rank] = j
-    if owner:
-        counts[i] = count
-        appended[i] = 0
-        remember_list_positions(i, x, x_built, rebuild)
-
-
 @functools.cache
 def gather_neighbors_lanes(lanes: int, block: int) -> wp.Kernel:
     """``gather_neighbors`` with ``lanes`` threads per particle (see lanes.py), making the same lists: lane
-    s visits cells s, s + lanes, ... of the 27 and appends its candidates (``append_candidate``); after
-    the block's barrier they are placed by rank (``place_by_rank``). Ranks need distinct entries, so a
-    bucket two cells share is visited once, at its first cell (the one-thread kernel drops repeats after
-    its sort instead). ``unsorted`` and ``appended`` are the lanes' scratch (``appended`` zero on entry)."""
+    s visits cells s, s + lanes, ... of the 27 and appends candidates to ``unsorted`` through the atomic
+    count in ``appended`` (zero on entry, and left zero for the next gather); after the block's barrier
+    each lane writes its entries at their rank, so the list is in index order. Ranks need distinct entries, so a bucket two cells share is
+    visited once, at its first cell (the one-thread kernel drops repeats after its sort instead)."""
     per_block = block // lanes
     sum_over_lanes = lane_sum(per_block, lanes)
 
@@ -238,48 +197,32 @@ def gather_neighbors_lanes(lanes: int, block: int) -> wp.Kernel:
                 bucket = spatial_hash.neighbour_bucket(center, k, mask)
                 if first_visit(center, k, bucket, mask):
                     for s in range(wp.min(bucket_size[bucket], capacity)):
-                        found += append_candidate(i, bucket_items[bucket * capacity + s], x, radius, separation,
-                                                  search_scale, cloth_id, self_collision, between_cloths, grid_xy,
-                                                  exclude_adjacent, max_neighbors, unsorted, appended, overflow)
+                        j = bucket_items[bucket * capacity + s]
+                        if is_candidate(i, j, x, radius, separation, search_scale, cloth_id, self_collision,
+                                        between_cloths, grid_xy, exclude_adjacent):
+                            at = wp.atomic_add(appended, i, 1)
+                            found += 1
+                            if at < max_neighbors:
+                                unsorted[i * max_neighbors + at] = j
+                            else:
+                                wp.atomic_add(overflow, 0, 1)
         found = sum_over_lanes(found, lane)  # also the barrier after which the block's appends are seen
         if i >= 0:
-            place_by_rank(i, slot, wp.static(lanes), owner, found, max_neighbors, unsorted, appended, x, neighbors,
-                          counts, x_built, rebuild)
+            count = wp.min(found, max_neighbors)
+            start = i * max_neighbors
+            for e in range(slot, count, wp.static(lanes)):
+                j = unsorted[start + e]
+                rank = int(0)
+                for f in range(count):
+                    if unsorted[start + f] < j:
+                        rank += 1
+                neighbors[start + rank] = j
+            if owner:
+                counts[i] = count
+                appended[i] = 0
+                remember_list_positions(i, x, x_built, rebuild)
 
     return gather_neighbors
-
-
-@functools.cache
-def gather_neighbors_brute_force_lanes(lanes: int, block: int) -> wp.Kernel:
-    """``gather_neighbors_brute_force`` with ``lanes`` threads per particle, making the same lists as
-    ``gather_neighbors_lanes`` does: lane s checks particles s, s + lanes, ... (on a GPU, where a small
-    cloth's all-pairs check in one kernel costs less than building the hash)."""
-    per_block = block // lanes
-    sum_over_lanes = lane_sum(per_block, lanes)
-
-    @wp.kernel(module="unique", module_options=FAST_MATH)
-    def gather_neighbors_brute_force(x: wp.array(dtype=wp.vec3), radius: wp.array(dtype=float), separation: float,
-                                     search_scale: float, cloth_id: wp.array(dtype=int), self_collision: int,
-                                     between_cloths: int, grid_xy: wp.array(dtype=int),
-                                     exclude_adjacent: wp.array(dtype=int), max_neighbors: int,
-                                     unsorted: wp.array(dtype=int), appended: wp.array(dtype=int),
-                                     neighbors: wp.array(dtype=int), counts: wp.array(dtype=int),
-                                     overflow: wp.array(dtype=int), x_built: wp.array(dtype=wp.vec3),
-                                     rebuild: wp.array(dtype=int)):
-        block_id, lane = wp.tid()
-        i, slot, owner = lane_layout(block_id, lane, wp.static(per_block), wp.static(lanes), x.shape[0])
-        found = int(0)
-        if i >= 0:
-            for j in range(slot, x.shape[0], wp.static(lanes)):
-                found += append_candidate(i, j, x, radius, separation, search_scale, cloth_id, self_collision,
-                                          between_cloths, grid_xy, exclude_adjacent, max_neighbors, unsorted, appended,
-                                          overflow)
-        found = sum_over_lanes(found, lane)  # also the barrier after which the block's appends are seen
-        if i >= 0:
-            place_by_rank(i, slot, wp.static(lanes), owner, found, max_neighbors, unsorted, appended, x, neighbors,
-                          counts, x_built, rebuild)
-
-    return gather_neighbors_brute_force
 
 
 @wp.func

@@ -5,7 +5,6 @@ agreement with several threads a particle is tested on a GPU (test_cuda.py, test
 import dataclasses
 
 import numpy as np
-import pytest
 import warp as wp
 
 import warp_cloth as wc
@@ -15,9 +14,7 @@ from warp_cloth.stages import ParticleCollision
 LANES_FORMS = {"euler_step": integration.euler_step_lanes, "project_strain_limits": limits.project_strain_limits_lanes,
                "separate_particles": particle_collision.separate_particles_lanes,
                "resolve_contact_velocities": particle_collision.resolve_contact_velocities_lanes,
-               "gather_neighbors": particle_collision.gather_neighbors_lanes,
-               "gather_neighbors_brute_force": particle_collision.gather_neighbors_brute_force_lanes}
-GATHERS = {"hash_grid": "gather_neighbors", "brute_force": "gather_neighbors_brute_force"}
+               "gather_neighbors": particle_collision.gather_neighbors_lanes}
 
 
 def copies(args):
@@ -34,10 +31,9 @@ def assert_same_lists(loop_outputs, lanes_outputs):
     return int(counts.sum())
 
 
-@pytest.mark.parametrize("broad_phase", sorted(GATHERS))
-def test_lanes_forms_with_one_thread_give_the_one_thread_kernels_results(broad_phase, monkeypatch):
+def test_lanes_forms_with_one_thread_give_the_one_thread_kernels_results(monkeypatch):
     scene = wc.load_scene("pile")
-    scene = dataclasses.replace(scene, collision=dataclasses.replace(scene.collision, broad_phase=broad_phase))
+    scene = dataclasses.replace(scene, collision=dataclasses.replace(scene.collision, broad_phase="hash_grid"))
     sim = wc.Simulator(scene, device="cpu", graph=False)
     sim.run(30)  # the layers have landed: lists, contacts, resting particles
     stage = next(s for s in sim.stages if isinstance(s, ParticleCollision))
@@ -50,11 +46,11 @@ def test_lanes_forms_with_one_thread_give_the_one_thread_kernels_results(broad_p
             loop_in, loop_out = copies(inputs), copies(outputs)
             real_launch(kernel, dim=dim, inputs=loop_in, outputs=loop_out, device=device)
             lanes_in, lanes_out = copies(inputs), copies(outputs)
-            if kernel.key in GATHERS.values():  # their unsorted lists and those lists' lengths
+            if kernel.key == "gather_neighbors":  # its unsorted lists and their lengths
                 lanes_in += [wp.zeros_like(lanes_out[0]), wp.zeros_like(lanes_out[1])]
             wp.launch_tiled(LANES_FORMS[kernel.key](1, 1), dim=[dim], inputs=lanes_in, outputs=lanes_out, block_dim=1,
                             device=device)
-            if kernel.key in GATHERS.values():
+            if kernel.key == "gather_neighbors":
                 listed.append(assert_same_lists(loop_out, lanes_out))
                 for a, b in zip(loop_out[2:], lanes_out[2:]):  # overflow, list positions, remake flag
                     np.testing.assert_array_equal(a.numpy(), b.numpy())
@@ -68,5 +64,5 @@ def test_lanes_forms_with_one_thread_give_the_one_thread_kernels_results(broad_p
 
     monkeypatch.setattr(wp, "launch", compare_then_launch)
     sim.step()
-    assert checked == set(LANES_FORMS) - (set(GATHERS.values()) - {GATHERS[broad_phase]})
+    assert checked == set(LANES_FORMS)
     assert min(listed) > sim.model.particle_count  # more than one candidate a particle

@@ -1,13 +1,12 @@
-"""Probe: the time to remake the neighbour lists of the speed matrix's self-collision cloth after 48
-frames, by broad phase (hash grid: insert, gather, sort; brute force: all pairs) and threads per particle.
-A graph of 20 remakes, microseconds per remake. Not used by the package.
+"""Probe: the time to remake the neighbour lists (hash insert, gather, sort) of the speed matrix's
+self-collision cloth after 48 frames, by threads per particle. A graph of 20 remakes, microseconds per
+remake. Not used by the package.
 
     python tools/list_probe.py OUT.json [SIZE ...]
 
 docs/results/list-probe-h200.json is its output on the H200.
 """
 
-import dataclasses
 import json
 import statistics
 import sys
@@ -45,17 +44,13 @@ def main() -> None:
         scene = matrix_scene("self", n, "symplectic")
         settled = Simulator(scene, device="cuda", threads_per_particle=1)
         settled.run(48)
-        for broad_phase in ("hash_grid", "brute_force"):
-            probed = dataclasses.replace(scene, collision=dataclasses.replace(scene.collision, broad_phase=broad_phase))
-            row = {}
-            for lanes in (1, 2, 4, 8, 16, 32, 64):
-                if broad_phase == "brute_force" and lanes < 4 and n > 64:
-                    continue  # milliseconds
-                sim = Simulator(probed, device="cuda", threads_per_particle=lanes)
-                stage = next(s for s in sim.stages if isinstance(s, ParticleCollision))
-                row[lanes] = us_per_remake(stage, settled.state.x)
-            results[f"{n} {broad_phase}"] = row
-            print(n, broad_phase, {k: round(v, 1) for k, v in row.items()}, flush=True)
+        row = {}
+        for lanes in (1, 2, 4, 8, 16, 32):
+            sim = Simulator(scene, device="cuda", threads_per_particle=lanes)
+            stage = next(s for s in sim.stages if isinstance(s, ParticleCollision))
+            row[lanes] = us_per_remake(stage, settled.state.x)
+        results[n] = row
+        print(n, {k: round(v, 1) for k, v in row.items()}, flush=True)
     json.dump({"device": wp.get_device("cuda").name, "warp": wp.config.version, "us_per_remake": results},
               open(sys.argv[1], "w"), indent=1)
 

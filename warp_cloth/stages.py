@@ -36,9 +36,6 @@ LANES_BY_SIZE = ((8192, 16), (32768, 4), (131072, 2))
 # The neighbour lists' remake has more to gather (27 cells): 16 threads are fastest at 64^2, 4 at 256^2, one
 # at 1024^2 (docs/results/list-probe-h200.json).
 LIST_LANES_BY_SIZE = ((8192, 16), (131072, 4))
-# A small cloth's lists on a GPU come from checking all pairs, in one kernel with many threads a particle
-# (PROVISIONAL: to be measured)
-BRUTE_FORCE_LANES_BY_SIZE = ((8192, 32),)
 
 
 def threads_per_particle(particles: int, device, table=LANES_BY_SIZE) -> int:
@@ -234,7 +231,6 @@ class ParticleCollision:
     CONTACT_SLACK = 1.01  # pairs within 1% of contact count as touching in the velocity pass
     BUCKET_CAPACITY = 16  # particles a spatial-hash bucket holds (overflow is counted, tests keep it 0)
     BRUTE_FORCE_UP_TO = 512  # particles; below, checking all pairs costs less than the hash
-    BRUTE_FORCE_UP_TO_CUDA = 8192  # PROVISIONAL
 
     def __init__(self, model: Model, inv_mass: wp.array, cloth_id: wp.array, limit: StrainLimit | None,
                  rigid: RigidCollision | None, h: float, lanes: int | None, device) -> None:
@@ -276,22 +272,16 @@ class ParticleCollision:
         self.x_built = wp.full(n, wp.vec3(1.0e30), dtype=wp.vec3, device=device)
         self.rebuild = wp.zeros(1, dtype=int, device=device)
         self.started_by_integration = False  # set by an integration step that begins the contacts
-        brute_force_up_to = self.BRUTE_FORCE_UP_TO_CUDA if device.is_cuda else self.BRUTE_FORCE_UP_TO
         self.use_hash = settings.broad_phase == "hash_grid" or (
-            settings.broad_phase == "auto" and n > brute_force_up_to)
+            settings.broad_phase == "auto" and n > self.BRUTE_FORCE_UP_TO)
         table = 64
         while table < 2 * n:
             table *= 2
         self.table_mask = table - 1
         self.bucket_size = wp.zeros(table if self.use_hash else 0, dtype=int, device=device)
         self.bucket_items = wp.zeros(table * self.BUCKET_CAPACITY if self.use_hash else 0, dtype=int, device=device)
-        if self.use_hash:
-            self.gather = PerParticle(particle_collision.gather_neighbors, particle_collision.gather_neighbors_lanes,
-                                      lanes, n, device, LIST_LANES_BY_SIZE)
-        else:
-            self.gather = PerParticle(particle_collision.gather_neighbors_brute_force,
-                                      particle_collision.gather_neighbors_brute_force_lanes, lanes, n, device,
-                                      BRUTE_FORCE_LANES_BY_SIZE)
+        self.gather = PerParticle(particle_collision.gather_neighbors, particle_collision.gather_neighbors_lanes,
+                                  lanes if self.use_hash else 1, n, device, LIST_LANES_BY_SIZE)
         # where several threads a particle make the lists: the lists before their sort, and their lengths
         several = self.gather.lanes > 1
         self.unsorted = wp.zeros(n * settings.max_neighbors if several else 0, dtype=int, device=device)
@@ -303,7 +293,6 @@ class ParticleCollision:
         s = self.settings
         pair_rules = [self.cloth_id, int(s.self_collision), int(s.between_cloths), *self.exclusion, s.max_neighbors]
         lists = [self.neighbors, self.counts, self.overflow, self.x_built, self.rebuild]
-        scratch = [self.unsorted, self.appended] if self.gather.lanes > 1 else []
         if self.use_hash:
             inv_cell = 1.0 / self.search_radius
             self.bucket_size.zero_()
@@ -312,11 +301,12 @@ class ParticleCollision:
                       outputs=[self.bucket_size, self.bucket_items, self.overflow], device=x.device)
             grid = [x, self.radius, inv_cell, self.table_mask, self.BUCKET_CAPACITY, self.bucket_size,
                     self.bucket_items, s.separation, self.SEARCH_SCALE, *pair_rules]
+            scratch = [self.unsorted, self.appended] if self.gather.lanes > 1 else []
             self.gather.launch(self.n, x.device, inputs=[*grid, *scratch], outputs=lists)
         else:
-            self.gather.launch(self.n, x.device,
-                               inputs=[x, self.radius, s.separation, self.SEARCH_SCALE, *pair_rules, *scratch],
-                               outputs=lists)
+            wp.launch(particle_collision.gather_neighbors_brute_force, dim=self.n,
+                      inputs=[x, self.radius, s.separation, self.SEARCH_SCALE, *pair_rules], outputs=lists,
+                      device=x.device)
 
     def closest_contact(self, x: wp.array) -> float:
         """The closest approach of two particles that may collide, as a fraction of their contact distance
