@@ -27,7 +27,7 @@ from .progress import Progress
 from .scene import Cloth, Collision, Ground, Limit, Oscillation, Pin, Scene, Simulation, Sphere, SpringKind
 from .scene_file import load_scene
 from .errors import UnstableSimulation
-from .newton_compare import max_edge_strain
+from .newton_compare import SPHERE_CENTER, SPHERE_RADIUS, SWING_DEGREES, max_edge_strain, swung_origin
 from .simulator import Simulator
 from .stages import ParticleCollision
 from .writers import PolyWriter, UsdWriter
@@ -236,9 +236,11 @@ MATRIX_FPS, MATRIX_SUBSTEPS = 24, 10
 
 def matrix_scene(variant: str, n: int, integrator: str) -> Scene:
     """The speed matrix's cloth (the same as ``newton_compare`` builds in Newton): n x n particles, 10 m
-    square, hanging in the XY plane from its whole top edge at y = 10, 2.5 kg in all, 10 substeps a frame;
-    ``sphere`` adds a 2 m sphere at (5, 5, 1.5), ``self`` adds self collision to that. Springs are as stiff
-    as the explicit step allows at this resolution (h w = 0.7), 50 times that for the implicit integrator;
+    square, in the XY plane hanging from its whole top edge at y = 10, z = 0, 2.5 kg in all, 10 substeps a
+    frame; ``sphere`` adds a 2 m sphere at (5, 5, 1.5), ``self`` adds self collision to that. The sphere
+    pokes 0.5 m through the plane the cloth hangs in, so in those two the cloth starts swung back by
+    ``SWING_DEGREES`` about its top edge, clear of the sphere, and swings onto it. Springs are as stiff as
+    the explicit step allows at this resolution (h w = 0.7), 50 times that for the implicit integrator;
     the 10% strain limit, with long-range attachments to the pinned edge, holds the shape either way."""
     h = 1.0 / (MATRIX_FPS * MATRIX_SUBSTEPS)
     mass = 2.5 / (n * n)
@@ -246,11 +248,14 @@ def matrix_scene(variant: str, n: int, integrator: str) -> Scene:
     stiffness = 0.5 * mass * cell / (8.0 * h * h) * (50.0 if integrator == "implicit" else 1.0)
     damping = 0.1 * mass / (8.0 * h)
     spring = SpringKind(stiffness, damping)
+    with_sphere = variant in ("sphere", "self")
     cloth = Cloth(resolution=(n - 1, n - 1), size=(10.0, 10.0), orientation="vertical", mass=mass,
+                  origin=swung_origin(SWING_DEGREES if with_sphere else 0.0),
+                  rotation=(SWING_DEGREES if with_sphere else 0.0, 0.0, 0.0),
                   limit=None if variant == SPRINGS_ONLY else Limit(0.1, 0.1, attachments=True),
                   pins=(Pin(edges=("top",)),), structural=spring, shear=spring,
                   bend=SpringKind(stiffness, damping, "compression", "compression"))
-    spheres = (Sphere(name="ball", center=(5.0, 5.0, 1.5), radius=2.0),) if variant in ("sphere", "self") else ()
+    spheres = (Sphere(name="ball", center=SPHERE_CENTER, radius=SPHERE_RADIUS),) if with_sphere else ()
     return Scene(name=f"{variant}_{n}x{n}", cloths=(cloth,), spheres=spheres,
                  collision=Collision(iterations=2) if variant == "self" else None,
                  simulation=Simulation(fps=MATRIX_FPS, frames=48, substeps=MATRIX_SUBSTEPS, integrator=integrator,

@@ -3,8 +3,9 @@
 Scene (as ours): an n x n particle cloth, 10 m x 10 m, in the XY plane (Y up) at z = 0 with x and y in
 [0, 10], its whole top row pinned, gravity (0, -9.81, 0), 2.5 kg spread evenly (2.5 / n^2 a particle),
 10 substeps a frame at 24 fps. ``hanging`` is the cloth alone; ``sphere`` adds a static, frictionless
-sphere of radius 2 m at (5, 5, 1.5), which starts through the cloth and throws it out to z < 0;
-``self`` adds self contact to ``sphere``.
+sphere of radius 2 m at (5, 5, 1.5), which pokes through the plane the cloth hangs in, so there the cloth
+starts swung back 20 degrees about its top edge (bottom edge at z = -3.4), clear of the sphere, and
+swings onto it; ``self`` adds self contact to ``sphere``.
 
 Settings (m = particle mass, dt = 1/240 s; chosen so that every solver stays finite at every n):
 
@@ -47,6 +48,7 @@ SIZE = 10.0
 TOTAL_MASS = 2.5
 SPHERE_CENTER = (5.0, 5.0, 1.5)
 SPHERE_RADIUS = 2.0
+SWING_DEGREES = 20.0  # how far the sphere scenes' cloth starts swung back from hanging straight down
 FPS = 24
 FORMULATION = {"semi_implicit": "springs 0.1 m/dt^2 (explicit limit), penalty sphere contact",
                "xpbd": "distance constraints 0.1 m/dt^2 (Jacobi limit), projected sphere contact",
@@ -86,7 +88,10 @@ class NewtonCloth:
                             tri_ke=0.0, tri_ka=0.0, tri_kd=0.0, edge_ke=0.05 * k_limit * cell**2, edge_kd=0.0)
             contact_ke, contact_kd = 0.2 * k_limit, 0.01 * mass / self.dt
         builder = newton.ModelBuilder(up_axis=newton.Axis.Y, gravity=(0.0, -9.81, 0.0))
-        builder.add_cloth_grid(pos=wp.vec3(0.0, 0.0, 0.0), rot=wp.quat_identity(), vel=wp.vec3(0.0, 0.0, 0.0),
+        swing = SWING_DEGREES if variant != "hanging" else 0.0
+        builder.add_cloth_grid(pos=wp.vec3(*swung_origin(swing)),
+                               rot=wp.quat_from_axis_angle(wp.vec3(1.0, 0.0, 0.0), float(np.radians(swing))),
+                               vel=wp.vec3(0.0, 0.0, 0.0),
                                dim_x=n - 1, dim_y=n - 1, cell_x=cell, cell_y=cell, mass=mass, fix_top=True,
                                particle_radius=self.radius, **material)
         if variant != "hanging":
@@ -144,6 +149,13 @@ class NewtonCloth:
 
     def finite(self) -> bool:
         return bool(np.isfinite(self.positions()).all() and np.isfinite(self.state_0.particle_qd.numpy()).all())
+
+
+def swung_origin(degrees: float) -> tuple[float, float, float]:
+    """Where the cloth's corner (0, 0) goes when the cloth, rotated ``degrees`` about X, keeps its top
+    edge at y = SIZE, z = 0: its bottom edge is then at z = -SIZE sin(degrees)."""
+    angle = np.radians(degrees)
+    return 0.0, float(SIZE * (1.0 - np.cos(angle))), float(-SIZE * np.sin(angle))
 
 
 def max_edge_strain(positions: np.ndarray, n: int) -> float:
