@@ -68,9 +68,12 @@ def node_costs() -> dict:
     """Microseconds per node of a graph of 100 launches of 4096 threads."""
     a = wp.zeros(4096, dtype=float)
     more = [wp.zeros(4096, dtype=float) for _ in range(11)]
+    never = wp.zeros(1, dtype=int)
     launches = {"one array": lambda: wp.launch(add_one, 4096, inputs=[a]),
                 "twelve arrays": lambda: wp.launch(add_twelve, 4096, inputs=[a, *more]),
-                "memset": lambda: a.zero_()}
+                "memset": lambda: a.zero_(),
+                "conditional, false": lambda: wp.capture_if(
+                    never, on_true=lambda: wp.launch(add_one, 4096, inputs=[a]))}
     costs = {}
     for name, launch in launches.items():
         launch()
