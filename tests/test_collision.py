@@ -10,7 +10,7 @@ import warp as wp
 import warp_cloth as wc
 from conftest import run_cli, with_simulation
 from warp_cloth.diagnostics import ContactGaps, TriangleIntersections
-from warp_cloth.kernels import particle_collision
+from warp_cloth.kernels import particle_collision, spatial_hash
 from warp_cloth.model import collision_radius, needs_adjacent_exclusion
 from warp_cloth.stages import ParticleCollision
 
@@ -247,3 +247,22 @@ def test_several_threads_a_particle_make_the_same_neighbour_lists(lanes):
         lists.append([table[i, :c].tolist() for i, c in enumerate(counts)])
     assert sum(len(entries) for entries in lists[0]) > len(lists[0])  # more than one candidate a particle
     assert lists[0] == lists[1]
+
+
+@wp.kernel
+def buckets_of_cells(cells: wp.array(dtype=wp.vec3i), mask: int, buckets: wp.array(dtype=int)):
+    i = wp.tid()
+    buckets[i] = spatial_hash.bucket_of(cells[i], mask)
+
+
+def test_a_block_of_2x2x2_cells_hashes_to_one_run_of_8_buckets():
+    corners = np.random.default_rng(3).integers(-40000, 40000, (500, 3)) * 2  # even: a block's first cell
+    offsets = np.array([(dx, dy, dz) for dz in (0, 1) for dy in (0, 1) for dx in (0, 1)])
+    cells = (corners[:, None, :] + offsets[None, :, :]).reshape(-1, 3).astype(np.int32)
+    buckets = wp.zeros(len(cells), dtype=int)
+    wp.launch(buckets_of_cells, len(cells), inputs=[wp.array(cells, dtype=wp.vec3i), 1023], outputs=[buckets])
+    runs = buckets.numpy().reshape(-1, 8)
+    assert runs.min() >= 0 and runs.max() <= 1023
+    np.testing.assert_array_equal(runs % 8, np.tile(np.arange(8), (len(runs), 1)))  # cell order within the run
+    np.testing.assert_array_equal(runs - runs[:, :1], np.tile(np.arange(8), (len(runs), 1)))  # one run
+    assert len(np.unique(runs[:, 0])) > 100  # and the blocks spread over the table's 128 runs
