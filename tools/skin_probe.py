@@ -4,6 +4,9 @@ it (48 frames after warm-up, 3 repeats continuing one simulator), the worst edge
 overflow and mean length, for each search scale.
 
     python tools/skin_probe.py OUT.json [sizes...]
+
+docs/results/skin-probe-h200.json is its output on the H200 at c2d7455 (the sphere scenes' old start,
+with the sphere through the cloth).
 """
 
 import json
@@ -13,6 +16,7 @@ import numpy as np
 import warp as wp
 
 from warp_cloth.bench import Case, matrix_frames, matrix_scene, time_case
+from warp_cloth.simulator import Simulator
 from warp_cloth.stages import ParticleCollision
 
 SCALES = (1.5, 2.0, 2.5, 3.0)
@@ -28,7 +32,7 @@ def main() -> None:
             case = Case(f"self {n}^2", matrix_scene("self", n, "symplectic"), matrix_frames(n, "cuda"), fresh=False,
                         grid=n)
             result = time_case(case, "cuda", 3)
-            probe = __import__("warp_cloth").Simulator(case.scene, device="cuda")
+            probe = Simulator(case.scene, device="cuda")
             probe.run(48)
             stage = next(s for s in probe.stages if isinstance(s, ParticleCollision))
             stage.make_lists(probe.state.x)
