@@ -3,7 +3,8 @@ ms per frame and worst edge strain, timed as ``warp-cloth bench --suite matrix``
 
 * ``by_size``: threads per particle chosen by size, fast math (the product's default);
 * ``one_thread``: one thread per particle, fast math;
-* ``precise``: threads chosen by size, without fast math.
+* ``precise``: threads chosen by size, without fast math;
+* ``threads_K``: K threads per particle in every kernel, fast math.
 
 One JSON line per row, written as it goes.
 
@@ -43,8 +44,9 @@ def main() -> None:
     out = open(sys.argv[1], "a")
     sizes = [int(n) for n in sys.argv[2:]] or [64, 256, 1024]
     print(json.dumps({"environment": environment("cuda")}), file=out, flush=True)
-    configs = [config for config in (("by_size", None, True), ("one_thread", 1, True), ("precise", None, False))
-               if config[0] in os.environ.get("CONFIGS", "by_size,one_thread,precise").split(",")]
+    named = {"by_size": (None, True), "one_thread": (1, True), "precise": (None, False)}
+    configs = [(name, *named[name]) if name in named else (name, int(name.removeprefix("threads_")), True)
+               for name in os.environ.get("CONFIGS", "by_size,one_thread,precise").split(",")]
     for config, threads, fast in configs:
         set_fast_math(fast)
         for n in sizes:
