@@ -174,8 +174,9 @@ def gather_neighbors_lanes(lanes: int, block: int) -> wp.Kernel:
     """``gather_neighbors`` with ``lanes`` threads per particle (see lanes.py), making the same lists: lane
     s visits cells s, s + lanes, ... of the 27 and appends candidates to ``unsorted`` through the atomic
     count in ``appended`` (zero on entry, and left zero for the next gather); after the block's barrier
-    each lane writes its entries at their rank, so the list is in index order. Ranks need distinct entries, so a bucket two cells share is
-    visited once, at its first cell (the one-thread kernel drops repeats after its sort instead)."""
+    each lane writes its entries at their rank, so the list is in index order. Ranks need distinct
+    entries, so a bucket two cells share is visited once, at its first cell (the one-thread kernel drops
+    repeats after its sort instead)."""
     per_block = block // lanes
     sum_over_lanes = lane_sum(per_block, lanes)
 

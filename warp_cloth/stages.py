@@ -88,8 +88,7 @@ class ExplicitIntegration:
         if contacts is None:
             self.contact_start = no_contact_start(device)
         else:
-            self.contact_start = contacts.start_arguments()
-            contacts.started_by_integration = True
+            self.contact_start = contacts.hand_start_to_integration()
 
     def run(self, state: DeviceState) -> None:
         start_inputs, start_outputs = self.contact_start
@@ -271,7 +270,7 @@ class ParticleCollision:
         self.remake_every_substep = False  # for benchmarks of the broad phase
         self.x_built = wp.full(n, wp.vec3(1.0e30), dtype=wp.vec3, device=device)
         self.rebuild = wp.zeros(1, dtype=int, device=device)
-        self.started_by_integration = False  # set by an integration step that begins the contacts
+        self.started_by_integration = False  # see hand_start_to_integration
         self.use_hash = settings.broad_phase == "hash_grid" or (
             settings.broad_phase == "auto" and n > self.BRUTE_FORCE_UP_TO)
         table = 64
@@ -322,6 +321,12 @@ class ParticleCollision:
     def start_arguments(self) -> tuple[list, list]:
         """What ``begin_contact`` takes besides the state, as (inputs, outputs)."""
         return [self.bundle, self.x_built, self.rebuild_distance], [self.v_start, self.resting, self.rebuild]
+
+    def hand_start_to_integration(self) -> tuple[list, list]:
+        """From now on the integration step begins the contacts, and this stage launches no kernel for
+        that; returns what the step's kernel takes for it (``start_arguments``)."""
+        self.started_by_integration = True
+        return self.start_arguments()
 
     def run(self, state: DeviceState) -> None:
         s = self.settings
