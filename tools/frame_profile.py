@@ -64,6 +64,16 @@ def add_twelve(a: wp.array(dtype=float), b: wp.array(dtype=float), c: wp.array(d
     a[i] = a[i] + b[i] + c[i] + d[i] + e[i] + f[i] + g[i] + h[i] + k[i] + m[i] + o[i] + p[i]
 
 
+@wp.kernel
+def add_one_of_twelve(a: wp.array(dtype=float), b: wp.array(dtype=float), c: wp.array(dtype=float),
+                      d: wp.array(dtype=float), e: wp.array(dtype=float), f: wp.array(dtype=float),
+                      g: wp.array(dtype=float), h: wp.array(dtype=float), k: wp.array(dtype=float),
+                      m: wp.array(dtype=float), o: wp.array(dtype=float), p: wp.array(dtype=float)):
+    """Twelve array arguments, one read: what the arguments alone cost a node."""
+    i = wp.tid()
+    a[i] = a[i] + 1.0
+
+
 def node_costs() -> dict:
     """Microseconds per node of a graph of 100 launches of 4096 threads."""
     a = wp.zeros(4096, dtype=float)
@@ -71,6 +81,7 @@ def node_costs() -> dict:
     never = wp.zeros(1, dtype=int)
     launches = {"one array": lambda: wp.launch(add_one, 4096, inputs=[a]),
                 "twelve arrays": lambda: wp.launch(add_twelve, 4096, inputs=[a, *more]),
+                "twelve arrays, one read": lambda: wp.launch(add_one_of_twelve, 4096, inputs=[a, *more]),
                 "memset": lambda: a.zero_(),
                 "conditional, false": lambda: wp.capture_if(
                     never, on_true=lambda: wp.launch(add_one, 4096, inputs=[a]))}
