@@ -10,9 +10,9 @@ import warp as wp
 import warp_cloth as wc
 from conftest import run_cli, with_simulation
 from warp_cloth.diagnostics import ContactGaps, TriangleIntersections
-from warp_cloth.kernels import particle_collision, spatial_hash
+from warp_cloth.kernels import particle_collision, projection, spatial_hash
 from warp_cloth.model import collision_radius, needs_adjacent_exclusion
-from warp_cloth.stages import ParticleCollision
+from warp_cloth.stages import ParticleCollision, rigid_colliders
 
 # Jacobi passes with averaging leave pairs that are squeezed from several sides slightly inside contact:
 # at worst 0.93 of the contact distance in fold and pile; seed_default, whose 60 m cloth folds onto itself
@@ -266,3 +266,27 @@ def test_a_block_of_2x2x2_cells_hashes_to_one_run_of_8_buckets():
     np.testing.assert_array_equal(runs % 8, np.tile(np.arange(8), (len(runs), 1)))  # cell order within the run
     np.testing.assert_array_equal(runs - runs[:, :1], np.tile(np.arange(8), (len(runs), 1)))  # one run
     assert len(np.unique(runs[:, 0])) > 100  # and the blocks spread over the table's 128 runs
+
+
+@pytest.mark.parametrize("pin_at, expected", [
+    ((1.5, 0.0, 0.0), (-0.2, 0.0, 0.0)),  # the limit pulls particle 0 into particle 2: the contact wins
+    ((0.0, 1.5, 0.0), (-0.2, 0.5, 0.0)),  # the limit pulls across the push: both apply in full
+])
+def test_a_joint_pass_moves_by_both_means_but_no_limit_pulls_into_a_contact(pin_at, expected):
+    # particle 0 (free) is 1.5 from pinned particle 1, limited to 1.0, so its limit correction is 0.5 toward
+    # it; it is 0.3 from pinned particle 2, contact distance 0.5, so its push is 0.2 away from it
+    h = 0.01
+    x = wp.array([(0.0, 0.0, 0.0), pin_at, (0.3, 0.0, 0.0)], dtype=wp.vec3)
+    inv_mass = wp.array([1.0, 0.0, 0.0], dtype=float)
+    limit_arrays = [wp.array([0, 1, 2, 2], dtype=int), wp.array([1, 0], dtype=int), wp.zeros(2, dtype=float),
+                    wp.full(2, 1.0, dtype=float), wp.zeros(0, dtype=int), wp.zeros(0, dtype=float)]
+    neighbors, counts = wp.array([2, -1, -1, -1, 0, -1], dtype=int), wp.array([1, 0, 1], dtype=int)
+    x_out, v, pushed = wp.zeros(3, dtype=wp.vec3), wp.zeros(3, dtype=wp.vec3), wp.zeros(3, dtype=float)
+    wp.launch(projection.project_limits_and_separation, dim=3,
+              inputs=[x, inv_mass, *limit_arrays, wp.full(3, 0.5, dtype=float), 1.0, h, neighbors, counts, 2,
+                      wp.zeros(0, dtype=int), 1, rigid_colliders(None, "cpu")],
+              outputs=[x_out, v, pushed])
+    np.testing.assert_allclose(x_out.numpy()[0], expected, atol=1e-6)
+    np.testing.assert_allclose(v.numpy()[0], np.array(expected) / h, rtol=1e-5, atol=1e-4)
+    assert pushed.numpy()[0] == pytest.approx(0.2, abs=1e-6)
+    np.testing.assert_array_equal(x_out.numpy()[1:], x.numpy()[1:])  # pinned particles stay

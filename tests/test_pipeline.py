@@ -44,13 +44,14 @@ EXPECTED = {
 }
 # With particle collision, limits, separation and colliders are projected together in 8 passes (the
 # larger of the collision's 8 and the limit's 4 iterations): colliders once before the passes (in the
-# integration step, which begins the contacts) and at the end of every pass's last kernel, the limit in the last 4. The
-# neighbour lists (spatial hash, gather) are remade only when a particle has moved far enough.
+# integration step, which begins the contacts) and at the end of every pass; the last 4 passes limit and
+# separate in one kernel. The neighbour lists (spatial hash, gather) are remade only when a particle has
+# moved far enough.
 PASSES = 8
 LISTS = {"insert_points": 1, "gather_neighbors": 1}
 EXPECTED_WITH_COLLISION = {
-    name: {"euler_step": 1, "project_strain_limits": LIMIT_ITERATIONS,
-           "separate_particles": PASSES, "resolve_contact_velocities": 1}
+    name: {"euler_step": 1, "separate_particles": PASSES - LIMIT_ITERATIONS,
+           "project_limits_and_separation": LIMIT_ITERATIONS, "resolve_contact_velocities": 1}
     for name in ("fold", "pile")
 }
 

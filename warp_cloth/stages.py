@@ -7,7 +7,8 @@ from typing import Protocol
 
 import warp as wp
 
-from warp_cloth.kernels import colliders, integration, limits, motion, particle_collision, pins, spatial_hash
+from warp_cloth.kernels import (colliders, integration, limits, motion, particle_collision, pins, projection,
+                                spatial_hash)
 
 from .implicit import BackwardEuler
 from .model import Model
@@ -221,9 +222,10 @@ class ParticleCollision:
     sphere by the layers above can only give way sideways), so with collision they are projected together
     in ``passes`` passes, the larger of the limit's and the collision's iteration counts: every pass ends
     with the colliders, and the limit and the separation each run in the last of the passes as many
-    times as their own count says, so that the last pass runs all of them. The colliders run inside the
-    pass's last kernel, and once before the passes, in the kernel that starts the stage; the particles
-    they hold up (``resting``) do not give way to others in the passes that follow.
+    times as their own count says, so that the last pass runs all of them. A pass that runs both runs them
+    as one Jacobi pass, in one kernel (kernels/projection.py). The colliders run at the end of each pass,
+    and once before the passes, in the kernel that starts the stage; the particles they hold up
+    (``resting``) do not give way to others in the passes that follow.
     """
 
     SEARCH_SCALE = 1.5  # candidates within 1.5 contact distances, so passes that move particles miss none
@@ -239,6 +241,9 @@ class ParticleCollision:
                                     lanes, n, device)
         self.resolve = PerParticle(particle_collision.resolve_contact_velocities,
                                    particle_collision.resolve_contact_velocities_lanes, lanes, n, device)
+        self.joint = None if limit is None else PerParticle(
+            projection.project_limits_and_separation, projection.project_limits_and_separation_lanes, lanes, n,
+            device)
         contacts = model.contacts
         self.passes = max(settings.iterations, limit.iterations if limit else 0)
         self.name = "+".join([f"collision:{self.passes}", *(["limits"] if limit else []),
@@ -341,19 +346,20 @@ class ParticleCollision:
             wp.capture_if(self.rebuild, on_true=lambda: self.make_lists(positions))
         for remaining in range(self.passes, 0, -1):
             separates = remaining <= s.iterations
+            limits_too = self.limit is not None and remaining <= self.limit.iterations
             read_bit = 1 if (self.passes - remaining) % 2 == 0 else 2  # resting flags: see colliders.py
-            if self.limit is not None and remaining <= self.limit.iterations:
-                if separates:
-                    self.limit.run_pass(state, self.no_colliders)
-                else:
-                    self.limit.run_pass(state, self.bundle, self.resting, read_bit)
-            if separates:
-                self.separate.launch(self.n, state.device,
-                                     inputs=[state.x, self.inv_mass, self.radius, s.separation, self.h,
-                                             self.neighbors, self.counts, s.max_neighbors, self.resting, read_bit,
-                                             self.bundle],
+            contacts = [self.radius, s.separation, self.h, self.neighbors, self.counts, s.max_neighbors,
+                        self.resting, read_bit, self.bundle]
+            if not separates:
+                self.limit.run_pass(state, self.bundle, self.resting, read_bit)
+                continue
+            if limits_too:
+                self.joint.launch(self.n, state.device, inputs=[state.x, self.inv_mass, *self.limit.arrays, *contacts],
+                                  outputs=[state.x_next, state.v, self.pushed])
+            else:
+                self.separate.launch(self.n, state.device, inputs=[state.x, self.inv_mass, *contacts],
                                      outputs=[state.x_next, state.v, self.pushed])
-                state.swap_positions()
+            state.swap_positions()
         self.resolve.launch(self.n, state.device,
                             inputs=[state.x, state.v, self.v_start, self.inv_mass, self.radius, s.separation,
                                     self.CONTACT_SLACK, s.friction, self.h, self.pushed, self.neighbors, self.counts,
