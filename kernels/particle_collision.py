@@ -6,6 +6,11 @@ push overlapping pairs apart (each particle moves by the mean of its corrections
 mass: no races, deterministic; its velocity changes by the same correction over h); then make each
 contact inelastic (averaged the same way), with friction in proportion to the normal speed taken away.
 Two particles i, j touch when closer than ``separation * (r_i + r_j) / 2``.
+
+The remake is asked for by ``rebuild[0]``, which the kernel that begins the contacts sets and the
+substep's last kernel clears (``end_remake``), once every kernel that reads it has run; the kernels that
+remake run every substep and return at once where it is not set (two such launches cost a GPU graph less
+than one conditional node: docs/benchmarks.md).
 """
 
 import functools
@@ -129,35 +134,45 @@ def sort_and_drop_repeats(neighbors: wp.array(dtype=int), start: int, count: int
 
 
 @wp.func
-def remember_list_positions(i: int, x: wp.array(dtype=wp.vec3), x_built: wp.array(dtype=wp.vec3),
-                            rebuild: wp.array(dtype=int)):
-    """What every list gather ends with for particle i: the position its list was made from, and the
-    remake flag cleared (by particle 0)."""
-    x_built[i] = x[i]
-    if i == 0:
+def end_remake(rebuild: wp.array(dtype=int), epoch: wp.array(dtype=int)):
+    """After the last reader of ``rebuild`` (by one thread): clear it, and where lists were remade, start the
+    hash's next epoch."""
+    if rebuild[0] != 0:
         rebuild[0] = 0
+        epoch[0] = epoch[0] + 1
+
+
+@wp.kernel
+def end_remake_once(rebuild: wp.array(dtype=int), epoch: wp.array(dtype=int)):
+    """``end_remake`` for lists remade outside a substep."""
+    end_remake(rebuild, epoch)
 
 
 @wp.kernel
 def gather_neighbors(x: wp.array(dtype=wp.vec3), radius: wp.array(dtype=float), inv_cell: float, mask: int,
                      capacity: int, bucket_size: wp.array(dtype=int), bucket_items: wp.array(dtype=int),
-                     separation: float, search_scale: float, cloth_id: wp.array(dtype=int), self_collision: int,
-                     between_cloths: int, grid_xy: wp.array(dtype=int), exclude_adjacent: wp.array(dtype=int),
-                     max_neighbors: int, neighbors: wp.array(dtype=int), counts: wp.array(dtype=int),
-                     overflow: wp.array(dtype=int), x_built: wp.array(dtype=wp.vec3), rebuild: wp.array(dtype=int)):
-    """Each particle's candidates, from the spatial hash: pairs allowed to collide and closer than
-    search_scale contact distances, in index order (see ``remember_list_positions``)."""
+                     epoch: wp.array(dtype=int), separation: float, search_scale: float, cloth_id: wp.array(dtype=int),
+                     self_collision: int, between_cloths: int, grid_xy: wp.array(dtype=int),
+                     exclude_adjacent: wp.array(dtype=int), max_neighbors: int, rebuild: wp.array(dtype=int),
+                     neighbors: wp.array(dtype=int), counts: wp.array(dtype=int), overflow: wp.array(dtype=int),
+                     x_built: wp.array(dtype=wp.vec3)):
+    """Each particle's candidates, from the spatial hash of this epoch: pairs allowed to collide and closer
+    than search_scale contact distances, in index order, and the positions they were made from; where
+    ``rebuild`` is set (else nothing)."""
+    if rebuild[0] == 0:
+        return
     i = wp.tid()
     center = spatial_hash.cell_of(x[i], inv_cell)
+    stamp = spatial_hash.stamp_of(epoch[0])
     count = int(0)
     for k in range(27):
         bucket = spatial_hash.neighbour_bucket(center, k, mask)
-        for s in range(wp.min(bucket_size[bucket], capacity)):
+        for s in range(wp.min(spatial_hash.count_in(bucket_size[bucket], stamp), capacity)):
             count = add_candidate(i, bucket_items[bucket * capacity + s], x, radius, separation, search_scale,
                                   cloth_id, self_collision, between_cloths, grid_xy, exclude_adjacent,
                                   max_neighbors, neighbors, count, overflow)
     counts[i] = sort_and_drop_repeats(neighbors, i * max_neighbors, count)
-    remember_list_positions(i, x, x_built, rebuild)
+    x_built[i] = x[i]
 
 
 @wp.func
@@ -183,21 +198,24 @@ def gather_neighbors_lanes(lanes: int, block: int) -> wp.Kernel:
     @wp.kernel(module="unique", module_options=FAST_MATH)
     def gather_neighbors(x: wp.array(dtype=wp.vec3), radius: wp.array(dtype=float), inv_cell: float, mask: int,
                          capacity: int, bucket_size: wp.array(dtype=int), bucket_items: wp.array(dtype=int),
-                         separation: float, search_scale: float, cloth_id: wp.array(dtype=int),
-                         self_collision: int, between_cloths: int, grid_xy: wp.array(dtype=int),
-                         exclude_adjacent: wp.array(dtype=int), max_neighbors: int, unsorted: wp.array(dtype=int),
-                         appended: wp.array(dtype=int), neighbors: wp.array(dtype=int),
-                         counts: wp.array(dtype=int), overflow: wp.array(dtype=int),
-                         x_built: wp.array(dtype=wp.vec3), rebuild: wp.array(dtype=int)):
+                         epoch: wp.array(dtype=int), separation: float, search_scale: float,
+                         cloth_id: wp.array(dtype=int), self_collision: int, between_cloths: int,
+                         grid_xy: wp.array(dtype=int), exclude_adjacent: wp.array(dtype=int), max_neighbors: int,
+                         rebuild: wp.array(dtype=int), unsorted: wp.array(dtype=int), appended: wp.array(dtype=int),
+                         neighbors: wp.array(dtype=int), counts: wp.array(dtype=int), overflow: wp.array(dtype=int),
+                         x_built: wp.array(dtype=wp.vec3)):
+        if rebuild[0] == 0:  # the same for the whole block, so its tile sum is not left waiting
+            return
         block_id, lane = wp.tid()
         i, slot, owner = lane_layout(block_id, lane, wp.static(per_block), wp.static(lanes), x.shape[0])
         found = int(0)
         if i >= 0:
             center = spatial_hash.cell_of(x[i], inv_cell)
+            stamp = spatial_hash.stamp_of(epoch[0])
             for k in range(slot, 27, wp.static(lanes)):
                 bucket = spatial_hash.neighbour_bucket(center, k, mask)
                 if first_visit(center, k, bucket, mask):
-                    for s in range(wp.min(bucket_size[bucket], capacity)):
+                    for s in range(wp.min(spatial_hash.count_in(bucket_size[bucket], stamp), capacity)):
                         j = bucket_items[bucket * capacity + s]
                         if is_candidate(i, j, x, radius, separation, search_scale, cloth_id, self_collision,
                                         between_cloths, grid_xy, exclude_adjacent):
@@ -221,7 +239,7 @@ def gather_neighbors_lanes(lanes: int, block: int) -> wp.Kernel:
             if owner:
                 counts[i] = count
                 appended[i] = 0
-                remember_list_positions(i, x, x_built, rebuild)
+                x_built[i] = x[i]
 
     return gather_neighbors
 
@@ -402,11 +420,14 @@ def gather_velocity_changes(i: int, first: int, stride: int, x: wp.array(dtype=w
 
 @wp.func
 def finish_velocities(i: int, change: wp.vec3, touching: int, v: wp.array(dtype=wp.vec3),
-                      pushed: wp.array(dtype=float), v_out: wp.array(dtype=wp.vec3)):
+                      pushed: wp.array(dtype=float), v_out: wp.array(dtype=wp.vec3), rebuild: wp.array(dtype=int),
+                      epoch: wp.array(dtype=int)):
     if touching > 0:
         change = change / float(touching)
     v_out[i] = v[i] + change
     pushed[i] = 0.0
+    if i == 0:
+        end_remake(rebuild, epoch)
 
 
 @wp.kernel
@@ -414,7 +435,8 @@ def resolve_contact_velocities(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.
                                inv_mass: wp.array(dtype=float), radius: wp.array(dtype=float), separation: float,
                                contact_slack: float, friction: float, h: float, pushed: wp.array(dtype=float),
                                neighbors: wp.array(dtype=int), counts: wp.array(dtype=int), max_neighbors: int,
-                               v_out: wp.array(dtype=wp.vec3)):
+                               v_out: wp.array(dtype=wp.vec3), rebuild: wp.array(dtype=int),
+                               epoch: wp.array(dtype=int)):
     """Contacts are inelastic: each touching pair's relative normal velocity ends between 0 and what it
     was before the collision stage (so pushes out of a deep overlap do not launch particles apart), the
     particle taking its mass share of the change, averaged over its contacts; friction takes tangential
@@ -426,7 +448,7 @@ def resolve_contact_velocities(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.
         change, touching = gather_velocity_changes(i, 0, 1, x, v, v_start, inv_mass, radius, separation,
                                                    contact_slack, friction, h, pushed, neighbors, counts,
                                                    max_neighbors)
-    finish_velocities(i, change, touching, v, pushed, v_out)
+    finish_velocities(i, change, touching, v, pushed, v_out, rebuild, epoch)
 
 
 @functools.cache
@@ -441,7 +463,8 @@ def resolve_contact_velocities_lanes(lanes: int, block: int) -> wp.Kernel:
                                    radius: wp.array(dtype=float), separation: float, contact_slack: float,
                                    friction: float, h: float, pushed: wp.array(dtype=float),
                                    neighbors: wp.array(dtype=int), counts: wp.array(dtype=int), max_neighbors: int,
-                                   v_out: wp.array(dtype=wp.vec3)):
+                                   v_out: wp.array(dtype=wp.vec3), rebuild: wp.array(dtype=int),
+                                   epoch: wp.array(dtype=int)):
         block_id, lane = wp.tid()
         i, slot, owner = lane_layout(block_id, lane, wp.static(per_block), wp.static(lanes), x.shape[0])
         change = wp.vec3(0.0)
@@ -454,7 +477,7 @@ def resolve_contact_velocities_lanes(lanes: int, block: int) -> wp.Kernel:
         change = sum_over_lanes(change, lane)
         touching = sum_over_lanes(touching, lane)
         if owner:
-            finish_velocities(i, change, touching, v, pushed, v_out)
+            finish_velocities(i, change, touching, v, pushed, v_out, rebuild, epoch)
 
     return resolve_contact_velocities
 
@@ -478,15 +501,17 @@ def gather_neighbors_brute_force(x: wp.array(dtype=wp.vec3), radius: wp.array(dt
                                  search_scale: float, cloth_id: wp.array(dtype=int), self_collision: int,
                                  between_cloths: int, grid_xy: wp.array(dtype=int),
                                  exclude_adjacent: wp.array(dtype=int), max_neighbors: int,
-                                 neighbors: wp.array(dtype=int), counts: wp.array(dtype=int),
-                                 overflow: wp.array(dtype=int), x_built: wp.array(dtype=wp.vec3),
-                                 rebuild: wp.array(dtype=int)):
+                                 rebuild: wp.array(dtype=int), neighbors: wp.array(dtype=int),
+                                 counts: wp.array(dtype=int), overflow: wp.array(dtype=int),
+                                 x_built: wp.array(dtype=wp.vec3)):
     """The O(n^2) way to fill the same lists as ``gather_neighbors`` (every particle against every other,
     as the seed did), for small scenes and to measure what the spatial hash saves."""
+    if rebuild[0] == 0:
+        return
     i = wp.tid()
     count = int(0)
     for j in range(x.shape[0]):
         count = add_candidate(i, j, x, radius, separation, search_scale, cloth_id, self_collision, between_cloths,
                               grid_xy, exclude_adjacent, max_neighbors, neighbors, count, overflow)
     counts[i] = count
-    remember_list_positions(i, x, x_built, rebuild)
+    x_built[i] = x[i]

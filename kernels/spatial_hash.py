@@ -1,10 +1,15 @@
-"""A spatial hash of particles, built from kernels alone so that it can be rebuilt inside a conditional
-node of a captured graph: cells of a given width are hashed (Teschner et al. 2003) into a power-of-two table
-of buckets of fixed capacity, and each particle is appended to its cell's bucket. Cells are hashed in
-blocks of 2 x 2 x 2 to runs of 8 buckets, so that the 27 cells around a point lie in at most 8 runs of the
-table, not 27 scattered places (a table of 4M particles' buckets outgrows a GPU's L2 cache). A query visits the 27
+"""A spatial hash of particles, built from kernels alone so that it can be remade inside a captured graph:
+cells of a given width are hashed (Teschner et al. 2003) into a power-of-two table of buckets of fixed
+capacity, and each particle is appended to its cell's bucket. Cells are hashed in blocks of 2 x 2 x 2 to
+runs of 8 buckets, so that the 27 cells around a point lie in at most 8 runs of the table, not 27
+scattered places (a table of 4M particles' buckets outgrows a GPU's L2 cache). A query visits the 27
 cells around a point; points from other cells in a bucket are candidates like any other (callers test the
-distance), and a bucket that two of the 27 cells share is visited twice (callers drop the repeats)."""
+distance), and a bucket that two of the 27 cells share is visited twice (callers drop the repeats).
+
+A bucket's size is stamped with the epoch of the table it belongs to (the caller counts epochs up), so a
+new table needs no clearing: a bucket whose stamp is not the current epoch's is empty. Stamps keep the
+epoch's low 24 bits; a bucket left untouched for 2^24 epochs would read as filled again.
+"""
 
 import warp as wp
 
@@ -30,13 +35,50 @@ def neighbour_bucket(center: wp.vec3i, k: int, mask: int) -> int:
     return bucket_of(center + wp.vec3i(k % 3 - 1, (k / 3) % 3 - 1, k / 9 - 1), mask)
 
 
+COUNT_BITS = 7  # a bucket's size: its stamp above these bits, its count (up to the capacity) in them
+COUNT_MASK = (1 << COUNT_BITS) - 1
+EPOCH_MASK = (1 << 24) - 1
+
+
+@wp.func
+def stamp_of(epoch: int) -> int:
+    return (epoch & wp.static(EPOCH_MASK)) << wp.static(COUNT_BITS)
+
+
+@wp.func
+def count_in(size: int, stamp: int) -> int:
+    """The count a bucket's ``size`` holds in the table of ``stamp`` (0 if stamped otherwise)."""
+    if (size >> wp.static(COUNT_BITS)) != (stamp >> wp.static(COUNT_BITS)):
+        return 0
+    return size & wp.static(COUNT_MASK)
+
+
+@wp.func
+def claim_slot(bucket_size: wp.array(dtype=int), bucket: int, stamp: int, capacity: int) -> int:
+    """The next free slot of the bucket in the table of ``stamp`` (-1 where the bucket is full)."""
+    size = bucket_size[bucket]
+    while True:
+        count = count_in(size, stamp)
+        if count >= capacity:
+            return -1
+        seen = wp.atomic_cas(bucket_size, bucket, size, stamp | (count + 1))
+        if seen == size:
+            return count
+        size = seen
+    return -1
+
+
 @wp.kernel
-def insert_points(x: wp.array(dtype=wp.vec3), inv_width: float, mask: int, capacity: int,
-                  bucket_size: wp.array(dtype=int), bucket_items: wp.array(dtype=int), overflow: wp.array(dtype=int)):
+def insert_points(x: wp.array(dtype=wp.vec3), inv_width: float, mask: int, capacity: int, epoch: wp.array(dtype=int),
+                  rebuild: wp.array(dtype=int), bucket_size: wp.array(dtype=int), bucket_items: wp.array(dtype=int),
+                  overflow: wp.array(dtype=int)):
+    """Fills the table of the current epoch, where ``rebuild`` is set (else does nothing)."""
+    if rebuild[0] == 0:
+        return
     i = wp.tid()
     bucket = bucket_of(cell_of(x[i], inv_width), mask)
-    slot = wp.atomic_add(bucket_size, bucket, 1)
-    if slot < capacity:
+    slot = claim_slot(bucket_size, bucket, stamp_of(epoch[0]), capacity)
+    if slot >= 0:
         bucket_items[bucket * capacity + slot] = i
     else:
         wp.atomic_add(overflow, 0, 1)

@@ -86,6 +86,7 @@ def test_hash_grid_stage_matches_brute_force(seed, limit_a, self_on, between_on)
     assert (exclude is not None) == (not limit_a and self_on)
     s = stage.settings
     x_dev, v_dev = wp.array(x, dtype=wp.vec3), wp.array(v, dtype=wp.vec3)
+    assert stage.epoch.numpy()[0] == 1  # the table still holds the start check's points, uncleared
     stage.make_lists(x_dev)
     assert stage.overflow.numpy()[0] == 0
     counts, neighbors = stage.counts.numpy(), stage.neighbors.numpy().reshape(n, s.max_neighbors)
@@ -266,6 +267,27 @@ def test_a_block_of_2x2x2_cells_hashes_to_one_run_of_8_buckets():
     np.testing.assert_array_equal(runs % 8, np.tile(np.arange(8), (len(runs), 1)))  # cell order within the run
     np.testing.assert_array_equal(runs - runs[:, :1], np.tile(np.arange(8), (len(runs), 1)))  # one run
     assert len(np.unique(runs[:, 0])) > 100  # and the blocks spread over the table's 128 runs
+
+
+def test_a_new_epoch_starts_the_hash_table_empty_without_clearing_it():
+    def insert(points, epoch, rebuild=1):
+        wp.launch(spatial_hash.insert_points, len(points),
+                  inputs=[wp.array(points, dtype=wp.vec3), 1.0, 63, 4, wp.array([epoch], dtype=int),
+                          wp.array([rebuild], dtype=int)], outputs=[bucket_size, items, overflow])
+        sizes = bucket_size.numpy()
+        used = np.flatnonzero(sizes)
+        return {int(b): (int(sizes[b]) >> spatial_hash.COUNT_BITS, int(sizes[b]) & spatial_hash.COUNT_MASK)
+                for b in used}, items.numpy().reshape(64, 4), int(overflow.numpy()[0])
+
+    bucket_size, items, overflow = wp.zeros(64, dtype=int), wp.full(64 * 4, -1, dtype=int), wp.zeros(1, dtype=int)
+    buckets, slots, overflowed = insert([(0.5, 0.5, 0.5)] * 5, epoch=7)  # five in one cell, room for four
+    ((bucket, (stamp, count)),) = buckets.items()
+    assert (stamp, count, overflowed) == (7, 4, 1)
+    assert len(set(slots[bucket])) == 4 and set(slots[bucket]) <= set(range(5))  # four distinct particles
+    buckets, slots, overflowed = insert([(0.5, 0.5, 0.5)] * 2, epoch=8)  # the next table, same cell
+    assert buckets == {bucket: (8, 2)} and overflowed == 1
+    assert sorted(slots[bucket][:2]) == [0, 1]
+    assert insert([(0.5, 0.5, 0.5)] * 3, epoch=9, rebuild=0)[0] == {bucket: (8, 2)}, "not asked: nothing"
 
 
 @pytest.mark.parametrize("pin_at, expected", [

@@ -45,12 +45,11 @@ EXPECTED = {
 # With particle collision, limits, separation and colliders are projected together in 8 passes (the
 # larger of the collision's 8 and the limit's 4 iterations): colliders once before the passes (in the
 # integration step, which begins the contacts) and at the end of every pass; the last 4 passes limit and
-# separate in one kernel. The neighbour lists (spatial hash, gather) are remade only when a particle has
-# moved far enough.
+# separate in one kernel. The neighbour lists' kernels (spatial hash, gather) launch every substep but
+# remake the lists only when a particle has moved far enough.
 PASSES = 8
-LISTS = {"insert_points": 1, "gather_neighbors": 1}
 EXPECTED_WITH_COLLISION = {
-    name: {"euler_step": 1, "separate_particles": PASSES - LIMIT_ITERATIONS,
+    name: {"euler_step": 1, "insert_points": 1, "gather_neighbors": 1, "separate_particles": PASSES - LIMIT_ITERATIONS,
            "project_limits_and_separation": LIMIT_ITERATIONS, "resolve_contact_velocities": 1}
     for name in ("fold", "pile")
 }
@@ -76,14 +75,24 @@ def test_collision_stage_exists_only_when_declared(name, launches):
     scene = wc.load_scene(name)
     assert scene.collision.iterations == PASSES and scene.simulation.limit_iterations == LIMIT_ITERATIONS
     sim = wc.Simulator(scene, device="cpu", graph=False)  # (it makes the lists to check the start)
+    stage = next(s for s in sim.stages if isinstance(s, ParticleCollision))
+    lists_made = lambda: (int(stage.epoch.numpy()[0]), stage.x_built.numpy().copy())  # noqa: E731
+    epoch, built = lists_made()
+    assert epoch == 1
+    np.testing.assert_array_equal(built, sim.model.positions)
     launches.clear()
     sim.substep()
     assert dict(launches) == EXPECTED_WITH_COLLISION[name]
-    stage = next(s for s in sim.stages if isinstance(s, ParticleCollision))
+    epoch, built_after = lists_made()
+    assert epoch == 1 and stage.rebuild.numpy()[0] == 0, "nothing moved far: no remake"
+    np.testing.assert_array_equal(built_after, built)
     stage.x_built.fill_(wp.vec3(1.0e30))  # as if every particle had moved far since
     launches.clear()
     sim.substep()
-    assert dict(launches) == {**EXPECTED_WITH_COLLISION[name], **LISTS}
+    assert dict(launches) == EXPECTED_WITH_COLLISION[name]
+    epoch, built_after = lists_made()
+    assert epoch == 2 and stage.rebuild.numpy()[0] == 0
+    assert np.abs(built_after).max() < 100.0, "lists remade from this substep's positions"
     without = wc.Simulator(dataclasses.replace(scene, collision=None), device="cpu")
     assert without.model.contacts is None
     assert not any("collision" in name for name in without.stage_names)

@@ -283,6 +283,7 @@ class ParticleCollision:
             table *= 2
         self.table_mask = table - 1
         self.bucket_size = wp.zeros(table if self.use_hash else 0, dtype=int, device=device)
+        self.epoch = wp.zeros(1, dtype=int, device=device)  # the hash table's: see spatial_hash.py
         self.bucket_items = wp.zeros(table * self.BUCKET_CAPACITY if self.use_hash else 0, dtype=int, device=device)
         self.gather = PerParticle(particle_collision.gather_neighbors, particle_collision.gather_neighbors_lanes,
                                   lanes if self.use_hash else 1, n, device, LIST_LANES_BY_SIZE)
@@ -291,26 +292,32 @@ class ParticleCollision:
         self.unsorted = wp.zeros(n * settings.max_neighbors if several else 0, dtype=int, device=device)
         self.appended = wp.zeros(n if several else 0, dtype=int, device=device)
 
-    def make_lists(self, x: wp.array) -> None:
-        """Remake every particle's candidate list from positions ``x`` (remembering them, and clearing the
-        remake flag)."""
+    def remake_lists_if_asked(self, x: wp.array) -> None:
+        """Launches the remake of every particle's candidate list from positions ``x``; its kernels do it
+        where ``rebuild`` is set, and leave it set (the substep's last kernel clears it)."""
         s = self.settings
-        pair_rules = [self.cloth_id, int(s.self_collision), int(s.between_cloths), *self.exclusion, s.max_neighbors]
-        lists = [self.neighbors, self.counts, self.overflow, self.x_built, self.rebuild]
+        pair_rules = [self.cloth_id, int(s.self_collision), int(s.between_cloths), *self.exclusion, s.max_neighbors,
+                      self.rebuild]
+        lists = [self.neighbors, self.counts, self.overflow, self.x_built]
         if self.use_hash:
             inv_cell = 1.0 / self.search_radius
-            self.bucket_size.zero_()
             wp.launch(spatial_hash.insert_points, dim=self.n,
-                      inputs=[x, inv_cell, self.table_mask, self.BUCKET_CAPACITY],
+                      inputs=[x, inv_cell, self.table_mask, self.BUCKET_CAPACITY, self.epoch, self.rebuild],
                       outputs=[self.bucket_size, self.bucket_items, self.overflow], device=x.device)
             grid = [x, self.radius, inv_cell, self.table_mask, self.BUCKET_CAPACITY, self.bucket_size,
-                    self.bucket_items, s.separation, self.SEARCH_SCALE, *pair_rules]
+                    self.bucket_items, self.epoch, s.separation, self.SEARCH_SCALE, *pair_rules]
             scratch = [self.unsorted, self.appended] if self.gather.lanes > 1 else []
             self.gather.launch(self.n, x.device, inputs=[*grid, *scratch], outputs=lists)
         else:
             wp.launch(particle_collision.gather_neighbors_brute_force, dim=self.n,
                       inputs=[x, self.radius, s.separation, self.SEARCH_SCALE, *pair_rules], outputs=lists,
                       device=x.device)
+
+    def make_lists(self, x: wp.array) -> None:
+        """Remake every particle's candidate list from positions ``x`` now, outside a substep."""
+        self.rebuild.fill_(1)
+        self.remake_lists_if_asked(x)
+        wp.launch(particle_collision.end_remake_once, dim=1, outputs=[self.rebuild, self.epoch], device=x.device)
 
     def closest_contact(self, x: wp.array) -> float:
         """The closest approach of two particles that may collide, as a fraction of their contact distance
@@ -340,10 +347,8 @@ class ParticleCollision:
             launch(particle_collision.begin_contacts, self.n, state, inputs=[self.inv_mass, self.h, *start_inputs],
                    outputs=[state.x, state.v, *start_outputs])
         if self.remake_every_substep:
-            self.make_lists(state.x)
-        else:
-            positions = state.x
-            wp.capture_if(self.rebuild, on_true=lambda: self.make_lists(positions))
+            self.rebuild.fill_(1)
+        self.remake_lists_if_asked(state.x)
         for remaining in range(self.passes, 0, -1):
             separates = remaining <= s.iterations
             limits_too = self.limit is not None and remaining <= self.limit.iterations
@@ -364,7 +369,7 @@ class ParticleCollision:
                             inputs=[state.x, state.v, self.v_start, self.inv_mass, self.radius, s.separation,
                                     self.CONTACT_SLACK, s.friction, self.h, self.pushed, self.neighbors, self.counts,
                                     s.max_neighbors],
-                            outputs=[state.v_next])
+                            outputs=[state.v_next, self.rebuild, self.epoch])
         state.swap_velocities()
 
 
