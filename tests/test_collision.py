@@ -10,7 +10,8 @@ import warp as wp
 import warp_cloth as wc
 from conftest import run_cli, with_simulation
 from warp_cloth.diagnostics import ContactGaps, TriangleIntersections
-from warp_cloth.kernels import particle_collision, projection, spatial_hash
+from warp_cloth.kernels import particle_collision, spatial_hash
+from warp_cloth.kernels.projection import project_limits_and_separation
 from warp_cloth.model import collision_radius, needs_adjacent_exclusion
 from warp_cloth.stages import ParticleCollision, rigid_colliders
 
@@ -123,9 +124,10 @@ def test_seed_radius_rule_and_when_grid_neighbours_need_exclusion():
 SCENE_FRAMES = {"fold": 120, "pile": 48, "seed_default": 48}
 
 
+@pytest.mark.parametrize("projection", ["joint", "sequential"])
 @pytest.mark.parametrize("name", sorted(SCENE_FRAMES))
-def test_collision_scene_keeps_particles_apart_and_triangles_uncrossed(name):
-    check_scene_every_frame(name, SCENE_FRAMES[name], "cpu")
+def test_collision_scene_keeps_particles_apart_and_triangles_uncrossed(name, projection):
+    check_scene_every_frame(name, SCENE_FRAMES[name], "cpu", projection=projection)
 
 
 @pytest.mark.slow
@@ -147,8 +149,10 @@ def test_collision_scene_over_its_whole_length_on_cuda(name, threads):
 KNOWN_INTERSECTIONS = {("seed_default", "cpu"): 0, ("seed_default", "cuda"): 30}
 
 
-def check_scene_every_frame(name: str, frames: int, device: str, threads: int | None = None) -> None:
+def check_scene_every_frame(name: str, frames: int, device: str, threads: int | None = None,
+                            projection: str = "joint") -> None:
     scene = with_simulation(wc.load_scene(name), frames=frames)
+    scene = dataclasses.replace(scene, collision=dataclasses.replace(scene.collision, projection=projection))
     sim = wc.Simulator(scene, device=device, threads_per_particle=threads)
     crossings, gaps = TriangleIntersections(sim), ContactGaps(sim)
     worst_gap, worst_crossings = np.inf, 0
@@ -157,7 +161,7 @@ def check_scene_every_frame(name: str, frames: int, device: str, threads: int | 
         worst_gap = min(worst_gap, gaps(sim))
         worst_crossings = max(worst_crossings, crossings(sim))
         assert np.isfinite(sim.positions()).all()
-    print(f"{name} on {device}, {frames} frames: closest contact {worst_gap:.3f}, "
+    print(f"{name} on {device}, {projection}, {frames} frames: closest contact {worst_gap:.3f}, "
           f"most intersecting pairs {worst_crossings}")
     assert worst_gap >= 1.0 - CONTACT_TOLERANCE.get(name, DEFAULT_CONTACT_TOLERANCE)
     assert worst_crossings <= KNOWN_INTERSECTIONS.get((name, device), 0)
@@ -304,7 +308,7 @@ def test_a_joint_pass_moves_by_both_means_but_no_limit_pulls_into_a_contact(pin_
                     wp.full(2, 1.0, dtype=float), wp.zeros(0, dtype=int), wp.zeros(0, dtype=float)]
     neighbors, counts = wp.array([2, -1, -1, -1, 0, -1], dtype=int), wp.array([1, 0, 1], dtype=int)
     x_out, v, pushed = wp.zeros(3, dtype=wp.vec3), wp.zeros(3, dtype=wp.vec3), wp.zeros(3, dtype=float)
-    wp.launch(projection.project_limits_and_separation, dim=3,
+    wp.launch(project_limits_and_separation, dim=3,
               inputs=[x, inv_mass, *limit_arrays, wp.full(3, 0.5, dtype=float), 1.0, h, neighbors, counts, 2,
                       wp.zeros(0, dtype=int), 1, rigid_colliders(None, "cpu")],
               outputs=[x_out, v, pushed])

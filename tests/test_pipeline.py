@@ -98,6 +98,17 @@ def test_collision_stage_exists_only_when_declared(name, launches):
     assert not any("collision" in name for name in without.stage_names)
 
 
+def test_sequential_projection_runs_the_limit_and_then_the_separation_in_each_pass_that_has_both(launches):
+    scene = wc.load_scene("pile")
+    scene = dataclasses.replace(scene, collision=dataclasses.replace(scene.collision, projection="sequential"))
+    sim = wc.Simulator(scene, device="cpu", graph=False)
+    launches.clear()
+    sim.substep()
+    assert dict(launches) == {"euler_step": 1, "insert_points": 1, "gather_neighbors": 1,
+                              "project_strain_limits": LIMIT_ITERATIONS, "separate_particles": PASSES,
+                              "resolve_contact_velocities": 1}
+
+
 def test_bare_cloth_launches_one_kernel_and_holds_no_effect_arrays(launches):
     cloth = wc.Cloth(resolution=(3, 3), structural=OFF, shear=OFF, bend=OFF)
     sim = wc.Simulator(wc.Scene(cloths=(cloth,)), device="cpu")

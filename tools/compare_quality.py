@@ -2,7 +2,8 @@
 
     python tools/compare_quality.py OUT.jsonl ITEM...      ITEM = variant:n:engine[:substeps]
 
-variant is hanging, sphere or self; engine is ours, semi_implicit, xpbd or vbd; substeps (Newton only,
+variant is hanging, sphere or self; engine is ours, ours_sequential (the self rows' collision passes with
+``projection = "sequential"``), semi_implicit, xpbd or vbd; substeps (Newton only,
 default 10) sets Newton's step, its springs stiffening with 1/dt^2 as newton_compare sets them. Each row is
 2 warm-up frames, then the median of 3 x 48 timed frames (8 for VBD from 1024^2 on), then the strain.
 Writes one JSON line per row after a line with the environment. Used for docs/benchmarks.md's strain and
@@ -10,6 +11,7 @@ equal-quality tables (docs/results/strain-ours-h200.jsonl, newton-strain-h200.js
 newton-substeps-h200.jsonl).
 """
 
+import dataclasses
 import json
 import statistics
 import sys
@@ -24,8 +26,11 @@ from warp_cloth.simulator import Simulator
 REPEATS = 3
 
 
-def time_ours(variant: str, n: int, device: str, frames: int) -> dict:
-    sim = Simulator(matrix_scene(variant, n, "symplectic"), device=device)
+def time_ours(variant: str, n: int, device: str, frames: int, projection: str = "joint") -> dict:
+    scene = matrix_scene(variant, n, "symplectic")
+    if scene.collision is not None:
+        scene = dataclasses.replace(scene, collision=dataclasses.replace(scene.collision, projection=projection))
+    sim = Simulator(scene, device=device)
     sim.run(2)
     seconds = []
     for _ in range(REPEATS):
@@ -35,7 +40,7 @@ def time_ours(variant: str, n: int, device: str, frames: int) -> dict:
         wp.synchronize_device(sim.device)
         seconds.append(time.perf_counter() - started)
     median = statistics.median(seconds)
-    return {"solver": "ours", "variant": variant, "n": n, "substeps": sim.substeps_per_frame, "frames": frames,
+    return {"solver": "ours" if projection == "joint" else f"ours_{projection}", "variant": variant, "n": n, "substeps": sim.substeps_per_frame, "frames": frames,
             "ms_per_frame": 1e3 * median / frames,
             "particle_substeps_per_second": n * n * sim.substeps_per_frame * frames / median,
             "max_strain": max_edge_strain(sim.positions(), n)}
@@ -52,7 +57,8 @@ def main(out_path: str, items: list[str]) -> None:
             frames = 8 if engine == "vbd" and n >= 1024 else 48
             started = time.perf_counter()
             try:
-                row = (time_ours(variant, n, device, frames) if engine == "ours" else
+                row = (time_ours(variant, n, device, frames, engine.partition("_")[2] or "joint")
+                       if engine.startswith("ours") else
                        time_newton(variant, n, engine, device, frames=frames, substeps=substeps, repeats=REPEATS))
             except Exception as error:  # one failing solver must not lose the other rows
                 row = {"solver": engine, "variant": variant, "n": n, "substeps": substeps,

@@ -261,7 +261,11 @@ class Collision:
     relative velocity is removed, and ``friction`` takes tangential relative speed in proportion.
     ``broad_phase`` finds the pairs with a hash grid, or the seed's O(n^2) way (``brute_force``: the same
     contacts, for checking and for measuring what the grid saves); ``auto`` takes the brute force for
-    scenes of at most 512 particles, where it is faster than building a grid.
+    scenes of at most 512 particles, where it is faster than building a grid. A pass that also limits
+    strain (see ``Simulation.limit_iterations``) does both in one Jacobi kernel where ``projection`` is
+    ``joint`` (each particle moves by its limits' mean correction and its pushes' mean, no limit
+    correction pulling into a contact): a launch less a pass, contacts held closer, strain a little less
+    so; ``sequential`` runs the limit, then the separation on what it left (docs/accuracy.md).
     """
 
     self_collision: bool = field(default=True, metadata={"toml": "self"})
@@ -272,6 +276,7 @@ class Collision:
     friction: float = 0.0
     max_neighbors: int = 32
     broad_phase: Literal["auto", "hash_grid", "brute_force"] = "auto"
+    projection: Literal["joint", "sequential"] = "joint"
 
     def __post_init__(self) -> None:
         _require(self.self_collision or self.between_cloths, "self", "self or between_cloths to be true "

@@ -223,7 +223,8 @@ class ParticleCollision:
     in ``passes`` passes, the larger of the limit's and the collision's iteration counts: every pass ends
     with the colliders, and the limit and the separation each run in the last of the passes as many
     times as their own count says, so that the last pass runs all of them. A pass that runs both runs them
-    as one Jacobi pass, in one kernel (kernels/projection.py). The colliders run at the end of each pass,
+    as one Jacobi pass, in one kernel (kernels/projection.py), or, with ``projection = "sequential"``, the
+    limit's kernel and then the separation's. The colliders run at the end of each pass,
     and once before the passes, in the kernel that starts the stage; the particles they hold up
     (``resting``) do not give way to others in the passes that follow.
     """
@@ -241,7 +242,7 @@ class ParticleCollision:
                                     lanes, n, device)
         self.resolve = PerParticle(particle_collision.resolve_contact_velocities,
                                    particle_collision.resolve_contact_velocities_lanes, lanes, n, device)
-        self.joint = None if limit is None else PerParticle(
+        self.joint = None if limit is None or settings.projection != "joint" else PerParticle(
             projection.project_limits_and_separation, projection.project_limits_and_separation_lanes, lanes, n,
             device)
         contacts = model.contacts
@@ -358,10 +359,12 @@ class ParticleCollision:
             if not separates:
                 self.limit.run_pass(state, self.bundle, self.resting, read_bit)
                 continue
-            if limits_too:
+            if limits_too and self.joint is not None:
                 self.joint.launch(self.n, state.device, inputs=[state.x, self.inv_mass, *self.limit.arrays, *contacts],
                                   outputs=[state.x_next, state.v, self.pushed])
             else:
+                if limits_too:
+                    self.limit.run_pass(state, self.no_colliders)
                 self.separate.launch(self.n, state.device, inputs=[state.x, self.inv_mass, *contacts],
                                      outputs=[state.x_next, state.v, self.pushed])
             state.swap_positions()
