@@ -4,9 +4,11 @@ the closest contact (fraction of the contact distance, 1.0 = no overlap), the mo
 pairs at once, and the worst strain of a limited spring (stretch > 0, compression < 0), all over every
 frame; and the wall time. Used to compare a change to the collision stage with the code before it:
 
-    python tools/contact_quality.py OUT.jsonl [SCENE ...]     (SCENE: name, or name:frames)
+    python tools/contact_quality.py OUT.jsonl [--projection sequential] [SCENE ...]   (SCENE: name[:frames])
 
-Writes one JSON line per scene after a line with the environment.
+(--projection: the collision passes' ``projection``, as the scenes have it by default: joint.)
+
+Writes one JSON line per scene after a line with the environment (docs/results/contact-quality-*.jsonl).
 """
 
 import dataclasses
@@ -47,10 +49,12 @@ def limited_strain(sim: wc.Simulator) -> tuple[float, float]:
     return float(ratio.max()), float(ratio.min())
 
 
-def measure(name: str, frames: int | None, device: str) -> dict:
+def measure(name: str, frames: int | None, device: str, projection: str | None) -> dict:
     scene = SCENES[name]()
     if frames is not None:
         scene = dataclasses.replace(scene, simulation=dataclasses.replace(scene.simulation, frames=frames))
+    if projection is not None:
+        scene = dataclasses.replace(scene, collision=dataclasses.replace(scene.collision, projection=projection))
     sim = wc.Simulator(scene, device=device)
     crossings, gaps = TriangleIntersections(sim), ContactGaps(sim)
     worst = {"closest_contact": np.inf, "most_crossings": 0, "stretch": -np.inf, "compression": np.inf}
@@ -67,18 +71,22 @@ def measure(name: str, frames: int | None, device: str) -> dict:
         stretch, compression = limited_strain(sim)
         worst["stretch"] = max(worst["stretch"], stretch)
         worst["compression"] = min(worst["compression"], compression)
-    return {"scene": name, "frames": scene.simulation.frames, "step_seconds": stepping, **worst}
+    return {"scene": name, "projection": scene.collision.projection, "frames": scene.simulation.frames,
+            "step_seconds": stepping, **worst}
 
 
 def main(out_path: str, items: list[str]) -> None:
     wp.config.log_level = wp.LOG_ERROR
     device = "cuda" if wp.is_cuda_available() else "cpu"
+    projection = None
+    if items[:1] == ["--projection"]:
+        projection, items = items[1], items[2:]
     items = items or list(SCENES)
     with open(out_path, "a") as out:
         print(json.dumps({"environment": environment(device)}), file=out, flush=True)
         for k, item in enumerate(items, 1):
             name, _, frames = item.partition(":")
-            row = measure(name, int(frames) if frames else None, device)
+            row = measure(name, int(frames) if frames else None, device, projection)
             print(json.dumps(row), file=out, flush=True)
             print(f"[{k}/{len(items)}] {json.dumps(row)}", flush=True)
     print(f"{len(items)} scenes measured on {device}; rows in {out_path}")
