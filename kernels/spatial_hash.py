@@ -65,7 +65,7 @@ def claim_slot(bucket_size: wp.array(dtype=int), bucket: int, stamp: int, capaci
         if seen == size:
             return count
         size = seen
-    return -1
+    return -1  # not reached; the generated C++ function still needs a return after its loop
 
 
 @wp.kernel

@@ -224,9 +224,9 @@ class ParticleCollision:
     with the colliders, and the limit and the separation each run in the last of the passes as many
     times as their own count says, so that the last pass runs all of them. A pass that runs both runs them
     as one Jacobi pass, in one kernel (kernels/projection.py), or, with ``projection = "sequential"``, the
-    limit's kernel and then the separation's. The colliders run at the end of each pass,
-    and once before the passes, in the kernel that starts the stage; the particles they hold up
-    (``resting``) do not give way to others in the passes that follow.
+    limit's kernel and then the separation's. The colliders run at the end of each pass, and once before
+    the passes, in the kernel that starts the stage; the particles they hold up (``resting``) do not give
+    way to others in the passes that follow.
     """
 
     SEARCH_SCALE = 1.5  # candidates within 1.5 contact distances, so passes that move particles miss none
