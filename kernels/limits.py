@@ -65,14 +65,12 @@ def gather_limit_corrections(i: int, first: int, stride: int, xi: wp.vec3, wi: f
 
 
 @wp.func
-def finish_limit_pass(i: int, xi: wp.vec3, correction: wp.vec3, violated: int, x: wp.array(dtype=wp.vec3),
-                      attachment_pin: wp.array(dtype=int), attachment_length: wp.array(dtype=float), h: float,
-                      colliders: RigidColliders, resting: wp.array(dtype=int), read_bit: int,
-                      x_out: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3)):
-    """Moves free particle i by the mean of its corrections, then holds it to its pin and puts it out of
-    the colliders."""
-    if violated > 0:
-        correction = correction / float(violated)
+def move_and_hold(i: int, xi: wp.vec3, correction: wp.vec3, x: wp.array(dtype=wp.vec3),
+                  attachment_pin: wp.array(dtype=int), attachment_length: wp.array(dtype=float), h: float,
+                  colliders: RigidColliders, resting: wp.array(dtype=int), read_bit: int,
+                  x_out: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3)):
+    """Moves free particle i by ``correction`` (its velocity by correction / h), then holds it to its pin
+    and puts it out of the colliders."""
     p = xi + correction
     vel = v[i] + correction / h
     if attachment_pin.shape[0] > 0:
@@ -80,6 +78,17 @@ def finish_limit_pass(i: int, xi: wp.vec3, correction: wp.vec3, violated: int, x
     p, vel = collide_and_mark(i, p, vel, colliders, h, resting, read_bit)
     x_out[i] = p
     v[i] = vel
+
+
+@wp.func
+def finish_limit_pass(i: int, xi: wp.vec3, correction: wp.vec3, violated: int, x: wp.array(dtype=wp.vec3),
+                      attachment_pin: wp.array(dtype=int), attachment_length: wp.array(dtype=float), h: float,
+                      colliders: RigidColliders, resting: wp.array(dtype=int), read_bit: int,
+                      x_out: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3)):
+    """Moves free particle i by the mean of its corrections (``move_and_hold``)."""
+    if violated > 0:
+        correction = correction / float(violated)
+    move_and_hold(i, xi, correction, x, attachment_pin, attachment_length, h, colliders, resting, read_bit, x_out, v)
 
 
 @wp.kernel

@@ -13,9 +13,9 @@ import functools
 
 import warp as wp
 
-from .colliders import RigidColliders, collide_and_mark
+from .colliders import RigidColliders
 from .lanes import FAST_MATH, lane_layout, lane_sum
-from .limits import gather_limit_corrections, hold_to_pin
+from .limits import gather_limit_corrections, move_and_hold
 from .particle_collision import gather_pushes
 
 wp.set_module_options(FAST_MATH)
@@ -37,13 +37,7 @@ def finish_joint_pass(i: int, xi: wp.vec3, limit_sum: wp.vec3, violated: int, pu
         if against < 0.0:
             correction = correction - (against / wp.length_sq(push)) * push
         correction = correction + push
-    p = xi + correction
-    vel = v[i] + correction / h
-    if attachment_pin.shape[0] > 0:
-        p, vel = hold_to_pin(p, vel, attachment_pin[i], attachment_length[i], h, x)
-    p, vel = collide_and_mark(i, p, vel, colliders, h, resting, read_bit)
-    x_out[i] = p
-    v[i] = vel
+    move_and_hold(i, xi, correction, x, attachment_pin, attachment_length, h, colliders, resting, read_bit, x_out, v)
 
 
 @wp.kernel

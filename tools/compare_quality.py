@@ -40,7 +40,8 @@ def time_ours(variant: str, n: int, device: str, frames: int, projection: str = 
         wp.synchronize_device(sim.device)
         seconds.append(time.perf_counter() - started)
     median = statistics.median(seconds)
-    return {"solver": "ours" if projection == "joint" else f"ours_{projection}", "variant": variant, "n": n, "substeps": sim.substeps_per_frame, "frames": frames,
+    return {"solver": "ours" if projection == "joint" else f"ours_{projection}", "variant": variant, "n": n,
+            "substeps": sim.substeps_per_frame, "frames": frames,
             "ms_per_frame": 1e3 * median / frames,
             "particle_substeps_per_second": n * n * sim.substeps_per_frame * frames / median,
             "max_strain": max_edge_strain(sim.positions(), n)}
