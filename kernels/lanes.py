@@ -37,6 +37,20 @@ def lane_layout(block: int, lane: int, per_block: int, lanes: int, n: int):
     return i, slot, i >= 0 and slot == 0
 
 
+@wp.func
+def lane_particle(block: int, lane: int, per_block: int, lanes: int, x: wp.array(dtype=wp.vec3),
+                  inv_mass: wp.array(dtype=float)):
+    """``lane_layout``'s particle, slot and owner, and the particle's position and inverse mass (zeros past
+    the end, so that those lanes, like a pinned particle's, gather nothing)."""
+    i, slot, owner = lane_layout(block, lane, per_block, lanes, x.shape[0])
+    xi = wp.vec3(0.0)
+    wi = float(0.0)
+    if i >= 0:
+        xi = x[i]
+        wi = inv_mass[i]
+    return i, slot, owner, xi, wi
+
+
 @functools.cache
 def lane_sum(per_block: int, lanes: int) -> wp.Function:
     """A function that sums a value (a vector or a count) over each particle's lanes and gives every lane

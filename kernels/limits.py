@@ -15,7 +15,7 @@ import functools
 import warp as wp
 
 from .colliders import RigidColliders, collide_and_mark
-from .lanes import FAST_MATH, lane_layout, lane_sum
+from .lanes import FAST_MATH, lane_particle, lane_sum
 
 wp.set_module_options(FAST_MATH)
 
@@ -124,17 +124,12 @@ def project_strain_limits_lanes(lanes: int, block: int) -> wp.Kernel:
                               h: float, colliders: RigidColliders, resting: wp.array(dtype=int), read_bit: int,
                               x_out: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3)):
         block_id, lane = wp.tid()
-        i, slot, owner = lane_layout(block_id, lane, wp.static(per_block), wp.static(lanes), x.shape[0])
-        xi = wp.vec3(0.0)
-        wi = float(0.0)
+        i, slot, owner, xi, wi = lane_particle(block_id, lane, wp.static(per_block), wp.static(lanes), x, inv_mass)
         correction = wp.vec3(0.0)
         violated = int(0)
-        if i >= 0:
-            xi = x[i]
-            wi = inv_mass[i]
-            if wi != 0.0:
-                correction, violated = gather_limit_corrections(i, offsets[i] + slot, wp.static(lanes), xi, wi, x,
-                                                                inv_mass, offsets, other, min_length, max_length)
+        if wi != 0.0:
+            correction, violated = gather_limit_corrections(i, offsets[i] + slot, wp.static(lanes), xi, wi, x,
+                                                            inv_mass, offsets, other, min_length, max_length)
         correction = sum_over_lanes(correction, lane)
         violated = sum_over_lanes(violated, lane)
         if owner:

@@ -19,7 +19,7 @@ import warp as wp
 
 from . import spatial_hash
 from .colliders import RigidColliders, collide_and_mark, collide_particle
-from .lanes import FAST_MATH, lane_layout, lane_sum
+from .lanes import FAST_MATH, lane_layout, lane_particle, lane_sum
 
 wp.set_module_options(FAST_MATH)
 
@@ -346,17 +346,12 @@ def separate_particles_lanes(lanes: int, block: int) -> wp.Kernel:
                            x_out: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3),
                            pushed: wp.array(dtype=float)):
         block_id, lane = wp.tid()
-        i, slot, owner = lane_layout(block_id, lane, wp.static(per_block), wp.static(lanes), x.shape[0])
-        xi = wp.vec3(0.0)
-        wi = float(0.0)
+        i, slot, owner, xi, wi = lane_particle(block_id, lane, wp.static(per_block), wp.static(lanes), x, inv_mass)
         correction = wp.vec3(0.0)
         touching = int(0)
-        if i >= 0:
-            xi = x[i]
-            wi = inv_mass[i]
-            if wi != 0.0:
-                correction, touching = gather_pushes(i, slot, wp.static(lanes), xi, wi, x, inv_mass, radius,
-                                                     separation, neighbors, counts, max_neighbors, resting, read_bit)
+        if wi != 0.0:
+            correction, touching = gather_pushes(i, slot, wp.static(lanes), xi, wi, x, inv_mass, radius,
+                                                 separation, neighbors, counts, max_neighbors, resting, read_bit)
         correction = sum_over_lanes(correction, lane)
         touching = sum_over_lanes(touching, lane)
         if owner:

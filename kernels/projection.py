@@ -14,7 +14,7 @@ import functools
 import warp as wp
 
 from .colliders import RigidColliders
-from .lanes import FAST_MATH, lane_layout, lane_sum
+from .lanes import FAST_MATH, lane_particle, lane_sum
 from .limits import gather_limit_corrections, move_and_hold
 from .particle_collision import gather_pushes
 
@@ -81,21 +81,16 @@ def project_limits_and_separation_lanes(lanes: int, block: int) -> wp.Kernel:
                                       colliders: RigidColliders, x_out: wp.array(dtype=wp.vec3),
                                       v: wp.array(dtype=wp.vec3), pushed: wp.array(dtype=float)):
         block_id, lane = wp.tid()
-        i, slot, owner = lane_layout(block_id, lane, wp.static(per_block), wp.static(lanes), x.shape[0])
-        xi = wp.vec3(0.0)
-        wi = float(0.0)
+        i, slot, owner, xi, wi = lane_particle(block_id, lane, wp.static(per_block), wp.static(lanes), x, inv_mass)
         limit_sum = wp.vec3(0.0)
         violated = int(0)
         push_sum = wp.vec3(0.0)
         touching = int(0)
-        if i >= 0:
-            xi = x[i]
-            wi = inv_mass[i]
-            if wi != 0.0:
-                limit_sum, violated = gather_limit_corrections(i, offsets[i] + slot, wp.static(lanes), xi, wi, x,
-                                                               inv_mass, offsets, other, min_length, max_length)
-                push_sum, touching = gather_pushes(i, slot, wp.static(lanes), xi, wi, x, inv_mass, radius,
-                                                   separation, neighbors, counts, max_neighbors, resting, read_bit)
+        if wi != 0.0:
+            limit_sum, violated = gather_limit_corrections(i, offsets[i] + slot, wp.static(lanes), xi, wi, x,
+                                                           inv_mass, offsets, other, min_length, max_length)
+            push_sum, touching = gather_pushes(i, slot, wp.static(lanes), xi, wi, x, inv_mass, radius,
+                                               separation, neighbors, counts, max_neighbors, resting, read_bit)
         limit_sum = sum_over_lanes(limit_sum, lane)
         violated = sum_over_lanes(violated, lane)
         push_sum = sum_over_lanes(push_sum, lane)

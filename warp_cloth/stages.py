@@ -354,11 +354,11 @@ class ParticleCollision:
             separates = remaining <= s.iterations
             limits_too = self.limit is not None and remaining <= self.limit.iterations
             read_bit = 1 if (self.passes - remaining) % 2 == 0 else 2  # resting flags: see colliders.py
-            contacts = [self.radius, s.separation, self.h, self.neighbors, self.counts, s.max_neighbors,
-                        self.resting, read_bit, self.bundle]
             if not separates:
                 self.limit.run_pass(state, self.bundle, self.resting, read_bit)
                 continue
+            contacts = [self.radius, s.separation, self.h, self.neighbors, self.counts, s.max_neighbors,
+                        self.resting, read_bit, self.bundle]
             if limits_too and self.joint is not None:
                 self.joint.launch(self.n, state.device, inputs=[state.x, self.inv_mass, *self.limit.arrays, *contacts],
                                   outputs=[state.x_next, state.v, self.pushed])
