@@ -72,9 +72,10 @@ WHEEL_FOLDERS = {"warp_cloth": "warp_cloth", "kernels": "warp_cloth/kernels", "s
 
 def test_wheel_contains_every_module_and_scene(tmp_path):
     # Built from a copy, so that setuptools' build/ and egg-info land there and not in the checkout.
+    had_build_folder = (REPO / "build").exists()
     source = tmp_path / "source"
+    source.mkdir()
     for name in ("pyproject.toml", "README.md"):
-        source.mkdir(exist_ok=True)
         shutil.copy(REPO / name, source / name)
     for folder in WHEEL_FOLDERS:
         shutil.copytree(REPO / folder, source / folder, ignore=shutil.ignore_patterns("__pycache__"))
@@ -87,3 +88,4 @@ def test_wheel_contains_every_module_and_scene(tmp_path):
     expected |= {f"warp_cloth/scenes/{scene}.toml" for scene in wc.builtin_scene_names()}
     assert "warp_cloth/writers/usd.py" in expected and "warp_cloth/kernels/springs.py" in expected
     assert expected - names == set()
+    assert (REPO / "build").exists() == had_build_folder
