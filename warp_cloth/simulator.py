@@ -21,6 +21,7 @@ from .scene import Scene
 from .implicit import BackwardEuler, SolveStats
 from .stages import ParticleCollision, RigidCollision, Stage, build_stages
 from .state import DeviceState
+from .warp_init import init_warp
 
 # Rough upper bounds per particle, to refuse a scene before allocating: host arrays while building
 # (float64 grids, spring lists, sorting) and device arrays (state, springs and their adjacency).
@@ -54,7 +55,7 @@ class RunSummary:
 
 
 def resolve_device(device: str | None) -> wp.context.Device:
-    wp.init()
+    init_warp()
     name = device or ("cuda" if wp.is_cuda_available() else "cpu")
     if name.startswith("cuda") and not wp.is_cuda_available():
         raise SceneError("device", "'cpu' (no CUDA device is available here)", name)
