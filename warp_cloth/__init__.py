@@ -7,17 +7,44 @@
     print(sim.positions()[:3])
 """
 
-from .errors import SceneError
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING
+
+from .errors import SceneError, UnstableSimulation
 from .scene import (Box, Cloth, Collision, Ground, ImplicitSolver, Limit, Oscillation, Output, Pin, Scene,
                     Simulation, Sphere, SpringKind)
-from .scene_file import builtin_scene_names, load_scene, scene_from_dict
-from .simulator import RunSummary, Simulator
-from .writers import PolyWriter, UsdWriter
+
+if TYPE_CHECKING:
+    from .scene_file import builtin_scene_names, load_scene, scene_from_dict
+    from .simulator import RunSummary, Simulator
+    from .writers import PolyWriter, UsdWriter
+
+# Imported at first use: they load numpy, Warp and USD (seconds on a first run), which the command line
+# does only once it can answer Ctrl-C with one line instead of a traceback.
+_IMPORTED_AT_FIRST_USE = {
+    "builtin_scene_names": "scene_file", "load_scene": "scene_file", "scene_from_dict": "scene_file",
+    "RunSummary": "simulator", "Simulator": "simulator", "PolyWriter": "writers", "UsdWriter": "writers",
+}
 
 __version__ = "0.1.0"
 
 __all__ = [
     "Box", "Cloth", "Collision", "Ground", "ImplicitSolver", "Limit", "Oscillation", "Output", "Pin", "PolyWriter",
-    "RunSummary", "Scene", "SceneError", "Simulation", "Simulator", "Sphere", "SpringKind", "UsdWriter",
-    "builtin_scene_names", "load_scene", "scene_from_dict",
+    "RunSummary", "Scene", "SceneError", "Simulation", "Simulator", "Sphere", "SpringKind", "UnstableSimulation",
+    "UsdWriter", "builtin_scene_names", "load_scene", "scene_from_dict",
 ]
+
+
+def __getattr__(name: str) -> object:
+    module = _IMPORTED_AT_FIRST_USE.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

@@ -26,9 +26,10 @@ import warp as wp
 from .progress import Progress
 from .scene import Cloth, Collision, Ground, Limit, Oscillation, Pin, Scene, Simulation, Sphere, SpringKind
 from .scene_file import load_scene
-from .errors import UnstableSimulation
+from .cli import EXIT_BAD_INPUT
+from .errors import SceneError, UnstableSimulation
 from .newton_compare import SPHERE_CENTER, SPHERE_RADIUS, SWING_DEGREES, max_edge_strain, swung_origin
-from .simulator import Simulator
+from .simulator import Simulator, resolve_device
 from .stages import ParticleCollision
 from .writers import PolyWriter, UsdWriter
 
@@ -400,7 +401,12 @@ def main(argv: list[str] | None = None) -> int:
                         help="with the matrix suite, run the same cloths in Newton's solvers (the 'bench' extra)")
     args = parser.parse_args(argv)
     wp.config.log_level = wp.LOG_ERROR
-    wp.init()
+    try:
+        resolve_device(args.device)
+    except SceneError as exc:
+        print(f"warp-cloth bench: error: {SceneError('--device', exc.expected, exc.got, 'command line')}",
+              file=sys.stderr)
+        return EXIT_BAD_INPUT
     device = args.device or ("cuda" if wp.is_cuda_available() else "cpu")
     cases = SUITES[args.suite](device)
     bar = Progress(len(cases), f"bench {args.suite} on {device}")

@@ -4,16 +4,17 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import os
 import sys
 from pathlib import Path
 
 from .errors import SceneError, UnstableSimulation
 from .scene import INTEGRATORS, Scene
-from .scene_file import builtin_scene_names, load_scene
 
 EXIT_BAD_INPUT = 2
 EXIT_UNSTABLE = 3
 EXIT_INTERRUPTED = 130
+EXIT_BROKEN_PIPE = 141  # 128 + SIGPIPE, what a shell reports for a command stopped by a closed pipe
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -72,6 +73,8 @@ def _with_overrides(scene: Scene, args: argparse.Namespace) -> Scene:
 
 
 def _cmd_scenes() -> int:
+    from .scene_file import builtin_scene_names, load_scene
+
     names = builtin_scene_names()
     width = max(len(n) for n in names)
     for name in names:
@@ -83,10 +86,15 @@ def _cmd_run(args: argparse.Namespace) -> int:
     import warp as wp
 
     wp.config.log_level = wp.LOG_ERROR
-    from .simulator import Simulator
+    from .scene_file import load_scene
+    from .simulator import Simulator, resolve_device
     from .writers import PolyWriter, UsdWriter
 
     scene = _with_overrides(load_scene(args.scene), args)
+    try:
+        resolve_device(args.device)
+    except SceneError as exc:
+        raise SceneError("--device", exc.expected, exc.got, source="command line") from None
     sim = Simulator(scene, device=args.device, graph=not args.no_graph)
     out = Path(scene.output.dir)
     writers = []
@@ -119,6 +127,22 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """The ``warp-cloth`` command. Ctrl-C before a run can stop cleanly (while Warp loads and compiles)
+    and a reader that closes the pipe (``warp-cloth scenes | head -1``) end it without a traceback."""
+    try:
+        code = _main(argv)
+        sys.stdout.flush()  # so that a closed pipe shows here rather than at exit
+        return code
+    except KeyboardInterrupt:
+        print("warp-cloth: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except BrokenPipeError:
+        # Python flushes stdout once more at exit: leave it nothing to fail on.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return EXIT_BROKEN_PIPE
+
+
+def _main(argv: list[str] | None) -> int:
     args, rest = _parser().parse_known_args(argv)
     if args.command == "bench":
         from .bench import main as bench_main
