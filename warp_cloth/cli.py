@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import os
 import sys
 from pathlib import Path
 
 from .errors import SceneError, UnstableSimulation
+from .progress import SlowStepNotice
 from .scene import INTEGRATORS, Scene
 
 EXIT_BAD_INPUT = 2
@@ -95,7 +97,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
         resolve_device(args.device)
     except SceneError as exc:
         raise SceneError("--device", exc.expected, exc.got, source="command line") from None
-    sim = Simulator(scene, device=args.device, graph=not args.no_graph)
+    # Building the stages compiles some kernels, prepare() the others: seconds of silence on a first run.
+    with SlowStepNotice("compiling kernels") if not args.quiet else contextlib.nullcontext():
+        sim = Simulator(scene, device=args.device, graph=not args.no_graph)
+        sim.prepare()
     out = Path(scene.output.dir)
     writers = []
     if scene.output.usd:

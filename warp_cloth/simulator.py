@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import threading
@@ -16,7 +17,7 @@ from warp_cloth.kernels import guard
 
 from .errors import SceneError, UnstableSimulation
 from .model import Model, build_model
-from .progress import Progress
+from .progress import Progress, SlowStepNotice
 from .scene import Scene
 from .implicit import BackwardEuler, SolveStats
 from .stages import ParticleCollision, RigidCollision, Stage, build_stages
@@ -260,6 +261,15 @@ class Simulator:
                       f"(--integrator implicit); frames up to {frame - 1} are valid.")
         raise UnstableSimulation(frame, first + 1, reason, advice)
 
+    def prepare(self) -> None:
+        """Compile and load the kernels of a frame now (Warp builds a kernel module at its first launch:
+        seconds on a first run, a load from its cache after). ``run`` calls it before its clock starts, so
+        that its wall time and progress count simulation only."""
+        parity = self.state.parity
+        with wp.ScopedCapture(device=self.device):  # records the frame's launches, runs none of them
+            self._frame_substeps(self.frame % 2)
+        self.state.parity = parity
+
     def run(self, frames: int | None = None, writers: Iterable[FrameWriter] = (), progress: bool = False) -> RunSummary:
         """Simulate ``frames`` frames (default: the scene's), handing every frame to the writers.
 
@@ -271,6 +281,8 @@ class Simulator:
         """
         frames = self.scene.simulation.frames if frames is None else frames
         writers = list(writers)
+        with SlowStepNotice("compiling kernels") if progress else contextlib.nullcontext():
+            self.prepare()
         bar = Progress(frames, f"{self.scene.name} on {self.device.alias}") if progress else None
         for w in writers:
             w.begin(self)

@@ -1,0 +1,147 @@
+"""A first run: Warp compiles the kernels before the frames are timed and says so on a terminal, and its
+no-CUDA-driver warning does not reach the user."""
+
+import io
+import os
+import pty
+import subprocess
+import sys
+import time
+import types
+
+import numpy as np
+import pytest
+
+import warp_cloth as wc
+import warp_cloth.progress
+import warp_cloth.simulator
+from conftest import REPO, run_cli, with_simulation
+
+# Prints Warp's own line for every kernel module it loads (from its cache or compiled), and a marker
+# between prepare() and the frames of run().
+MODULE_LOADS_AFTER_PREPARE = """
+import sys
+import warp as wp
+import warp_cloth as wc
+from conftest import with_simulation
+wp.config.log_level = wp.LOG_INFO
+wp.config.quiet = False
+scene = wc.load_scene(sys.argv[1])
+if sys.argv[2] != "-":
+    scene = with_simulation(scene, integrator=sys.argv[2])
+sim = wc.Simulator(scene, device="cpu", graph=sys.argv[3] == "graph")
+sim.prepare()
+print("prepared", flush=True)
+sim.run(2)
+"""
+
+
+@pytest.mark.parametrize("scene, integrator, graph", [("hanging", "-", "graph"), ("hanging", "-", "no-graph"),
+                                                      ("hanging", "implicit", "graph"), ("pile", "-", "graph")])
+def test_prepare_loads_every_kernel_module_a_frame_launches(tmp_path, scene, integrator, graph):
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(REPO), str(REPO / "tests")]))
+    result = subprocess.run([sys.executable, "-c", MODULE_LOADS_AFTER_PREPARE, scene, integrator, graph],
+                            cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr
+    before, marker, after = result.stdout.partition("prepared\n")
+    assert marker and "load on device 'cpu'" in before
+    assert "load on device" not in after, after
+
+
+@pytest.mark.parametrize("scene, integrator, graph", [("pile", None, True), ("pile", None, False),
+                                                      ("hanging", "implicit", True)])
+def test_prepare_changes_no_result(scene, integrator, graph):
+    loaded = wc.load_scene(scene)
+    loaded = with_simulation(loaded, integrator=integrator) if integrator else loaded
+    prepared, plain = (wc.Simulator(loaded, device="cpu", graph=graph) for _ in range(2))
+    for frame in range(3):
+        prepared.prepare()
+        prepared.step()
+        plain.step()
+    np.testing.assert_array_equal(prepared.positions(), plain.positions())
+    np.testing.assert_array_equal(prepared.velocities(), plain.velocities())
+
+
+class FakeClock:
+    def __init__(self) -> None:
+        self.now = 0.0
+
+    def perf_counter(self) -> float:
+        self.now += 0.001
+        return self.now
+
+
+class FakeTerminal(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+def test_run_keeps_compiling_out_of_its_wall_time_and_eta(monkeypatch):
+    """Preparing takes 100 s on a fake clock: neither the summary's wall time nor the bar's rate shows it."""
+    clock = FakeClock()
+    fake_time = types.SimpleNamespace(perf_counter=clock.perf_counter)
+    monkeypatch.setattr(warp_cloth.simulator, "time", fake_time)
+    monkeypatch.setattr(warp_cloth.progress, "time", fake_time)
+    terminal = FakeTerminal()
+    monkeypatch.setattr(sys, "stderr", terminal)
+    sim = wc.Simulator(wc.load_scene("hanging"), device="cpu")
+    real_prepare = sim.prepare
+    prepared = []
+
+    def slow_prepare() -> None:
+        real_prepare()
+        clock.now += 100.0
+        prepared.append(clock.now)
+
+    monkeypatch.setattr(sim, "prepare", slow_prepare)
+    summary = sim.run(3, progress=True)
+    assert prepared and summary.frames == 3
+    assert summary.wall_seconds < 1.0
+    rate = float(terminal.getvalue().rsplit("3/3", 1)[1].split("/s")[0])
+    assert rate > 3 / 1.0
+
+
+def test_slow_step_notice_says_what_and_how_long_on_a_terminal_only():
+    terminal = FakeTerminal()
+    with warp_cloth.progress.SlowStepNotice("compiling kernels", after=0.01, stream=terminal):
+        time.sleep(0.3)
+    assert terminal.getvalue().startswith("compiling kernels ... ") and terminal.getvalue().endswith(" s\n")
+    quick = FakeTerminal()
+    with warp_cloth.progress.SlowStepNotice("compiling kernels", after=5.0, stream=quick):
+        pass
+    piped = io.StringIO()
+    with warp_cloth.progress.SlowStepNotice("compiling kernels", after=0.01, stream=piped):
+        time.sleep(0.3)
+    assert quick.getvalue() == "" and piped.getvalue() == ""
+
+
+def test_first_run_on_a_terminal_says_kernels_are_compiling(tmp_path):
+    """An empty kernel cache, as on a user's first run: the terminal shows the compile, then the run."""
+    env = dict(os.environ, WARP_CACHE_PATH=str(tmp_path / "kernel-cache"), PYTHONUNBUFFERED="1")
+    reader, terminal = pty.openpty()
+    with open(reader, "rb", buffering=0) as screen:
+        process = subprocess.Popen([sys.executable, "-m", "warp_cloth", "run", "hanging", "--frames", "2",
+                                    "--device", "cpu", "--no-poly"], cwd=tmp_path, env=env,
+                                   stdout=subprocess.PIPE, stderr=terminal, text=True)
+        os.close(terminal)
+        shown = b""
+        while chunk := _read_until_closed(screen):
+            shown += chunk
+        stdout = process.communicate(timeout=300)[0]
+    assert process.returncode == 0
+    text = shown.decode()
+    assert text.startswith("compiling kernels ... "), text
+    assert "CUDA" not in text and "Traceback" not in text
+    assert stdout.startswith("hanging: 2 frames")
+
+
+def _read_until_closed(screen) -> bytes:
+    try:
+        return screen.read(4096)
+    except OSError:  # the pty reports the other side's close as EIO
+        return b""
+
+
+def test_a_cpu_run_shows_no_cuda_driver_warning(tmp_path):
+    result = run_cli("run", "hanging", "--frames", "1", "--device", "cpu", "--no-poly", cwd=tmp_path)
+    assert result.returncode == 0 and result.stderr == "", result.stderr
