@@ -42,7 +42,9 @@ def _parser() -> argparse.ArgumentParser:
     poly = run.add_mutually_exclusive_group()
     poly.add_argument("--poly", metavar="DIR", help="folder for .poly files (default: OUT/SCENE/poly)")
     poly.add_argument("--no-poly", action="store_true", help="write no .poly files")
-    run.add_argument("--no-graph", action="store_true", help="do not capture frames as CUDA graphs")
+    run.add_argument("--no-graph", action="store_true",
+                     help="launch a frame's kernels one by one instead of replaying the frame as a captured graph "
+                          "(a CUDA graph on a GPU, a Warp CPU graph on the CPU): slower, for debugging")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
     run.add_argument("--check", action="store_true",
                      help="print, after every frame, the intersecting triangle pairs and the closest contact")
