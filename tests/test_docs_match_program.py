@@ -1,0 +1,72 @@
+"""The README, the docs and the help say what the program does: every link resolves inside the repository,
+the lists of scenes and integrators are the program's, and each option and suite is explained."""
+
+import re
+from pathlib import Path
+
+import pytest
+
+import warp_cloth as wc
+from conftest import REPO, run_cli
+from warp_cloth.bench import SUITES
+from warp_cloth.scene import INTEGRATORS
+
+DOCS = [REPO / "README.md", *sorted((REPO / "docs").glob("*.md")), *sorted((REPO / "tools").glob("*.md"))]
+MARKDOWN_LINK = re.compile(r"!?\[[^\]]*\]\(([^)\s]+)[^)]*\)")
+CODE_SPAN_UP = re.compile(r"`(\.\./[^`\s]+)`")  # a path written relative to the file, leaving its folder
+
+
+def _readme_paragraph(starting: str) -> str:
+    text = (REPO / "README.md").read_text()
+    start = text.index(starting)
+    return text[start:text.index("\n\n", start)]
+
+
+@pytest.mark.parametrize("doc", DOCS, ids=lambda path: str(path.relative_to(REPO)))
+def test_every_relative_link_resolves_to_a_file_in_the_repository(doc: Path):
+    text = doc.read_text()
+    targets = [t for t in MARKDOWN_LINK.findall(text) if not re.match(r"[a-z]+:|#", t)] + CODE_SPAN_UP.findall(text)
+    for target in targets:
+        path = (doc.parent / target.split("#")[0]).resolve()
+        assert path.is_relative_to(REPO) and path.exists(), f"{doc.name}: {target}"
+
+
+def test_readme_lists_every_builtin_scene():
+    named = re.findall(r"`(\w+)`\s+\(", _readme_paragraph("Built-in scenes:"))
+    assert sorted(named) == wc.builtin_scene_names()
+
+
+def test_readme_integrator_lists_are_the_programs():
+    readme = (REPO / "README.md").read_text()
+    options = re.findall(r"--integrator ([a-z|]+)`", readme)
+    assert options and all(option.split("|") == list(INTEGRATORS) for option in options)
+    comment = re.search(r'^integrator = "\w+" +# (.*)$', readme, re.M).group(1)
+    assert [part.split("(")[0].strip() for part in comment.split("|")] == list(INTEGRATORS)
+
+
+def test_readme_says_what_the_seed_is_where_it_first_names_it():
+    text = (REPO / "README.md").read_text()
+    first = re.search(r"\bseed\b", text, re.I).start()
+    paragraph = text[text.rindex("\n\n", 0, first):text.index("\n\n", first)]
+    assert "C++ course project" in paragraph and "(https://github.com/loshjawrence/ClothSim)" in paragraph
+
+
+def test_no_graph_help_says_what_it_does_on_the_cpu_and_a_gpu(tmp_path):
+    result = run_cli("run", "--help", cwd=tmp_path)
+    help_text = " ".join(result.stdout.split("--no-graph", 2)[2].split("--quiet")[0].split())
+    assert "on a GPU" in help_text and "on the CPU" in help_text
+
+
+def test_bench_help_explains_every_suite(tmp_path):
+    result = run_cli("bench", "--help", cwd=tmp_path)
+    assert result.returncode == 0
+    for name, suite in SUITES.items():
+        explained = re.search(rf"^  {name} +(.*(?:\n {{15}}.*)*)", result.stdout, re.M)
+        assert explained and " ".join(explained.group(1).split()) == suite.measures
+
+
+def test_every_public_name_is_exported_unstable_simulation_among_them():
+    from warp_cloth.errors import UnstableSimulation
+
+    assert wc.UnstableSimulation is UnstableSimulation and "UnstableSimulation" in wc.__all__
+    assert all(getattr(wc, name) is not None for name in wc.__all__)
