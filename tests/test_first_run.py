@@ -145,3 +145,20 @@ def _read_until_closed(screen) -> bytes:
 def test_a_cpu_run_shows_no_cuda_driver_warning(tmp_path):
     result = run_cli("run", "hanging", "--frames", "1", "--device", "cpu", "--no-poly", cwd=tmp_path)
     assert result.returncode == 0 and result.stderr == "", result.stderr
+
+
+def test_warp_start_passes_on_everything_but_the_no_driver_warning(tmp_path):
+    script = """
+import os
+import warp as wp
+from warp_cloth import warp_init
+def init_that_writes_to_stderr():
+    os.write(2, warp_init.NO_CUDA_DRIVER_WARNING + b" GPU execution will not be available.\\n")
+    os.write(2, b"Warp: something else worth saying\\n")
+wp.init = init_that_writes_to_stderr
+warp_init.init_warp()
+"""
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    result = subprocess.run([sys.executable, "-c", script], cwd=tmp_path, env=env, capture_output=True, text=True,
+                            timeout=120)
+    assert result.returncode == 0 and result.stderr == "Warp: something else worth saying\n"

@@ -27,12 +27,12 @@ def init_warp() -> None:
         os.dup2(captured.fileno(), 2)
         try:
             wp.init()
-        finally:
+        finally:  # also where wp.init() fails: what it said about why is passed on
             sys.stderr.flush()
             os.dup2(saved, 2)
             os.close(saved)
-        captured.seek(0)
-        passed_on = b"".join(line for line in captured if not line.startswith(NO_CUDA_DRIVER_WARNING))
-    if passed_on:
-        os.write(2, passed_on)
+            captured.seek(0)
+            passed_on = b"".join(line for line in captured if not line.startswith(NO_CUDA_DRIVER_WARNING))
+            if passed_on:
+                os.write(2, passed_on)
     _started = True
