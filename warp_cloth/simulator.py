@@ -219,15 +219,7 @@ class Simulator:
         if not self.use_graph:
             self._frame_substeps(slot)
         else:
-            key = (self.state.parity, slot)
-            entry = self._graphs.get(key)
-            if entry is None:
-                before = self.state.parity
-                with wp.ScopedCapture(device=self.device) as capture:
-                    self._frame_substeps(slot)
-                entry = self._graphs[key] = (capture.graph, self.state.parity)
-                self.state.parity = before
-            graph, parity_after = entry
+            graph, parity_after = self._frame_graph(slot)
             wp.capture_launch(graph)
             self.state.parity = parity_after
         if self.device.is_cuda:
@@ -235,6 +227,18 @@ class Simulator:
         self.substep_count += self.substeps_per_frame
         self.frame += 1
         return self.frame
+
+    def _frame_graph(self, slot: int) -> tuple[wp.Graph, int]:
+        """The graph of a frame that starts at the current buffer parity with guard slot ``slot`` (captured
+        at first use), and the parity it ends at."""
+        key = (self.state.parity, slot)
+        if key not in self._graphs:
+            before = self.state.parity
+            with wp.ScopedCapture(device=self.device) as capture:
+                self._frame_substeps(slot)
+            self._graphs[key] = (capture.graph, self.state.parity)
+            self.state.parity = before
+        return self._graphs[key]
 
     def _check_frame(self, frame: int) -> None:
         """Wait for frame ``frame``'s guard flags and raise ``UnstableSimulation`` if any is set."""
@@ -264,11 +268,19 @@ class Simulator:
     def prepare(self) -> None:
         """Compile and load the kernels of a frame now (Warp builds a kernel module at its first launch:
         seconds on a first run, a load from its cache after). ``run`` calls it before its clock starts, so
-        that its wall time and progress count simulation only."""
-        parity = self.state.parity
-        with wp.ScopedCapture(device=self.device):  # records the frame's launches, runs none of them
-            self._frame_substeps(self.frame % 2)
-        self.state.parity = parity
+        that its wall time and progress count simulation only.
+
+        With graphs it captures the next frame's graph; without, on the CPU, it records a frame's launches
+        and runs none of them. Without graphs on a GPU, where capture may be what the user avoids, the
+        first frame compiles."""
+        slot = self.frame % 2
+        if self.use_graph:
+            self._frame_graph(slot)
+        elif self.device.is_cpu:
+            parity = self.state.parity
+            with wp.ScopedCapture(device=self.device):
+                self._frame_substeps(slot)
+            self.state.parity = parity
 
     def run(self, frames: int | None = None, writers: Iterable[FrameWriter] = (), progress: bool = False) -> RunSummary:
         """Simulate ``frames`` frames (default: the scene's), handing every frame to the writers.
