@@ -9,7 +9,7 @@ from pathlib import Path
 
 from .errors import SceneError, UnstableSimulation
 from .scene import INTEGRATORS, Scene
-from .scene_file import builtin_scene_names, load_scene
+from .scene_file import builtin_scene_names, load_scene, resolve_scene_path
 
 EXIT_BAD_INPUT = 2
 EXIT_UNSTABLE = 3
@@ -83,11 +83,18 @@ def _cmd_run(args: argparse.Namespace) -> int:
     import warp as wp
 
     wp.config.log_level = wp.LOG_ERROR
-    from .simulator import Simulator
+    from .simulator import Simulator, resolve_device
     from .writers import PolyWriter, UsdWriter
 
     scene = _with_overrides(load_scene(args.scene), args)
-    sim = Simulator(scene, device=args.device, graph=not args.no_graph)
+    try:
+        device = resolve_device(args.device)
+    except SceneError as exc:
+        raise SceneError("--device", exc.expected, exc.got, source="command line") from None
+    try:
+        sim = Simulator(scene, device=device.alias, graph=not args.no_graph)
+    except SceneError as exc:  # checks of the scene as a whole (overlaps, colliders, size): name its file
+        raise (exc.in_file(str(resolve_scene_path(args.scene))) if exc.source is None else exc) from None
     out = Path(scene.output.dir)
     writers = []
     if scene.output.usd:

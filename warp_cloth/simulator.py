@@ -29,6 +29,11 @@ DEVICE_BYTES_PER_PARTICLE = 320
 IMPLICIT_DEVICE_BYTES_PER_PARTICLE = 100  # CG vectors and the preconditioner's blocks
 COLLISION_DEVICE_BYTES_PER_PARTICLE = 320  # neighbour lists, spatial hash buckets, contact state
 
+# Passes over the particles in one frame (substeps x the passes of a substep). Ctrl-C stops a run only
+# between frames, and a captured frame holds every launch (about 0.4 kB and 50 us of capture each on the
+# CPU), so a frame past this is refused rather than left to hang.
+MAX_PASSES_PER_FRAME = 1_000_000
+
 
 class FrameWriter(Protocol):
     """Receives the state after every frame (frame 0 is the initial state)."""
@@ -83,6 +88,24 @@ def check_memory(scene: Scene, device: wp.context.Device) -> None:
                                       f"{need / 2**30:.1f} GiB, {free / 2**30:.1f} GiB is free", has_got=False)
 
 
+def check_work(scene: Scene, substeps: int) -> None:
+    """Refuse a frame that would take too long to end: substeps x passes a substep (the strain limit's or
+    the collision's iterations, whichever is more; the implicit solve's Newton x CG iterations at most)."""
+    sim = scene.simulation
+    factors = {"simulation.dt" if sim.dt is not None else "simulation.substeps": substeps}
+    iterations = {"simulation.limit_iterations": sim.limit_iterations if any(c.limit for c in scene.cloths) else 0,
+                  "collision.iterations": scene.collision.iterations if scene.collision is not None else 0}
+    if sim.integrator == "implicit":
+        iterations["implicit.cg_max_iterations"] = scene.implicit.newton_iterations * scene.implicit.cg_max_iterations
+    passes = 1 + max(iterations.values())
+    factors.update(iterations)
+    total = substeps * passes
+    if total > MAX_PASSES_PER_FRAME:
+        key = max(factors, key=factors.get)
+        raise SceneError(key, f"at most {MAX_PASSES_PER_FRAME:,} passes a frame, so that a frame ends: "
+                              f"{substeps} substeps x {passes} passes a substep is {total:,}", factors[key])
+
+
 class StopOnInterrupt:
     """Turns the first Ctrl-C into a request to stop after the frame in progress (a second one stops at
     once), so that writers are never cut off in the middle of a frame."""
@@ -125,6 +148,7 @@ class Simulator:
             raise ValueError(f"threads_per_particle must be None or a power of two up to 64 (1 on the CPU), "
                              f"got {threads_per_particle!r}")
         check_memory(scene, self.device)
+        check_work(scene, scene.simulation.substeps_per_frame)
         self.scene = scene
         self.model: Model = build_model(scene)
         self.state = DeviceState(self.model.positions, self.model.velocities, self.device)
@@ -143,6 +167,7 @@ class Simulator:
             self._guard_host = wp.zeros((2, self.substeps_per_frame), dtype=int, device="cpu", pinned=True)
             self._frame_done = [wp.Event(self.device), wp.Event(self.device)]
         self._refuse_initial_overlap()
+        self._refuse_start_inside_colliders()
 
     def _refuse_initial_overlap(self) -> None:
         """Cloths that start deep inside each other (or themselves) would be shot apart: refuse them."""
@@ -155,6 +180,31 @@ class Simulator:
                                       f"{ratio:.2f} of their contact distance apart (at least "
                                       f"{self.INITIAL_OVERLAP_LIMIT} needed); move the cloths apart or "
                                       "leave collision out", has_got=False)
+
+    def _refuse_start_inside_colliders(self) -> None:
+        """A particle that starts below the ground or inside a sphere would be thrown out: refuse it."""
+        x = self.model.positions.astype(np.float64)
+        scene = self.scene
+        found = []  # (depth, particle, collider)
+        if scene.ground is not None:
+            depth = scene.ground.height - x[:, 1]
+            tolerance = 1e-6 * max(1.0, abs(scene.ground.height))
+            found += [(depth[i], i, "the ground") for i in np.nonzero(depth > tolerance)[0][:1]]
+        if self.model.spheres is not None:
+            spheres = self.model.spheres
+            for s, sphere in enumerate(scene.spheres):
+                center, radius = spheres.initial_center[s].astype(np.float64), float(spheres.radius[s])
+                depth = radius - np.linalg.norm(x - center, axis=1)
+                tolerance = 1e-6 * max(1.0, radius + float(np.abs(center).max()))
+                found += [(depth[i], i, f"sphere[{s}] '{sphere.name}'") for i in np.nonzero(depth > tolerance)[0][:1]]
+        if not found:
+            return
+        depth, particle, collider = max(found)
+        c = int(self.model.cloth_id[particle])
+        raise SceneError(f"cloth[{c}]", f"a cloth that starts outside the colliders: particle "
+                                        f"{particle - self.model.offsets[c]} of '{scene.cloths[c].name}' starts "
+                                        f"{depth:.3g} m inside {collider}; move the cloth or the collider",
+                         has_got=False)
 
     @property
     def time(self) -> float:
