@@ -9,6 +9,7 @@ becomes a tuple, an int in a float field a float), so a scene built in Python ho
 from __future__ import annotations
 
 import dataclasses
+import functools
 import numbers
 import re
 import types
@@ -36,10 +37,15 @@ def toml_key(f: dataclasses.Field) -> str:
 
 def check_fields(obj: Any) -> None:
     """Check every field of dataclass ``obj`` against its type hint, storing the plain form of each value."""
-    hints = typing.get_type_hints(type(obj))
+    hints = _type_hints(type(obj))
     for f in dataclasses.fields(obj):
         value = _checked(getattr(obj, f.name), hints[f.name], toml_key(f))
         object.__setattr__(obj, f.name, value)
+
+
+@functools.cache
+def _type_hints(cls: type) -> dict[str, Any]:
+    return typing.get_type_hints(cls)
 
 
 def describe(hint: Any) -> str:
