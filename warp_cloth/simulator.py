@@ -148,13 +148,13 @@ class Simulator:
             raise ValueError(f"threads_per_particle must be None or a power of two up to 64 (1 on the CPU), "
                              f"got {threads_per_particle!r}")
         check_memory(scene, self.device)
-        check_work(scene, scene.simulation.substeps_per_frame)
         self.scene = scene
         self.model: Model = build_model(scene)
         self.state = DeviceState(self.model.positions, self.model.velocities, self.device)
         self.stages: list[Stage] = build_stages(self.model, self.device, threads_per_particle)
         self.substeps_per_frame = scene.simulation.substeps_per_frame
         self.dt = scene.simulation.step
+        check_work(scene, self.substeps_per_frame)
         self.frame = 0
         self.substep_count = 0
         self.use_graph = graph
