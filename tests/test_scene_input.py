@@ -328,15 +328,22 @@ TWO_CLOTHS = VALID.replace("[[cloth.pins]]\ncorners = [\"top-left\"]\n", "") + \
     '\n[collision]\n\n[[cloth]]\nname = "other"\nresolution = [3, 3]\nsize = [1.0, 1.0]\n'
 START_INSIDE = [
     (TWO_CLOTHS, "cloth: expected cloths that start apart"),
-    (VALID + '\n[[sphere]]\nname = "ball"\ncenter = [0.5, 0.5, 0.0]\nradius = 0.3\n',  # 0.3 - |(1/3, 1/3) - (1/2, 1/2)|
-     "cloth[0]: expected a cloth that starts outside the colliders: particle 5 of 'cloth' starts 0.0643 m inside "
-     "sphere[0] 'ball'"),
+    # 0.6 - |(1/3, 1/3) - (1/2, 1/2)| deep, past half of a 1/3 m cell
+    (VALID + '\n[[sphere]]\nname = "ball"\ncenter = [0.5, 0.5, 0.0]\nradius = 0.6\n',
+     "cloth[0]: expected a cloth that starts outside the static colliders: particle 5 of 'cloth' starts 0.364 m inside "
+     "sphere[0] 'ball' (at most 0.167 m, half a cell)"),
     (VALID + "\n[ground]\nheight = 0.5\n",
-     "cloth[0]: expected a cloth that starts outside the colliders: particle 0 of 'cloth' starts 0.5 m inside "
-     "the ground"),
+     "cloth[0]: expected a cloth that starts outside the static colliders: particle 0 of 'cloth' starts 0.5 m inside "
+     "the ground (at most 0.167 m, half a cell)"),
 ]
 
 
 @pytest.mark.parametrize("text, expected", START_INSIDE, ids=["overlap", "sphere", "ground"])
 def test_scenes_refused_at_start_up_name_the_file_and_the_colliders(tmp_path, text, expected):
     assert refused_in_one_line(tmp_path, text).startswith(expected)
+
+
+def test_a_cloth_touching_a_collider_less_than_half_a_cell_deep_starts():
+    scene = wc.scene_from_dict({"cloth": [{"resolution": [3, 3], "size": [1.0, 1.0]}], "ground": {"height": 0.15},
+                                "sphere": [{"center": [0.5, 0.5, 0.6], "radius": 0.75}]})
+    wc.Simulator(scene, device="cpu")  # 0.15 m below the ground, 0.105 m inside the sphere: contacts
