@@ -254,9 +254,10 @@ class Cloth:
         check_float32(heaviest, "the heaviest particle's mass", key, value)
         for kind in ("structural", "shear", "bend"):
             spring = getattr(self, kind)
-            _require(max(spring.stiffness, spring.damping) / lightest <= FLOAT32_MAX, f"{kind}.stiffness",
+            field = "damping" if spring.damping > spring.stiffness else "stiffness"
+            _require(getattr(spring, field) / lightest <= FLOAT32_MAX, f"{kind}.{field}",
                      f"stiffness and damping / the lightest particle's mass ({lightest:.3g} kg) at most "
-                     f"{FLOAT32_MAX:.3g} (float32)", spring.stiffness)
+                     f"{FLOAT32_MAX:.3g} (float32)", getattr(spring, field))
 
     def mass_range(self) -> tuple[float, float]:
         """The lightest and the heaviest particle's mass (kg): with ``density``, a corner has a quarter cell."""
