@@ -150,6 +150,8 @@ COLLIDING_NAMES = [
     (CLOTH.format("Cloth", 0) + CLOTH.format("cloth", 5), "cloth[1].name", "ignoring case"),
     (CLOTH.format("x" * 101, 0), "cloth[0].name", "at most 100"),
     (f'name = "{"x" * 101}"\n' + CLOTH.format("c", 0), "name", "at most 100"),
+    (CLOTH.format("nul", 0), "cloth[0].name", "nor a Windows device name"),
+    ('name = "CON"\n' + CLOTH.format("c", 0), "name", "nor a Windows device name"),
 ]
 
 
@@ -182,6 +184,8 @@ def test_a_file_without_a_name_is_named_after_its_stem_made_valid(tmp_path):
     assert wc.load_scene(path).name == "my_shot_v2"
     (tmp_path / f"{'x' * 150}.toml").write_text(VALID)
     assert wc.load_scene(tmp_path / f"{'x' * 150}.toml").name == "x" * 100
+    (tmp_path / "aux.toml").write_text(VALID)
+    assert wc.load_scene(tmp_path / "aux.toml").name == "aux_"
 
 
 VALID_BODY = VALID.replace("[[cloth]]", "[[cloth]]\nmass = 0.025")
@@ -319,10 +323,12 @@ def test_unreadable_scene_files_are_one_line(tmp_path, name, content, expected):
     assert refused_in_one_line(tmp_path, content) == f"expected {expected}"
 
 
-def test_a_directory_given_as_a_scene_is_called_a_directory(tmp_path):
+def test_a_directory_or_a_device_given_as_a_scene_is_called_what_it_is(tmp_path):
     (tmp_path / "shots").mkdir()
     code, _, err = run_cli_in_process("run", "shots", "--device", "cpu", cwd=tmp_path)
     assert code == 2 and err == "warp-cloth: error: shots: expected a scene file (this is a directory)\n"
+    code, _, err = run_cli_in_process("run", "/dev/null", "--device", "cpu", cwd=tmp_path)
+    assert code == 2 and err == "warp-cloth: error: /dev/null: expected a scene file (this is not a regular file)\n"
 
 
 TWO_CLOTHS = VALID.replace("[[cloth.pins]]\ncorners = [\"top-left\"]\n", "") + \

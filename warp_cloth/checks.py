@@ -28,6 +28,8 @@ INT32_MIN, INT32_MAX = -(2**31), 2**31 - 1
 MAX_NAME_LENGTH = 100
 _IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 _FILE_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_-]*")
+# Names Windows keeps for devices, with any extension (CON.0001.poly is the console there).
+_DEVICE_NAMES = {"con", "prn", "aux", "nul", *(f"com{k}" for k in range(1, 10)), *(f"lpt{k}" for k in range(1, 10))}
 
 
 def toml_key(f: dataclasses.Field) -> str:
@@ -123,22 +125,25 @@ def _checked_tuple(value: Any, hint: Any, key: str) -> tuple:
 
 def check_identifier(name: str, key: str) -> None:
     """A cloth's or sphere's name: its USD prim name and the start of its .poly file names, unchanged."""
-    if not (_IDENTIFIER.fullmatch(name) and len(name) <= MAX_NAME_LENGTH):
+    if not (_IDENTIFIER.fullmatch(name) and len(name) <= MAX_NAME_LENGTH) or name.casefold() in _DEVICE_NAMES:
         raise SceneError(key, f"a name of at most {MAX_NAME_LENGTH} ASCII letters, digits and '_', not starting "
-                              "with a digit (it is the USD prim name as written)", name)
+                              "with a digit (it is the USD prim name as written), nor a Windows device name "
+                              "(CON, NUL, COM1, ...)", name)
 
 
 def check_file_name(name: str, key: str) -> None:
     """A scene's name: the start of its output file names."""
-    if not (_FILE_NAME.fullmatch(name) and len(name) <= MAX_NAME_LENGTH):
+    if not (_FILE_NAME.fullmatch(name) and len(name) <= MAX_NAME_LENGTH) or name.casefold() in _DEVICE_NAMES:
         raise SceneError(key, f"a name of at most {MAX_NAME_LENGTH} ASCII letters, digits, '_' or '-', not "
-                              "starting with '-' (it names the output files)", name)
+                              "starting with '-', nor a Windows device name (CON, NUL, COM1, ...): it names the "
+                              "output files", name)
 
 
 def file_name_from(text: str) -> str:
     """A valid scene name made from ``text`` (a file's stem): other characters become '_'."""
     name = re.sub(r"[^A-Za-z0-9_-]", "_", text)[:MAX_NAME_LENGTH]
-    return "_" + name[1:] if name.startswith("-") else name or "scene"
+    name = "_" + name[1:] if name.startswith("-") else name or "scene"
+    return name + "_" if name.casefold() in _DEVICE_NAMES else name
 
 
 def check_float32(derived: float, what: str, key: str, got: object) -> None:

@@ -37,6 +37,8 @@ def resolve_scene_path(name_or_path: str | Path) -> Path:
     path = Path(text)
     if path.is_dir():
         raise SceneError("", "a scene file (this is a directory)", has_got=False, source=text)
+    if path.exists() and not path.is_file():
+        raise SceneError("", "a scene file (this is not a regular file)", has_got=False, source=text)
     if not path.is_file():
         known = ", ".join(builtin_scene_names())
         raise SceneError("", f"an existing scene file (no such file) or a built-in scene name ({known})",
