@@ -55,8 +55,6 @@ def describe(hint: Any) -> str:
     origin = get_origin(hint)
     if dataclasses.is_dataclass(hint):
         return f"a table of {hint.__name__} settings"
-    if origin in (typing.Union, types.UnionType):
-        return " or ".join(describe(a) for a in get_args(hint) if a is not type(None))
     if origin is Literal:
         return "one of " + ", ".join(repr(c) for c in get_args(hint))
     if origin is tuple:
