@@ -41,3 +41,17 @@ def run_cli(*args: str, cwd: Path, timeout: float = 300) -> subprocess.Completed
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     return subprocess.run([sys.executable, "-m", "warp_cloth", *args], cwd=cwd, env=env, capture_output=True,
                           text=True, timeout=timeout)
+
+
+def run_cli_in_process(*args: str, cwd: Path) -> tuple[int, str, str]:
+    """``warp-cloth ARGS`` in this process, run in ``cwd``: (exit code, stdout, stderr). A subprocess costs
+    seconds of imports; this costs none, for tests that only need the command's answer."""
+    import contextlib
+    import io
+
+    from warp_cloth import cli
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.chdir(cwd), contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = cli.main(list(args))
+    return code, out.getvalue(), err.getvalue()

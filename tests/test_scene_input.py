@@ -1,11 +1,19 @@
 """Scene files: built-ins load; bad input is one clear message (file, key path, expectation), exit
 code 2, no traceback and nothing written."""
 
+import dataclasses
+import math
+import os
+import typing
+
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import warp_cloth as wc
-from conftest import run_cli
-from warp_cloth import simulator
+from conftest import run_cli, run_cli_in_process
+from warp_cloth import bench, scene as scene_module, simulator
+from warp_cloth.writers.usd import prim_name
 
 VALID = """
 [simulation]
@@ -84,10 +92,11 @@ def test_bad_scene_is_one_clear_error_with_exit_code_2_and_no_output(tmp_path, t
     assert message.startswith(str(path))
     assert f": {key}: " in message if key else True
     assert expected in message
-    result = run_cli("run", str(path), "--out", str(tmp_path / "out"), cwd=tmp_path)
-    assert result.returncode == 2
-    assert "Traceback" not in result.stderr
-    assert result.stderr.strip() == f"warp-cloth: error: {message}"
+    # In this process: tests/test_scene_fuzz.py shows the real entry point answers the same way.
+    code, out, err = run_cli_in_process("run", str(path), "--out", str(tmp_path / "out"), cwd=tmp_path)
+    assert code == 2 and out == ""
+    assert "Traceback" not in err
+    assert err.strip() == f"warp-cloth: error: {message}"
     assert not (tmp_path / "out").exists()
 
 
@@ -115,3 +124,239 @@ def test_scene_built_in_python_is_checked_by_the_same_rules():
         wc.SpringKind(stiffness=0.0)
     with pytest.raises(wc.SceneError, match="cloth: expected at least one"):
         wc.Scene(cloths=())
+
+
+def refused_in_one_line(tmp_path, text: str | bytes, name: str = "bad.toml") -> str:
+    """Run a scene file through ``warp-cloth run`` (in this process): exit code 2, one line on stderr naming
+    the file, nothing written. Returns the message after the file's name."""
+    path = tmp_path / name
+    path.write_bytes(text if isinstance(text, bytes) else text.encode())
+    before = set(os.listdir(tmp_path))
+    code, out, err = run_cli_in_process("run", str(path), "--device", "cpu", "--frames", "1", "--quiet", cwd=tmp_path)
+    assert code == 2 and out == "" and "Traceback" not in err, err
+    assert len(err.splitlines()) == 1 and err.startswith(f"warp-cloth: error: {path}: "), err
+    assert set(os.listdir(tmp_path)) == before
+    return err.strip()[len(f"warp-cloth: error: {path}: "):]
+
+
+CLOTH = '[[cloth]]\nname = "{}"\nresolution = [3, 3]\nsize = [1.0, 1.0]\norigin = [{}, 0.0, 0.0]\n'
+SPHERE = '[[sphere]]\nname = "{}"\ncenter = [0.0, 10.0, 0.0]\n'
+COLLIDING_NAMES = [
+    # (file, the key named, words of the expectation)
+    (CLOTH.format("a-b", 0) + CLOTH.format("a_b", 5), "cloth[0].name", "ASCII letters, digits and '_'"),
+    (CLOTH.format("\u00e9", 0) + CLOTH.format("\u00fc", 5), "cloth[0].name", "ASCII letters, digits and '_'"),
+    ("[ground]\nheight = -1.0\n" + CLOTH.format("ground", 0), "cloth[0].name", "nor the ground"),
+    (CLOTH.format("ball", 0) + SPHERE.format("ball"), "sphere[0].name", "cloth[0] has it"),
+    (CLOTH.format("Cloth", 0) + CLOTH.format("cloth", 5), "cloth[1].name", "ignoring case"),
+    (CLOTH.format("x" * 101, 0), "cloth[0].name", "at most 100"),
+    (f'name = "{"x" * 101}"\n' + CLOTH.format("c", 0), "name", "at most 100"),
+    (CLOTH.format("nul", 0), "cloth[0].name", "nor a Windows device name"),
+    ('name = "CON"\n' + CLOTH.format("c", 0), "name", "nor a Windows device name"),
+]
+
+
+@pytest.mark.parametrize("text, key, expected", COLLIDING_NAMES, ids=[c[1] + str(k) for k, c in enumerate(COLLIDING_NAMES)])
+def test_names_that_would_collide_as_usd_prims_or_files_are_refused(tmp_path, text, key, expected):
+    message = refused_in_one_line(tmp_path, text)
+    assert message.startswith(f"{key}: expected ") and expected in message
+
+
+def test_names_collide_the_same_way_in_python():
+    with pytest.raises(wc.SceneError, match=r"sphere\[0\]\.name: .*cloth\[0\] has it"):
+        wc.Scene(cloths=(wc.Cloth(name="ball"),), spheres=(wc.Sphere(name="ball"),))
+    with pytest.raises(wc.SceneError, match="name: .*ASCII"):
+        wc.Cloth(name="a-b")
+
+
+@settings(max_examples=200, deadline=None, derandomize=True, database=None)
+@given(st.text(max_size=8))
+def test_an_accepted_cloth_or_sphere_name_is_its_usd_prim_name(name):
+    try:
+        wc.Sphere(name=name)
+    except wc.SceneError:
+        return
+    assert prim_name(name) == name
+
+
+def test_a_file_without_a_name_is_named_after_its_stem_made_valid(tmp_path):
+    path = tmp_path / "my.shot.v2.toml"
+    path.write_text(VALID)
+    assert wc.load_scene(path).name == "my_shot_v2"
+    (tmp_path / f"{'x' * 150}.toml").write_text(VALID)
+    assert wc.load_scene(tmp_path / f"{'x' * 150}.toml").name == "x" * 100
+    (tmp_path / "aux.toml").write_text(VALID)
+    assert wc.load_scene(tmp_path / "aux.toml").name == "aux_"
+
+
+VALID_BODY = VALID.replace("[[cloth]]", "[[cloth]]\nmass = 0.025")
+NOT_FINITE_IN_FLOAT32 = [
+    # (change to VALID, key, words of the expectation, the same scene built in Python)
+    (("size = [1.0, 1.0]", "size = [1.0, 1.0]\norigin = [1e39, 0.0, 0.0]"), "cloth[0].origin[0]", "float32",
+     lambda: wc.Cloth(origin=(1e39, 0.0, 0.0))),
+    (("size = [1.0, 1.0]", "size = [1.0, 1.0]\norigin = [nan, 0.0, 0.0]"), "cloth[0].origin[0]", "finite",
+     lambda: wc.Cloth(origin=(math.nan, 0.0, 0.0))),
+    (("mass = 0.025", "mass = 1e46"), "cloth[0].mass", "float32", lambda: wc.Cloth(mass=1e46)),
+    (("mass = 0.025", "mass = 1e-39"), "cloth[0].mass", "the lightest particle's mass a finite, normal float32",
+     lambda: wc.Cloth(mass=1e-39)),
+    (("mass = 0.025", "density = 1e-38"), "cloth[0].density", "the lightest particle's mass a finite, normal",
+     lambda: wc.Cloth(resolution=(3, 3), size=(1.0, 1.0), density=1e-38)),
+    (("size = [1.0, 1.0]", "size = [1.0, 1.0]\nstructural = { stiffness = 1e38 }"), "cloth[0].structural.stiffness",
+     "/ the lightest particle's mass", lambda: wc.Cloth(mass=0.025, structural=wc.SpringKind(stiffness=1e38))),
+    (("size = [1.0, 1.0]", "size = [1.0, 1.0]\nseed = -1"), "cloth[0].seed", ">= 0", lambda: wc.Cloth(seed=-1)),
+    (("resolution = [3, 3]", "resolution = [2147483648, 3]"), "cloth[0].resolution[0]", "int32",
+     lambda: wc.Cloth(resolution=(2**31, 3))),
+    (("resolution = [3, 3]", "resolution = [3.5, 3]"), "cloth[0].resolution[0]", "a whole number",
+     lambda: wc.Cloth(resolution=(3.5, 3))),
+    (("size = [1.0, 1.0]", 'size = [1.0, 1.0]\norientation = "diagonal"'), "cloth[0].orientation", "one of",
+     lambda: wc.Cloth(orientation="diagonal")),
+    (("size = [1.0, 1.0]", "size = [1.0, 1.0]\norigin = [0.0, 1e6, 0.0]"), "cloth[0].origin",
+     "of the world origin", lambda: wc.Cloth(size=(1.0, 1.0), resolution=(3, 3), origin=(0.0, 1e6, 0.0))),
+    (('corners = ["top-left"]', "indices = [4294967296]"), "cloth[0].pins[0].indices[0]", "int32",
+     lambda: wc.Pin(indices=(2**32,))),
+]
+
+
+@pytest.mark.parametrize("change, key, expected, in_python", NOT_FINITE_IN_FLOAT32,
+                         ids=[f"{c[1]}-{k}" for k, c in enumerate(NOT_FINITE_IN_FLOAT32)])
+def test_values_the_device_cannot_hold_are_refused_alike_from_a_file_and_from_python(tmp_path, change, key,
+                                                                                     expected, in_python):
+    message = refused_in_one_line(tmp_path, VALID_BODY.replace(*change))
+    assert message.startswith(f"{key}: expected ") and expected in message
+    with pytest.raises(wc.SceneError) as info:
+        in_python()
+    # The same check, the same words: only the key's path differs (a file names the table it is in).
+    assert message.endswith(str(info.value)) and key.endswith(info.value.key)
+
+
+def test_weight_past_float32_is_refused():
+    heavy = wc.Cloth(mass=3e37)
+    with pytest.raises(wc.SceneError, match=r"cloth\[0\]\.mass: expected a mass whose weight"):
+        wc.Scene(cloths=(heavy,), simulation=wc.Simulation(gravity=(0.0, -20.0, 0.0)))
+
+
+def _valid_instances() -> dict[type, object]:
+    pin = wc.Pin(indices=(0,), corners=("top-left",), motion=wc.Oscillation())
+    cloth = wc.Cloth(pins=(pin,), limit=wc.Limit())
+    return {wc.Oscillation: wc.Oscillation(), wc.SpringKind: wc.SpringKind(), wc.Limit: wc.Limit(),
+            wc.Box: wc.Box((0.0, 0.0, 0.0), (1.0, 1.0, 1.0)), wc.Pin: pin, wc.Cloth: cloth, wc.Ground: wc.Ground(),
+            wc.Sphere: wc.Sphere(), wc.Collision: wc.Collision(radius=0.1), wc.ImplicitSolver: wc.ImplicitSolver(),
+            wc.Simulation: wc.Simulation(dt=0.001), wc.Output: wc.Output(),
+            wc.Scene: wc.Scene(cloths=(cloth,), ground=wc.Ground(height=-1.0))}
+
+
+def _number_fields(instance) -> list[tuple[str, type, int | None]]:
+    """(field, float or int, component index or None) for every number an instance holds."""
+    found = []
+    for f in dataclasses.fields(instance):
+        hint = typing.get_type_hints(type(instance))[f.name]
+        args = [a for a in typing.get_args(hint) if a is not type(None)] if typing.get_origin(hint) is not tuple \
+            else [hint]
+        hint = args[0] if args else hint
+        if hint in (int, float):
+            found.append((f.name, hint, None))
+        elif typing.get_origin(hint) is tuple:
+            value = getattr(instance, f.name)
+            found += [(f.name, type(v), k) for k, v in enumerate(value) if type(v) in (int, float)]
+    return found
+
+
+@pytest.mark.parametrize("cls", list(_valid_instances()), ids=lambda c: c.__name__)
+def test_every_number_of_every_settings_class_is_checked_for_float32_and_int32(cls):
+    instance = _valid_instances()[cls]
+    fields = _number_fields(instance)
+    assert fields or cls in (wc.Output, wc.Scene)  # these hold only names and settings classes
+    for name, kind, index in fields:
+        for bad in ((math.nan, math.inf, 1e39, "1") if kind is float else (2**31, -(2**31) - 1, 2.5, True)):
+            value = getattr(instance, name)
+            if index is not None:
+                value = value[:index] + (bad,) + value[index + 1:]
+            key = f"{name}[{index}]" if index is not None else name
+            with pytest.raises(wc.SceneError) as info:
+                dataclasses.replace(instance, **{name: value if index is not None else bad})
+            assert info.value.key == key, (cls.__name__, key, bad, str(info.value))
+
+
+TOO_MUCH_WORK = [
+    (("substeps = 2", "substeps = 100000000"), "simulation.substeps", "in [1, 10000]"),
+    (("substeps = 2", "dt = 1e-9"), "simulation.dt", "at most 10000 substeps a frame"),
+    (("substeps = 2", "limit_iterations = 1e9"), "simulation.limit_iterations", "a whole number"),
+    (("substeps = 2", "limit_iterations = 1000000000"), "simulation.limit_iterations", "in [1, 1000]"),
+    (("frames = 2", "frames = 100000000"), "simulation.frames", "in [1, 1000000]"),
+    (("[simulation]", "[collision]\niterations = 100000000\n[simulation]"), "collision.iterations", "in [1, 1000]"),
+    (("[simulation]", "[implicit]\ncg_max_iterations = 1000000\n[simulation]"), "implicit.cg_max_iterations",
+     "in [1, 100000]"),
+    # Each within its own bound, together past what a frame may take (checked at start-up).
+    (("substeps = 2", 'substeps = 10000\nlimit_iterations = 1000'), "simulation.substeps",
+     "at most 1,000,000 passes a frame"),
+    (("substeps = 2", 'substeps = 20\nintegrator = "implicit"\n[implicit]\nnewton_iterations = 100\n'
+                      'cg_max_iterations = 100000'), "implicit.cg_max_iterations", "at most 1,000,000 passes a frame"),
+]
+
+
+@pytest.mark.parametrize("change, key, expected", TOO_MUCH_WORK, ids=[f"{c[1]}-{k}" for k, c in enumerate(TOO_MUCH_WORK)])
+def test_absurd_amounts_of_work_are_refused_before_running(tmp_path, change, key, expected):
+    limited = VALID.replace("size = [1.0, 1.0]", "size = [1.0, 1.0]\nlimit = {}")
+    message = refused_in_one_line(tmp_path, limited.replace(*change))
+    assert message.startswith(f"{key}: expected ") and expected in message
+
+
+def test_work_bounds_leave_every_built_in_scene_and_benchmark_valid():
+    for name in wc.builtin_scene_names():
+        scene = wc.load_scene(name)
+        simulator.check_work(scene, scene.simulation.substeps_per_frame)
+    for device in ("cpu", "cuda"):
+        for cases in bench.SUITES.values():
+            for case in cases(device):
+                simulator.check_work(case.scene, case.scene.simulation.substeps_per_frame)
+    assert bench.MATRIX_SUBSTEPS <= scene_module.MAX_SUBSTEPS
+
+
+BAD_FILES = [
+    ("utf8", "cloth = 1\n".encode() + b"name = \"caf\xe9\"\n", "a UTF-8 text file (line 2, byte 21 is not UTF-8)"),
+    ("utf16", VALID.encode("utf-16"), "a UTF-8 text file (line 1, byte 0 is not UTF-8)"),
+    ("nested", ("a = " + "[" * 3000 + "]" * 3000 + "\n").encode(), "TOML that is not nested hundreds of levels deep"),
+]
+
+
+@pytest.mark.parametrize("name, content, expected", BAD_FILES, ids=[b[0] for b in BAD_FILES])
+def test_unreadable_scene_files_are_one_line(tmp_path, name, content, expected):
+    assert refused_in_one_line(tmp_path, content) == f"expected {expected}"
+
+
+def test_a_directory_or_a_device_given_as_a_scene_is_called_what_it_is(tmp_path):
+    (tmp_path / "shots").mkdir()
+    code, _, err = run_cli_in_process("run", "shots", "--device", "cpu", cwd=tmp_path)
+    assert code == 2 and err == "warp-cloth: error: shots: expected a scene file (this is a directory)\n"
+    code, _, err = run_cli_in_process("run", "/dev/null", "--device", "cpu", cwd=tmp_path)
+    assert code == 2 and err == "warp-cloth: error: /dev/null: expected a scene file (this is not a regular file)\n"
+
+
+TWO_CLOTHS = VALID.replace("[[cloth.pins]]\ncorners = [\"top-left\"]\n", "") + \
+    '\n[collision]\n\n[[cloth]]\nname = "other"\nresolution = [3, 3]\nsize = [1.0, 1.0]\n'
+START_INSIDE = [
+    (TWO_CLOTHS, "cloth: expected cloths that start apart"),
+    # 0.6 - |(1/3, 1/3) - (1/2, 1/2)| deep, past half of a 1/3 m cell
+    (VALID + '\n[[sphere]]\nname = "ball"\ncenter = [0.5, 0.5, 0.0]\nradius = 0.6\n',
+     "cloth[0]: expected a cloth that starts outside the static colliders: particle 5 of 'cloth' starts 0.364 m inside "
+     "sphere[0] 'ball' (at most 0.167 m, half a cell)"),
+    (VALID + "\n[ground]\nheight = 0.5\n",
+     "cloth[0]: expected a cloth that starts outside the static colliders: particle 0 of 'cloth' starts 0.5 m inside "
+     "the ground (at most 0.167 m, half a cell)"),
+]
+
+
+@pytest.mark.parametrize("text, expected", START_INSIDE, ids=["overlap", "sphere", "ground"])
+def test_scenes_refused_at_start_up_name_the_file_and_the_colliders(tmp_path, text, expected):
+    assert refused_in_one_line(tmp_path, text).startswith(expected)
+
+
+def test_a_cloth_touching_a_collider_less_than_half_a_cell_deep_starts():
+    scene = wc.scene_from_dict({"cloth": [{"resolution": [3, 3], "size": [1.0, 1.0]}], "ground": {"height": 0.15},
+                                "sphere": [{"center": [0.5, 0.5, 0.6], "radius": 0.75}]})
+    wc.Simulator(scene, device="cpu")  # 0.15 m below the ground, 0.105 m inside the sphere: contacts
+
+
+def test_values_from_python_are_stored_as_a_file_gives_them():
+    cloth = wc.Cloth(resolution=[4, 4], origin=[0, 1, 0], mass=1)
+    assert cloth.resolution == (4, 4) and cloth.origin == (0.0, 1.0, 0.0) and isinstance(cloth.mass, float)
+    assert hash(cloth) == hash(wc.Cloth(resolution=(4, 4), origin=(0.0, 1.0, 0.0), mass=1.0))

@@ -135,3 +135,13 @@ def test_bad_input_is_one_line_and_exit_code_2(args, capsys, tmp_path):
     err = capsys.readouterr().err.strip()
     assert err.startswith("warp-cloth study: error: ") and "\n" not in err
     assert not (tmp_path / "x").exists()
+
+
+def test_a_reference_past_the_substep_bound_is_refused_naming_the_option(capsys, tmp_path):
+    # 0.0001 s is 413 substeps a frame at 24 fps (dt may be 1% over); its reference, 16x finer and checked
+    # at half that step, would need 13216 substeps a frame.
+    assert main(["hanging", "--dt", "0.0001", "--out", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("warp-cloth study: error: command line: --reference-refinement: expected a reference of "
+                          "at most 10000 substeps a frame") and "13216 asked" in err
+    assert not (tmp_path / "x").exists()

@@ -90,18 +90,21 @@ def _cmd_run(args: argparse.Namespace) -> int:
     import warp as wp
 
     wp.config.log_level = wp.LOG_ERROR
-    from .scene_file import load_scene
+    from .scene_file import load_scene, resolve_scene_path
     from .simulator import Simulator, resolve_device
     from .writers import PolyWriter, UsdWriter
 
     scene = _with_overrides(load_scene(args.scene), args)
     try:
-        resolve_device(args.device)
+        device = resolve_device(args.device)
     except SceneError as exc:
         raise SceneError("--device", exc.expected, exc.got, source="command line") from None
     # Building the stages compiles some kernels, prepare() the others: seconds of silence on a first run.
     with SlowStepNotice("compiling kernels") if not args.quiet else contextlib.nullcontext():
-        sim = Simulator(scene, device=args.device, graph=not args.no_graph)
+        try:
+            sim = Simulator(scene, device=device.alias, graph=not args.no_graph)
+        except SceneError as exc:  # checks of the scene as a whole (overlaps, colliders, size): name its file
+            raise (exc.in_file(str(resolve_scene_path(args.scene))) if exc.source is None else exc) from None
         sim.prepare()
     out = Path(scene.output.dir)
     writers = []

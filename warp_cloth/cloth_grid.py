@@ -130,8 +130,9 @@ def _masses(cloth: Cloth, gx: np.ndarray, gy: np.ndarray, dx: float, dy: float) 
     return cloth.density * dx * dy * wx * wy
 
 
-def pinned_indices(cloth: Cloth, pin: Pin, positions: np.ndarray, key: str) -> np.ndarray:
-    """The particles a pin selects, sorted and unique; an error if it selects none or one out of range."""
+def pinned_indices(cloth: Cloth, pin: Pin, positions: np.ndarray | None, key: str) -> np.ndarray:
+    """The particles a pin selects, sorted and unique; an error if it selects none or one out of range.
+    ``positions`` (the cloth's initial pose) is needed only by a pin with a region."""
     nx, ny = cloth.resolution
     n = cloth.particle_count
     idx = lambda x, y: x + (nx + 1) * y  # noqa: E731

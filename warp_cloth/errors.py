@@ -22,7 +22,7 @@ class SceneError(ValueError):
     def _message(self) -> str:
         where = f"{self.source}: " if self.source else ""
         key = f"{self.key}: " if self.key else ""
-        got = f", got {self.got!r}" if self.has_got else ""
+        got = f", got {_shortened(repr(self.got))}" if self.has_got else ""
         return f"{where}{key}expected {self.expected}{got}"
 
     def within(self, prefix: str) -> "SceneError":
@@ -35,6 +35,13 @@ class SceneError(ValueError):
 
     def in_file(self, source: str) -> "SceneError":
         return SceneError(self.key, self.expected, self.got, source, self.has_got)
+
+
+MAX_SHOWN = 80  # characters of a rejected value shown in a message
+
+
+def _shortened(text: str) -> str:
+    return text if len(text) <= MAX_SHOWN else text[:MAX_SHOWN - 3] + "..."
 
 
 class UnstableSimulation(RuntimeError):

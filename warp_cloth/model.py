@@ -255,7 +255,8 @@ def select_pins(scene: Scene) -> list[list[np.ndarray]]:
         if not cloth.pins:
             selections.append([])
             continue
-        positions = grid_positions(cloth)
+        # Only a region needs the particles' positions: a whole grid's worth, skipped for corners and edges.
+        positions = grid_positions(cloth) if any(pin.region is not None for pin in cloth.pins) else None
         owner: dict[int, str] = {}
         chosen_per_pin = []
         for p, pin in enumerate(cloth.pins):

@@ -11,6 +11,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Literal
 
+from .checks import FLOAT32_MAX, check_fields, check_file_name, check_float32, check_identifier
 from .errors import SceneError
 
 Vec3 = tuple[float, float, float]
@@ -27,10 +28,21 @@ MIN_CELL = 1e-4  # metres: the shortest spring rest length float32 positions res
 # a cloth of this size already needs gigabytes. The simulator checks the device's free memory as well.
 MAX_PARTICLES = 64 * 1024 * 1024
 
+MAX_EXTENT = 1e6  # metres: the largest coordinate or length (float32 resolves 6 cm there)
+# A cloth's particles must lie within this many of its cells of the world origin: farther out, float32
+# positions resolve less than 1/128 of a cell and its springs lose their lengths.
+MAX_CELLS_FROM_ORIGIN = 2**16
+# Bounds on the work of one frame, so that a typo cannot hang a run inside a frame (Ctrl-C stops between
+# frames): substeps a frame, iterations of each pass a substep, and frames a run.
+MAX_SUBSTEPS = 10_000
+MAX_ITERATIONS = 1_000
+MAX_FRAMES = 1_000_000
+MAX_FPS = 10_000.0
 
-def _require(ok: bool, key: str, expected: str, got: object) -> None:
+
+def _require(ok: bool, key: str, expected: str, got: object = None, has_got: bool = True) -> None:
     if not ok:
-        raise SceneError(key, expected, got)
+        raise SceneError(key, expected, got, has_got=has_got)
 
 
 def _positive(value: float, key: str) -> None:
@@ -45,6 +57,16 @@ def _unit_length(axis: Vec3, key: str) -> None:
     _require(math.hypot(*axis) > 1e-9, key, "a non-zero direction [x, y, z]", list(axis))
 
 
+def _within_extent(values: tuple[float, ...] | float, key: str) -> None:
+    vector = values if isinstance(values, tuple) else (values,)
+    _require(all(abs(v) <= MAX_EXTENT for v in vector), key, f"metres of magnitude at most {MAX_EXTENT:g}",
+             list(vector) if isinstance(values, tuple) else values)
+
+
+def _whole_in(value: int, low: int, high: int, key: str) -> None:
+    _require(low <= value <= high, key, f"a whole number in [{low}, {high}]", value)
+
+
 @dataclass(frozen=True)
 class Oscillation:
     """Motion ``offset(t) = amplitude * sin(2 pi frequency t + phase) * axis`` (axis normalised)."""
@@ -55,8 +77,10 @@ class Oscillation:
     phase: float = 0.0
 
     def __post_init__(self) -> None:
+        check_fields(self)
         _unit_length(self.axis, "axis")
         _non_negative(self.amplitude, "amplitude")
+        _within_extent(self.amplitude, "amplitude")
         _non_negative(self.frequency, "frequency")
 
     def unit_axis(self) -> Vec3:
@@ -92,6 +116,7 @@ class SpringKind:
     enabled: bool = True
 
     def __post_init__(self) -> None:
+        check_fields(self)
         _positive(self.stiffness, "stiffness")
         _non_negative(self.damping, "damping")
 
@@ -118,6 +143,7 @@ class Limit:
     attachments: bool = False
 
     def __post_init__(self) -> None:
+        check_fields(self)
         _require(0 < self.stretch <= 10, "stretch", "a fraction in (0, 10]", self.stretch)
         _require(0 < self.compression < 1, "compression", "a fraction in (0, 1)", self.compression)
 
@@ -130,6 +156,7 @@ class Box:
     max: Vec3
 
     def __post_init__(self) -> None:
+        check_fields(self)
         _require(all(a <= b for a, b in zip(self.min, self.max)), "max", "every component >= min's",
                  list(self.max))
 
@@ -149,6 +176,7 @@ class Pin:
     motion: Oscillation | None = None
 
     def __post_init__(self) -> None:
+        check_fields(self)
         for k, index in enumerate(self.indices):
             _require(index >= 0, f"indices[{k}]", "a particle index >= 0", index)
         _require(bool(self.indices or self.corners or self.edges or self.region), "",
@@ -188,8 +216,8 @@ class Cloth:
     color: Vec3 = (0.75, 0.32, 0.22)
 
     def __post_init__(self) -> None:
-        _require(bool(self.name) and self.name.replace("_", "").replace("-", "").isalnum(), "name",
-                 "a non-empty name of letters, digits, '_' or '-'", self.name)
+        check_fields(self)
+        check_identifier(self.name, "name")
         nx, ny = self.resolution
         _require(nx >= 1 and ny >= 1, "resolution", "[nx, ny] quads, each >= 1", list(self.resolution))
         _require(nx < 65535 and ny < 32767, "resolution", "at most [65534, 32766] quads", list(self.resolution))
@@ -197,6 +225,7 @@ class Cloth:
                  f"at most {MAX_PARTICLES} particles per cloth", list(self.resolution))
         _require(self.size[0] > 0 and self.size[1] > 0, "size", "[width, height] in metres, each > 0",
                  list(self.size))
+        _within_extent(self.size, "size")
         _require(min(self.size[0] / nx, self.size[1] / ny) >= MIN_CELL, "size",
                  f"cells of at least {MIN_CELL:g} m (size / resolution; float32 positions cannot resolve "
                  "smaller springs)", list(self.size))
@@ -208,6 +237,35 @@ class Cloth:
             _positive(self.density, "density")
         _require(0 <= self.jitter <= 0.5, "jitter", "a fraction of a cell in [0, 0.5]", self.jitter)
         _require(all(0 <= c <= 1 for c in self.color), "color", "[r, g, b] each in [0, 1]", list(self.color))
+        _require(self.seed >= 0, "seed", "a whole number >= 0", self.seed)
+        cell = min(self.size[0] / nx, self.size[1] / ny)
+        farthest = max(abs(c) for c in self.origin) + max(self.size)
+        _require(farthest <= MAX_CELLS_FROM_ORIGIN * cell, "origin",
+                 f"a cloth within {MAX_CELLS_FROM_ORIGIN * cell:.4g} m of the world origin ({MAX_CELLS_FROM_ORIGIN} "
+                 f"of its {cell:.3g} m cells: float32 positions farther out cannot resolve its springs)",
+                 list(self.origin))
+        self._check_mass_in_float32()
+
+    def _check_mass_in_float32(self) -> None:
+        """Every particle's mass (then its inverse too) and stiffness / mass, as the device holds them in float32."""
+        key, value = ("density", self.density) if self.density is not None else ("mass", self.mass)
+        lightest, heaviest = self.mass_range()
+        check_float32(lightest, "the lightest particle's mass", key, value)
+        check_float32(heaviest, "the heaviest particle's mass", key, value)
+        for kind in ("structural", "shear", "bend"):
+            spring = getattr(self, kind)
+            field = "damping" if spring.damping > spring.stiffness else "stiffness"
+            _require(getattr(spring, field) / lightest <= FLOAT32_MAX, f"{kind}.{field}",
+                     f"stiffness and damping / the lightest particle's mass ({lightest:.3g} kg) at most "
+                     f"{FLOAT32_MAX:.3g} (float32)", getattr(spring, field))
+
+    def mass_range(self) -> tuple[float, float]:
+        """The lightest and the heaviest particle's mass (kg): with ``density``, a corner has a quarter cell."""
+        uniform = self.particle_mass()
+        if uniform is not None:
+            return uniform, uniform
+        cell_area = self.size[0] / self.resolution[0] * self.size[1] / self.resolution[1]
+        return self.density * cell_area / 4.0, self.density * cell_area
 
     @property
     def particle_count(self) -> int:
@@ -229,8 +287,11 @@ class Ground:
     size: float = 0.0
 
     def __post_init__(self) -> None:
+        check_fields(self)
+        _within_extent(self.height, "height")
         _non_negative(self.friction, "friction")
         _non_negative(self.size, "size")
+        _within_extent(self.size, "size")
 
 
 @dataclass(frozen=True)
@@ -244,9 +305,11 @@ class Sphere:
     motion: Oscillation | None = None
 
     def __post_init__(self) -> None:
-        _require(bool(self.name) and self.name.replace("_", "").replace("-", "").isalnum(), "name",
-                 "a non-empty name of letters, digits, '_' or '-'", self.name)
+        check_fields(self)
+        check_identifier(self.name, "name")
+        _within_extent(self.center, "center")
         _positive(self.radius, "radius")
+        _within_extent(self.radius, "radius")
         _non_negative(self.friction, "friction")
 
 
@@ -279,12 +342,14 @@ class Collision:
     projection: Literal["joint", "sequential"] = "joint"
 
     def __post_init__(self) -> None:
+        check_fields(self)
         _require(self.self_collision or self.between_cloths, "self", "self or between_cloths to be true "
                  "(leave [collision] out for no particle collision)", self.self_collision)
         if self.radius is not None:
             _positive(self.radius, "radius")
+            _within_extent(self.radius, "radius")
         _require(1.0 <= self.separation <= 4.0, "separation", "a number of radii in [1, 4]", self.separation)
-        _require(self.iterations >= 1, "iterations", "a whole number >= 1", self.iterations)
+        _whole_in(self.iterations, 1, MAX_ITERATIONS, "iterations")
         _non_negative(self.friction, "friction")
         _require(4 <= self.max_neighbors <= 256, "max_neighbors", "a whole number in [4, 256]", self.max_neighbors)
 
@@ -306,6 +371,7 @@ class ImplicitSolver:
     cg_loop: Literal["device_while", "unrolled"] = "device_while"
 
     def __post_init__(self) -> None:
+        check_fields(self)
         _require(1 <= self.newton_iterations <= 100, "newton_iterations", "a whole number in [1, 100]",
                  self.newton_iterations)
         _non_negative(self.newton_tolerance, "newton_tolerance")
@@ -333,19 +399,24 @@ class Simulation:
     max_speed: float = 1000.0
 
     def __post_init__(self) -> None:
-        _positive(self.fps, "fps")
-        _require(self.frames >= 1, "frames", "a whole number >= 1", self.frames)
+        check_fields(self)
+        _require(0 < self.fps <= MAX_FPS, "fps", f"a number in (0, {MAX_FPS:g}]", self.fps)
+        _whole_in(self.frames, 1, MAX_FRAMES, "frames")
         _require(not (self.substeps is not None and self.dt is not None), "dt",
                  "either substeps or dt, not both", self.dt)
         if self.substeps is not None:
-            _require(self.substeps >= 1, "substeps", "a whole number >= 1", self.substeps)
+            _whole_in(self.substeps, 1, MAX_SUBSTEPS, "substeps")
         if self.dt is not None:
             _positive(self.dt, "dt")
             _require(self.dt <= 1.0 / self.fps * 1.01, "dt", f"at most one frame (1/fps = {1 / self.fps:g} s)",
                      self.dt)
+            shortest = 0.99 / (self.fps * MAX_SUBSTEPS)
+            _require(self.dt >= shortest, "dt", f"a step of at least {shortest:.3g} s (at most {MAX_SUBSTEPS} "
+                                                f"substeps a frame at {self.fps:g} fps)", self.dt)
+        check_float32(self.step, "the step 1 / (fps x substeps)", "fps", self.fps)
         _non_negative(self.drag, "drag")
         _positive(self.max_speed, "max_speed")
-        _require(self.limit_iterations >= 1, "limit_iterations", "a whole number >= 1", self.limit_iterations)
+        _whole_in(self.limit_iterations, 1, MAX_ITERATIONS, "limit_iterations")
 
     @property
     def substeps_per_frame(self) -> int:
@@ -370,6 +441,13 @@ class Output:
     poly: bool = True
     subdivision: Literal["none", "catmullClark"] = "none"
 
+    def __post_init__(self) -> None:
+        check_fields(self)
+        _require(bool(self.dir) and "\0" not in self.dir, "dir", "a folder path", self.dir)
+
+
+RESERVED_NAME = "ground"  # the ground's prim: no cloth or sphere may take it
+
 
 @dataclass(frozen=True)
 class Scene:
@@ -384,12 +462,45 @@ class Scene:
     collision: Collision | None = None
 
     def __post_init__(self) -> None:
-        _require(bool(self.name) and self.name.replace("_", "").replace("-", "").isalnum(), "name",
-                 "a non-empty name of letters, digits, '_' or '-'", self.name)
+        check_fields(self)
+        check_file_name(self.name, "name")
         _require(len(self.cloths) >= 1, "cloth", "at least one [[cloth]]", len(self.cloths))
         total = sum(c.particle_count for c in self.cloths)
         _require(total <= MAX_PARTICLES, "cloth", f"at most {MAX_PARTICLES} particles in all", total)
+        self._check_names_unique()
+        self._check_motion_in_bounds()
+        from .model import select_pins  # the pins' particles depend on the grid the model builds
+
+        select_pins(self)
+
+    def _check_names_unique(self) -> None:
+        """Cloths and spheres are prims side by side under /World, beside the ground's, and cloths name .poly
+        files: names are compared ignoring case, as file names are on some systems."""
+        taken = {RESERVED_NAME: "the ground's prim"}
         for kind, items in (("cloth", self.cloths), ("sphere", self.spheres)):
-            names = [item.name for item in items]
-            for k, name in enumerate(names):
-                _require(names.index(name) == k, f"{kind}[{k}].name", f"a name no other {kind} has", name)
+            for k, item in enumerate(items):
+                other = taken.setdefault(item.name.casefold(), f"{kind}[{k}]")
+                _require(other == f"{kind}[{k}]", f"{kind}[{k}].name",
+                         f"a name that no other cloth or sphere has, nor the ground (ignoring case; {other} "
+                         "has it)", item.name)
+
+    def _check_motion_in_bounds(self) -> None:
+        """Start-up speeds and forces that the device holds in float32 and the blow-up guard accepts."""
+        sim = self.simulation
+        gravity = math.hypot(*sim.gravity)
+        for c, cloth in enumerate(self.cloths):
+            heaviest = cloth.mass_range()[1]
+            key, value = (f"cloth[{c}].density", cloth.density) if cloth.density is not None else \
+                (f"cloth[{c}].mass", cloth.mass)
+            _require(heaviest * gravity <= FLOAT32_MAX, key, f"a mass whose weight (mass x |gravity| = "
+                                                             f"{heaviest * gravity:.3g} N) is finite in float32",
+                     value)
+            _require(math.hypot(*cloth.velocity) < sim.max_speed, f"cloth[{c}].velocity",
+                     f"a speed below simulation.max_speed = {sim.max_speed:g} m/s", list(cloth.velocity))
+            for p, pin in enumerate(cloth.pins):
+                if pin.motion is None:
+                    continue
+                speed = pin.motion.amplitude * 2.0 * math.pi * pin.motion.frequency
+                _require(speed < sim.max_speed, f"cloth[{c}].pins[{p}].motion",
+                         f"a peak speed (amplitude x 2 pi frequency = {speed:.3g} m/s) below simulation.max_speed "
+                         f"= {sim.max_speed:g} m/s", has_got=False)

@@ -7,19 +7,20 @@ key in its metadata, as ``Scene.cloths`` does with ``[[cloth]]``), so the schema
 from __future__ import annotations
 
 import dataclasses
-import math
+import re
 import tomllib
 import types
 import typing
 from importlib import resources
 from pathlib import Path
-from typing import Any, Literal, get_args, get_origin
+from typing import Any, get_args, get_origin
 
+from .checks import describe, file_name_from, toml_key
 from .errors import SceneError
-from .model import select_pins
 from .scene import Scene
 
 _BUILTIN_PACKAGE = "warp_cloth.scenes"
+_BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")  # a key printed as it is; any other is quoted
 
 
 def builtin_scene_names() -> list[str]:
@@ -34,6 +35,10 @@ def resolve_scene_path(name_or_path: str | Path) -> Path:
     if text in builtin_scene_names():
         return Path(str(resources.files(_BUILTIN_PACKAGE).joinpath(f"{text}.toml")))
     path = Path(text)
+    if path.is_dir():
+        raise SceneError("", "a scene file (this is a directory)", has_got=False, source=text)
+    if path.exists() and not path.is_file():
+        raise SceneError("", "a scene file (this is not a regular file)", has_got=False, source=text)
     if not path.is_file():
         known = ", ".join(builtin_scene_names())
         raise SceneError("", f"an existing scene file (no such file) or a built-in scene name ({known})",
@@ -42,17 +47,25 @@ def resolve_scene_path(name_or_path: str | Path) -> Path:
 
 
 def load_scene(name_or_path: str | Path) -> Scene:
-    """Load a built-in scene by name, or a scene file by path."""
+    """Load a built-in scene by name, or a scene file by path. Without a ``name`` key the scene is named
+    after the file, its characters other than ASCII letters, digits, '_' and '-' made '_'."""
     path = resolve_scene_path(name_or_path)
     try:
         with open(path, "rb") as handle:
             data = tomllib.load(handle)
     except tomllib.TOMLDecodeError as exc:
         raise SceneError("", f"valid TOML ({exc})", has_got=False, source=str(path)) from None
+    except UnicodeDecodeError as exc:
+        line = exc.object[:exc.start].count(b"\n") + 1
+        raise SceneError("", f"a UTF-8 text file (line {line}, byte {exc.start} is not UTF-8)", has_got=False,
+                         source=str(path)) from None
+    except RecursionError:
+        raise SceneError("", "TOML that is not nested hundreds of levels deep", has_got=False,
+                         source=str(path)) from None
     except OSError as exc:
         raise SceneError("", f"a readable file ({exc.strerror})", has_got=False, source=str(path)) from None
     if "name" not in data:
-        data["name"] = path.stem
+        data["name"] = file_name_from(path.stem)
     try:
         return scene_from_dict(data)
     except SceneError as exc:
@@ -60,10 +73,10 @@ def load_scene(name_or_path: str | Path) -> Scene:
 
 
 def scene_from_dict(data: dict[str, Any]) -> Scene:
-    """A ``Scene`` from plain data as TOML gives it, with its pins resolved; errors name the key path."""
-    scene = _convert(data, Scene, "")
-    select_pins(scene)
-    return scene
+    """A ``Scene`` from plain data as TOML gives it; errors name the key path. Tables become the dataclasses
+    they stand for and arrays of tables tuples of them; the dataclasses check every value themselves, as
+    they do for a scene built in Python."""
+    return _convert(data, Scene, "")
 
 
 def _join(path: str, key: str) -> str:
@@ -71,84 +84,36 @@ def _join(path: str, key: str) -> str:
 
 
 def _convert(value: Any, hint: Any, path: str) -> Any:
-    origin = get_origin(hint)
-    if dataclasses.is_dataclass(hint):
-        return _to_dataclass(value, hint, path)
-    if origin in (typing.Union, types.UnionType):
+    """Tables to dataclasses where ``hint`` asks for them; every other value as it is."""
+    if get_origin(hint) in (typing.Union, types.UnionType):
         options = [a for a in get_args(hint) if a is not type(None)]
-        if len(options) == 1:
-            return _convert(value, options[0], path)
-        raise TypeError(f"unsupported union {hint}")
-    if origin is Literal:
-        choices = get_args(hint)
-        if value not in choices:
-            raise SceneError(path, "one of " + ", ".join(repr(c) for c in choices), value)
-        return value
-    if origin is tuple:
+        return _convert(value, options[0], path)
+    if dataclasses.is_dataclass(hint) and isinstance(value, dict):
+        return _to_dataclass(value, hint, path)
+    if get_origin(hint) is tuple and isinstance(value, list):
         args = get_args(hint)
-        if not isinstance(value, list):
-            raise SceneError(path, _describe(hint), value)
-        if len(args) == 2 and args[1] is Ellipsis:
+        if len(args) == 2 and args[1] is Ellipsis and dataclasses.is_dataclass(args[0]):
             return tuple(_convert(item, args[0], f"{path}[{k}]") for k, item in enumerate(value))
-        if len(value) != len(args):
-            raise SceneError(path, _describe(hint), value)
-        return tuple(_convert(item, arg, f"{path}[{k}]") for k, (item, arg) in enumerate(zip(value, args)))
-    if hint is bool:
-        if not isinstance(value, bool):
-            raise SceneError(path, "true or false", value)
-        return value
-    if hint is int:
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise SceneError(path, "a whole number", value)
-        return value
-    if hint is float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise SceneError(path, "a number", value)
-        if not math.isfinite(value):
-            raise SceneError(path, "a finite number", value)
-        return float(value)
-    if hint is str:
-        if not isinstance(value, str):
-            raise SceneError(path, "a string", value)
-        return value
-    raise TypeError(f"unsupported type {hint} at {path}")
+    return value
 
 
-def _toml_key(f: dataclasses.Field) -> str:
-    return f.metadata.get("toml", f.name)
+def _printable_key(key: str) -> str:
+    return key if _BARE_KEY.fullmatch(key) else repr(key)
 
 
-def _to_dataclass(value: Any, cls: type, path: str) -> Any:
-    if not isinstance(value, dict):
-        raise SceneError(path, f"a table of {cls.__name__} settings", value)
+def _to_dataclass(value: dict[str, Any], cls: type, path: str) -> Any:
     hints = typing.get_type_hints(cls)
-    fields = {_toml_key(f): f for f in dataclasses.fields(cls)}
+    fields = {toml_key(f): f for f in dataclasses.fields(cls)}
     for key in value:
         if key not in fields:
-            raise SceneError(_join(path, key), "a known key (one of " + ", ".join(sorted(fields)) + ")",
-                             has_got=False)
+            raise SceneError(_join(path, _printable_key(key)),
+                             "a known key (one of " + ", ".join(sorted(fields)) + ")", has_got=False)
+    for key, f in fields.items():
+        if key not in value and f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING:
+            raise SceneError(_join(path, key), f"{describe(hints[f.name])} (required)", has_got=False)
     kwargs = {f.name: _convert(value[key], hints[f.name], _join(path, key))
               for key, f in fields.items() if key in value}
     try:
         return cls(**kwargs)
     except SceneError as exc:
         raise (exc.within(path) if path else exc) from None
-
-
-def _describe(hint: Any) -> str:
-    args = get_args(hint)
-    if len(args) == 2 and args[1] is Ellipsis:
-        return f"a list of {_describe(args[0])}" if not dataclasses.is_dataclass(args[0]) else "an array of tables"
-    if args and all(a is float for a in args):
-        return f"a list of {len(args)} numbers"
-    if args and all(a is int for a in args):
-        return f"a list of {len(args)} whole numbers"
-    if hint is int:
-        return "whole numbers"
-    if hint is float:
-        return "numbers"
-    if hint is str:
-        return "strings"
-    if get_origin(hint) is Literal:
-        return "names (" + ", ".join(repr(c) for c in get_args(hint)) + ")"
-    return str(hint)

@@ -31,6 +31,11 @@ DEVICE_BYTES_PER_PARTICLE = 320
 IMPLICIT_DEVICE_BYTES_PER_PARTICLE = 100  # CG vectors and the preconditioner's blocks
 COLLISION_DEVICE_BYTES_PER_PARTICLE = 320  # neighbour lists, spatial hash buckets, contact state
 
+# Passes over the particles in one frame (substeps x the passes of a substep). Ctrl-C stops a run only
+# between frames, and a captured frame holds every launch (about 0.4 kB and 50 us of capture each on the
+# CPU), so a frame past this is refused rather than left to hang.
+MAX_PASSES_PER_FRAME = 1_000_000
+
 
 class FrameWriter(Protocol):
     """Receives the state after every frame (frame 0 is the initial state)."""
@@ -85,6 +90,24 @@ def check_memory(scene: Scene, device: wp.context.Device) -> None:
                                       f"{need / 2**30:.1f} GiB, {free / 2**30:.1f} GiB is free", has_got=False)
 
 
+def check_work(scene: Scene, substeps: int) -> None:
+    """Refuse a frame that would take too long to end: substeps x passes a substep (the strain limit's or
+    the collision's iterations, whichever is more; the implicit solve's Newton x CG iterations at most)."""
+    sim = scene.simulation
+    factors = {"simulation.dt" if sim.dt is not None else "simulation.substeps": substeps}
+    iterations = {"simulation.limit_iterations": sim.limit_iterations if any(c.limit for c in scene.cloths) else 0,
+                  "collision.iterations": scene.collision.iterations if scene.collision is not None else 0}
+    if sim.integrator == "implicit":
+        iterations["implicit.cg_max_iterations"] = scene.implicit.newton_iterations * scene.implicit.cg_max_iterations
+    passes = 1 + max(iterations.values())
+    factors.update(iterations)
+    total = substeps * passes
+    if total > MAX_PASSES_PER_FRAME:
+        key = max(factors, key=factors.get)
+        raise SceneError(key, f"at most {MAX_PASSES_PER_FRAME:,} passes a frame, so that a frame ends: "
+                              f"{substeps} substeps x {passes} passes a substep is {total:,}", factors[key])
+
+
 class StopOnInterrupt:
     """Turns the first Ctrl-C into a request to stop after the frame in progress (a second one stops at
     once), so that writers are never cut off in the middle of a frame."""
@@ -118,6 +141,7 @@ class Simulator:
     """
 
     INITIAL_OVERLAP_LIMIT = 0.5  # of the contact distance: closer starting pairs are refused
+    INITIAL_COLLIDER_DEPTH_LIMIT = 0.5  # of a cell: particles starting deeper in a collider are refused
 
     def __init__(self, scene: Scene, device: str | None = None, graph: bool = True,
                  threads_per_particle: int | None = None) -> None:
@@ -133,6 +157,7 @@ class Simulator:
         self.stages: list[Stage] = build_stages(self.model, self.device, threads_per_particle)
         self.substeps_per_frame = scene.simulation.substeps_per_frame
         self.dt = scene.simulation.step
+        check_work(scene, self.substeps_per_frame)
         self.frame = 0
         self.substep_count = 0
         self.use_graph = graph
@@ -145,6 +170,7 @@ class Simulator:
             self._guard_host = wp.zeros((2, self.substeps_per_frame), dtype=int, device="cpu", pinned=True)
             self._frame_done = [wp.Event(self.device), wp.Event(self.device)]
         self._refuse_initial_overlap()
+        self._refuse_start_inside_colliders()
 
     def _refuse_initial_overlap(self) -> None:
         """Cloths that start deep inside each other (or themselves) would be shot apart: refuse them."""
@@ -157,6 +183,37 @@ class Simulator:
                                       f"{ratio:.2f} of their contact distance apart (at least "
                                       f"{self.INITIAL_OVERLAP_LIMIT} needed); move the cloths apart or "
                                       "leave collision out", has_got=False)
+
+    def _refuse_start_inside_colliders(self) -> None:
+        """A particle that starts deeper than half a cell below the ground or inside a static sphere is thrown
+        out at depth / step and tears its cloth (a 4 m cloth around a 1.5 m sphere blows up in its second
+        substep): refuse it, as ``_refuse_initial_overlap`` refuses cloths that start inside each other.
+        Shallower, the push is a contact like any other. A moving sphere may start in a cloth: that is a
+        moment of its motion, as in the fast_sphere hard case, which stays stable."""
+        x = self.model.positions.astype(np.float64)
+        scene = self.scene
+        cells = np.array([min(c.size[0] / c.resolution[0], c.size[1] / c.resolution[1]) for c in scene.cloths])
+        allowed = self.INITIAL_COLLIDER_DEPTH_LIMIT * cells[self.model.cloth_id]
+        depths = []  # (depth of each particle, collider)
+        if scene.ground is not None:
+            depths.append((scene.ground.height - x[:, 1], "the ground"))
+        if self.model.spheres is not None:
+            spheres = self.model.spheres
+            for s, sphere in enumerate(scene.spheres):
+                if sphere.motion is not None and sphere.motion.amplitude > 0 and sphere.motion.frequency > 0:
+                    continue
+                distance = np.linalg.norm(x - spheres.initial_center[s].astype(np.float64), axis=1)
+                depths.append((float(spheres.radius[s]) - distance, f"sphere[{s}] '{sphere.name}'"))
+        for depth, collider in depths:
+            deep = np.nonzero(depth > allowed)[0]
+            if len(deep) == 0:
+                continue
+            i = int(deep[np.argmax(depth[deep])])
+            c = int(self.model.cloth_id[i])
+            raise SceneError(f"cloth[{c}]", f"a cloth that starts outside the static colliders: particle "
+                                            f"{i - self.model.offsets[c]} of '{scene.cloths[c].name}' starts "
+                                            f"{depth[i]:.3g} m inside {collider} (at most {allowed[i]:.3g} m, half "
+                                            "a cell); move the cloth or the collider", has_got=False)
 
     @property
     def time(self) -> float:

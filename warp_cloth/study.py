@@ -37,7 +37,7 @@ from .bench import environment
 from .errors import SceneError, UnstableSimulation
 from .model import FLAG_ELASTIC_COMPRESSION, FLAG_ELASTIC_TENSION, Model, Springs
 from .progress import Progress
-from .scene import INTEGRATORS, Cloth, Scene
+from .scene import INTEGRATORS, MAX_SUBSTEPS, Cloth, Scene
 from .scene_file import load_scene
 from .simulator import Simulator, resolve_device
 
@@ -390,6 +390,11 @@ def run_study(scene: Scene | str | Path, integrators: Sequence[str] = INTEGRATOR
     except SceneError as exc:
         raise _option_error("--device", exc) from None
     ref_substeps = reference_refinement * max(p.scene.simulation.substeps_per_frame for p in planned)
+    if 2 * ref_substeps > MAX_SUBSTEPS:  # the reference is checked against one at half its step
+        raise SceneError("--reference-refinement", f"a reference of at most {MAX_SUBSTEPS} substeps a frame at half "
+                                                   f"its step (the smallest study step / N), {2 * ref_substeps} "
+                                                   "asked: a smaller N or larger --dt", reference_refinement,
+                         "command line")
     bar = Progress(frames * (len(planned) + 2 * len(resolutions_or_own)), f"study {scene.name} on {dev}") \
         if progress else None
     tick = (lambda n: bar.update(bar.done + n)) if bar else (lambda n: None)
