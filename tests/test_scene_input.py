@@ -305,8 +305,8 @@ def test_work_bounds_leave_every_built_in_scene_and_benchmark_valid():
         scene = wc.load_scene(name)
         simulator.check_work(scene, scene.simulation.substeps_per_frame)
     for device in ("cpu", "cuda"):
-        for cases in bench.SUITES.values():
-            for case in cases(device):
+        for suite in bench.SUITES.values():
+            for case in suite.cases(device):
                 simulator.check_work(case.scene, case.scene.simulation.substeps_per_frame)
     assert bench.MATRIX_SUBSTEPS <= scene_module.MAX_SUBSTEPS
 
