@@ -12,12 +12,13 @@ from .scene import (Box, Cloth, Collision, Ground, ImplicitSolver, Limit, Oscill
                     Simulation, Sphere, SpringKind)
 from .scene_file import builtin_scene_names, load_scene, scene_from_dict
 from .simulator import RunSummary, Simulator
+from .stability import UnstableStepWarning
 from .writers import PolyWriter, UsdWriter
 
 __version__ = "0.1.0"
 
 __all__ = [
     "Box", "Cloth", "Collision", "Ground", "ImplicitSolver", "Limit", "Oscillation", "Output", "Pin", "PolyWriter",
-    "RunSummary", "Scene", "SceneError", "Simulation", "Simulator", "Sphere", "SpringKind", "UsdWriter",
-    "builtin_scene_names", "load_scene", "scene_from_dict",
+    "RunSummary", "Scene", "SceneError", "Simulation", "Simulator", "Sphere", "SpringKind", "UnstableStepWarning",
+    "UsdWriter", "builtin_scene_names", "load_scene", "scene_from_dict",
 ]
