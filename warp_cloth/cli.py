@@ -5,11 +5,13 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import sys
+import warnings
 from pathlib import Path
 
 from .errors import SceneError, UnstableSimulation
 from .scene import INTEGRATORS, Scene
 from .scene_file import builtin_scene_names, load_scene
+from .stability import UnstableStepWarning
 
 EXIT_BAD_INPUT = 2
 EXIT_UNSTABLE = 3
@@ -87,7 +89,16 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from .writers import PolyWriter, UsdWriter
 
     scene = _with_overrides(load_scene(args.scene), args)
-    sim = Simulator(scene, device=args.device, graph=not args.no_graph)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", UnstableStepWarning)
+        sim = Simulator(scene, device=args.device, graph=not args.no_graph)
+    print(f"{scene.name}: {sim.step_choice.describe()}", flush=True)
+    step_source = "command line" if args.substeps is not None or args.dt is not None else args.scene
+    for w in caught:
+        if issubclass(w.category, UnstableStepWarning):
+            print(f"warp-cloth: warning: {step_source}: {w.message}", file=sys.stderr, flush=True)
+        else:
+            warnings.showwarning(w.message, w.category, w.filename, w.lineno)
     out = Path(scene.output.dir)
     writers = []
     if scene.output.usd:
