@@ -182,6 +182,13 @@ def model_bound(model: Model) -> StabilityBound | None:
                        sim.frames / sim.fps)
 
 
+def automatic_substeps(fps: float, bound: StabilityBound | None) -> int:
+    """Substeps a frame for a step ``SAFETY`` times within the bound, at least ``AUTOMATIC_MIN_SUBSTEPS``."""
+    if bound is None or math.isinf(bound.step):
+        return AUTOMATIC_MIN_SUBSTEPS
+    return max(AUTOMATIC_MIN_SUBSTEPS, math.ceil(1.0 / (fps * SAFETY * bound.step)))
+
+
 def choose_step(model: Model) -> StepChoice:
     """The scene's own step if it sets one, else the largest that is ``SAFETY`` times within the bound and
     no coarser than ``AUTOMATIC_MIN_SUBSTEPS`` a frame. A SceneError if that needs more than
@@ -190,9 +197,7 @@ def choose_step(model: Model) -> StepChoice:
     bound = model_bound(model)
     if sim.substeps_per_frame is not None:
         return StepChoice(sim.substeps_per_frame, sim.step, False, bound)
-    substeps = AUTOMATIC_MIN_SUBSTEPS
-    if bound is not None and not math.isinf(bound.step):
-        substeps = max(substeps, math.ceil(1.0 / (sim.fps * SAFETY * bound.step)))
+    substeps = automatic_substeps(sim.fps, bound)
     if substeps > AUTOMATIC_MAX_SUBSTEPS:
         raise SceneError("simulation.substeps", f"a scene whose stable step needs at most {AUTOMATIC_MAX_SUBSTEPS} "
                                                 f"substeps a frame: this one needs {substeps} ({bound.describe()}); "
@@ -223,7 +228,6 @@ def beyond_bound_message(choice: StepChoice, simulation: Simulation) -> str:
     bound = choice.bound
     assert bound is not None
     setting = f"substeps = {simulation.substeps}" if simulation.substeps is not None else f"dt = {simulation.dt:g}"
-    needed = math.ceil(1.0 / (simulation.fps * bound.step))
-    return (f"{setting} gives a step of {_ms(choice.step)}, past the stable bound: {bound.describe()}; expect "
-            f"a blow-up: use {needed} substeps a frame or more, or set neither substeps nor dt to have "
-            "the step chosen")
+    chosen = automatic_substeps(simulation.fps, bound)
+    return (f"{setting} gives a step of {_ms(choice.step)}, past the stable bound: {bound.describe()}; it may "
+            f"blow up: leave substeps and dt out to have a stable step chosen ({chosen} substeps a frame)")
