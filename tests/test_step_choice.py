@@ -42,6 +42,13 @@ def test_chain_bound_is_the_analytic_one_and_the_true_spectrum_is_below_it():
     assert 0.999 * bound.omega_max ** 2 <= largest <= bound.omega_max ** 2
 
 
+def test_explicit_euler_with_undamped_springs_is_bounded_by_growth_over_the_run():
+    k, rest, mass, duration = 10.0, 0.5, 0.02, 4.0
+    bound = stable_step(*chain(50, k, rest, mass), "explicit", duration=duration)
+    assert "undamped" in bound.limited_by
+    assert bound.step == pytest.approx(2.0 * math.log(2.0) / (duration * 4.0 * k / (rest * mass)), rel=1e-9)
+
+
 def test_damped_single_mode_bounds_are_the_amplification_matrix_limits():
     # One free particle on one spring to a held one: a single mode, w^2 = k/(L0 m), c = b/m.
     k, rest, mass, b = 100.0, 1.0, 0.01, 0.5
@@ -161,6 +168,13 @@ def test_set_step_past_the_bound_warns_before_the_first_frame():
     with warnings.catch_warnings():
         warnings.simplefilter("error", wc.UnstableStepWarning)
         wc.Simulator(wc.load_scene("hanging"), device="cpu")  # the seed's step is within the bound
+
+
+def test_a_scene_whose_stable_step_needs_too_many_substeps_is_refused_before_running():
+    scene = wc.Scene(cloths=(wc.Cloth(mass=1e-7, pins=TWO_CORNERS),))
+    with pytest.raises(wc.SceneError, match=r"simulation.substeps: expected a scene whose stable step needs at most "
+                                            r"10000 substeps a frame: this one needs \d+"):
+        wc.Simulator(scene, device="cpu")
 
 
 def test_cli_says_the_chosen_step_first_and_warns_of_a_set_one_before_running(tmp_path):

@@ -67,8 +67,7 @@ class StabilityBound:
 
     def describe(self) -> str:
         return (f"{self.integrator} Euler is stable below {_ms(self.step)} here (limited by {self.limited_by}: "
-                f"fastest spring mode {self.omega_max:.4g} rad/s, damping rate up to "
-                f"{self.damping_rate_max:.4g} 1/s)")
+                f"fastest spring mode {self.omega_max:.3g} rad/s, damping rate up to {self.damping_rate_max:.3g} 1/s)")
 
 
 @dataclass(frozen=True)
@@ -93,7 +92,7 @@ class StepChoice:
         if not self.automatic:
             return head + f", as set; {self.bound.describe()}"
         if self.substeps == AUTOMATIC_MIN_SUBSTEPS and self.step < SAFETY * self.bound.step:
-            return head + f", the default (stable: {self.bound.describe()})"
+            return head + f", the fewest chosen (within the stable bound: {self.bound.describe()})"
         return head + f", chosen for stability: {SAFETY:g} x the bound; {self.bound.describe()}"
 
 
