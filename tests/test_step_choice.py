@@ -190,3 +190,7 @@ def test_cli_says_the_chosen_step_first_and_warns_of_a_set_one_before_running(tm
     assert len(warning) == 1 and warning[0].startswith("warp-cloth: warning: command line: substeps = 4 gives a "
                                                        "step of 10.4 ms, past the stable bound")
     assert result.stdout.splitlines()[0].startswith("drape: step 10.4 ms (4 substeps/frame), as set;")
+    (tmp_path / "light.toml").write_text("[simulation]\nframes = 1\nsubsteps = 2\n\n[[cloth]]\nmass = 0.005\n")
+    result = run_cli("run", "light.toml", "--no-usd", "--no-poly", "--device", "cpu", cwd=tmp_path)
+    warning = [line for line in result.stderr.splitlines() if line.startswith("warp-cloth: warning")]
+    assert len(warning) == 1 and warning[0].startswith("warp-cloth: warning: light.toml: substeps = 2 gives a step")
