@@ -9,16 +9,19 @@ import warnings
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, assume, given, settings, strategies as st
 
 import warp_cloth as wc
 from warp_cloth.errors import UnstableSimulation
 from warp_cloth.model import FLAG_DAMPING_COMPRESSION, FLAG_DAMPING_TENSION, FLAG_ELASTIC_COMPRESSION, \
-    FLAG_ELASTIC_TENSION
-from warp_cloth.stability import SAFETY, stable_step
+    FLAG_ELASTIC_TENSION, build_model
+from warp_cloth.scene import INTEGRATORS
+from warp_cloth.stability import SAFETY, automatic_substeps, model_bound, stable_step
 from conftest import REPO, run_cli, spring_strains, with_simulation
 
 LINEAR = FLAG_ELASTIC_TENSION | FLAG_ELASTIC_COMPRESSION | FLAG_DAMPING_TENSION | FLAG_DAMPING_COMPRESSION
 TWO_CORNERS = (wc.Pin(corners=("top-left", "top-right")),)
+MAX_TEST_SUBSTEPS = 200
 
 
 def chain(count: int, k: float, rest: float, mass: float, damping: float = 0.0):
@@ -103,6 +106,28 @@ def test_single_spring_holds_just_under_its_bound_and_grows_just_over(integrator
         except UnstableSimulation:
             speeds[ratio] = math.inf
     assert speeds[0.95] < 1.0 < speeds[1.05]
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
+@given(resolution=st.integers(2, 12), size=st.floats(0.3, 10.0), density=st.floats(0.01, 2.0),
+       stiffness=st.floats(0.1, 1000.0), damping=st.floats(0.0, 10.0), integrator=st.sampled_from(INTEGRATORS),
+       pinned=st.booleans())
+def test_random_cloths_at_their_chosen_step_stay_finite_and_bounded(resolution, size, density, stiffness, damping,
+                                                                    integrator, pinned):
+    spring = wc.SpringKind(stiffness, damping)
+    cloth = wc.Cloth(resolution=(resolution, resolution), size=(size, size), origin=(0.0, 1.0, 0.0), density=density,
+                     structural=spring, shear=spring, bend=wc.SpringKind(stiffness, damping, "compression",
+                                                                         "compression"),
+                     limit=wc.Limit(), pins=TWO_CORNERS if pinned else ())
+    scene = wc.Scene(cloths=(cloth,), ground=wc.Ground(), simulation=wc.Simulation(frames=24, integrator=integrator))
+    assume(automatic_substeps(24, model_bound(build_model(scene))) <= MAX_TEST_SUBSTEPS)  # a fast test
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", wc.UnstableStepWarning)
+        sim = wc.Simulator(scene, device="cpu")
+    sim.run()  # the guard raises if anything went non-finite or past 1000 m/s
+    fall = math.sqrt(2 * 9.81 * (1.0 + size))  # speed after falling the whole scene's height
+    assert np.linalg.norm(sim.velocities(), axis=1).max() <= 3.0 * fall
+    assert sim.positions()[:, 1].min() >= -1e-6
 
 
 @pytest.fixture
