@@ -7,10 +7,9 @@ The derivation (docs/stability.md has it at length). Linearised about a state, a
 ``T/l (I - n n^T)`` is smaller than that at any strain above -50%) and ``b (n n^T)`` to C, in the pattern
 ``[[1, -1], [-1, 1]]``. With ``y = M^1/2 u``, ``(n.(ui - uj))^2 = (n.yi/sqrt(mi) - n.yj/sqrt(mj))^2 <=
 (1/mi + 1/sqrt(mi mj)) (n.yi)^2 + (1/mj + 1/sqrt(mi mj)) (n.yj)^2`` (Young; a held particle has 1/m = 0), so
-every mode has ``w^2 <= W^2 = max_i lambda_max(S_i)``, ``S_i = sum over i's springs ij of
-k/L0 (1/mi + 1/sqrt(mi mj)) n n^T``
-(2 k/(L0 m) per spring for equal masses: exact on a chain, 4 k/(L0 m), and on a square grid of structural
-springs); likewise its damping rate ``c <= C = max_i lambda_max(D_i) + drag``, D_i the same sum of b.
+every mode has ``w^2 <= W^2 = max_i lambda_max(S_i)``, S_i the sum over i's springs ij of
+``k/L0 (1/mi + 1/sqrt(mi mj)) n n^T`` (2 k/(L0 m) a spring for equal masses: exact on a chain, 4 k/(L0 m),
+and on a square grid of structural springs); likewise its damping rate ``c <= C = max_i lambda_max(D_i) + drag``, D_i the same sum of b.
 One mode ``x'' = -w^2 x - c x'`` stepped with h:
 
 - symplectic Euler: amplification ``[[1 - hc, -h w^2], [h (1 - hc), 1 - h^2 w^2]]``, determinant
@@ -18,7 +17,8 @@ One mode ``x'' = -w^2 x - c x'`` stepped with h:
   ``h^2 w^2 + 2 h c < 4``, so ``h < 4 / (C + sqrt(C^2 + 4 W^2))`` (2/W undamped, 2/C without springs).
 - forward Euler: roots ``1 + h s`` with s the mode's continuous roots. Underdamped, ``|1 + hs|^2 =
   1 - hc + h^2 w^2``: stable iff ``h < c / w^2``, and since a spring's c / w^2 is its ``b L0 / k``, a mode's
-  is at least the smallest over its springs, ``rho``; undamped springs are never stable (their modes grow by
+  (a ratio of two sums over its springs, exact where K and C share their modes) is at least the smallest,
+  ``rho``; undamped springs are never stable (their modes grow by
   ``sqrt(1 + h^2 w^2)`` a step). Overdamped, ``h < 4 / (c + sqrt(c^2 - 4 w^2))``, which ``h < 2 / C``
   guarantees. So ``h < min(rho, 2 / C)``; with an undamped spring, the step at which the fastest mode grows
   at most 2x over the run, ``2 ln 2 / (T W^2)``.
@@ -51,8 +51,8 @@ EXPLICIT_RUN_GROWTH = 2.0  # forward Euler with undamped springs: the fastest mo
 
 
 class UnstableStepWarning(UserWarning):
-    """A step set by the user (``substeps`` or ``dt``) that is past the scene's stable bound: the run will
-    most likely blow up. Given before the run starts."""
+    """A step set by the user (``substeps`` or ``dt``) that is past the scene's stable bound: the run may
+    blow up. Given when the simulator is built, before the first frame."""
 
 
 @dataclass(frozen=True)
@@ -111,7 +111,6 @@ def stable_step(positions: np.ndarray, inv_mass: np.ndarray, pairs: np.ndarray, 
     ``flags``; ``duration`` (s) is the run's length, used only by forward Euler with undamped springs. See
     the module's docstring for the derivation."""
     free = inv_mass > 0
-    n = len(inv_mass)
     pairs = np.asarray(pairs).reshape(-1, 2)
     elastic = (flags & (FLAG_ELASTIC_TENSION | FLAG_ELASTIC_COMPRESSION)) != 0
     damped = (flags & (FLAG_DAMPING_TENSION | FLAG_DAMPING_COMPRESSION)) != 0
