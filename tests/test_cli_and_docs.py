@@ -32,8 +32,8 @@ def test_run_writes_usd_and_poly_and_prints_one_summary_line(tmp_path):
                      "--device", "cpu", cwd=tmp_path)
     assert result.returncode == 0, result.stderr
     lines = result.stdout.strip().splitlines()
-    assert len(lines) == 1
-    assert re.match(r"sphere_push: 5 frames \(30 substeps of 6.94 ms, symplectic\) of 121 particles on cpu", lines[0])
+    assert len(lines) == 2 and lines[0].startswith("sphere_push: step 6.94 ms (6 substeps/frame), as set;")
+    assert re.match(r"sphere_push: 5 frames \(30 substeps of 6.94 ms, symplectic\) of 121 particles on cpu", lines[1])
     stage = Usd.Stage.Open(str(tmp_path / "out" / "sphere_push.usdc"))
     assert stage.GetEndTimeCode() == 5
     assert len(list((tmp_path / "out" / "sphere_push" / "poly").glob("cloth.*.poly"))) == 6

@@ -202,7 +202,7 @@ def test_flat_cloth_has_no_intersections():
 def test_check_option_prints_one_line_per_frame(tmp_path):
     result = run_cli("run", "fold", "--frames", "3", "--check", "--no-usd", "--no-poly", cwd=tmp_path)
     assert result.returncode == 0, result.stderr
-    lines = result.stdout.strip().splitlines()
+    lines = result.stdout.strip().splitlines()[1:]  # after the line saying the step
     assert [line.split(":")[0] for line in lines[:4]] == ["frame 0", "frame 1", "frame 2", "frame 3"]
     assert all("0 intersecting triangle pairs" in line for line in lines[:4])
     assert "most intersecting triangle pairs 0" in lines[-1]

@@ -14,6 +14,7 @@ import warp_cloth as wc
 from conftest import run_cli, run_cli_in_process
 from warp_cloth import bench, scene as scene_module, simulator
 from warp_cloth.writers.usd import prim_name
+from warp_cloth.stability import scene_with_step
 
 VALID = """
 [simulation]
@@ -302,12 +303,13 @@ def test_absurd_amounts_of_work_are_refused_before_running(tmp_path, change, key
 
 def test_work_bounds_leave_every_built_in_scene_and_benchmark_valid():
     for name in wc.builtin_scene_names():
-        scene = wc.load_scene(name)
+        scene = scene_with_step(wc.load_scene(name))
         simulator.check_work(scene, scene.simulation.substeps_per_frame)
     for device in ("cpu", "cuda"):
         for suite in bench.SUITES.values():
             for case in suite.cases(device):
-                simulator.check_work(case.scene, case.scene.simulation.substeps_per_frame)
+                scene = scene_with_step(case.scene)
+                simulator.check_work(scene, scene.simulation.substeps_per_frame)
     assert bench.MATRIX_SUBSTEPS <= scene_module.MAX_SUBSTEPS
 
 

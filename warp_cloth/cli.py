@@ -7,6 +7,7 @@ import contextlib
 import dataclasses
 import os
 import sys
+import warnings
 from pathlib import Path
 
 from .errors import SceneError, UnstableSimulation
@@ -92,6 +93,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     wp.config.log_level = wp.LOG_ERROR
     from .scene_file import load_scene, resolve_scene_path
     from .simulator import Simulator, resolve_device
+    from .stability import UnstableStepWarning
     from .writers import PolyWriter, UsdWriter
 
     scene = _with_overrides(load_scene(args.scene), args)
@@ -101,11 +103,20 @@ def _cmd_run(args: argparse.Namespace) -> int:
         raise SceneError("--device", exc.expected, exc.got, source="command line") from None
     # Building the stages compiles some kernels, prepare() the others: seconds of silence on a first run.
     with SlowStepNotice("compiling kernels") if not args.quiet else contextlib.nullcontext():
-        try:
-            sim = Simulator(scene, device=device.alias, graph=not args.no_graph)
-        except SceneError as exc:  # checks of the scene as a whole (overlaps, colliders, size): name its file
-            raise (exc.in_file(str(resolve_scene_path(args.scene))) if exc.source is None else exc) from None
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", UnstableStepWarning)
+            try:
+                sim = Simulator(scene, device=device.alias, graph=not args.no_graph)
+            except SceneError as exc:  # checks of the scene as a whole (overlaps, colliders, size): name its file
+                raise (exc.in_file(str(resolve_scene_path(args.scene))) if exc.source is None else exc) from None
         sim.prepare()
+    print(f"{scene.name}: {sim.step_choice.describe()}", flush=True)
+    step_source = "command line" if args.substeps is not None or args.dt is not None else args.scene
+    for w in caught:
+        if issubclass(w.category, UnstableStepWarning):
+            print(f"warp-cloth: warning: {step_source}: {w.message}", file=sys.stderr, flush=True)
+        else:
+            warnings.showwarning(w.message, w.category, w.filename, w.lineno)
     out = Path(scene.output.dir)
     writers = []
     if scene.output.usd:

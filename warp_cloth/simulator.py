@@ -7,6 +7,7 @@ import os
 import signal
 import threading
 import time
+import warnings
 from dataclasses import dataclass
 from typing import Iterable, Protocol
 
@@ -19,6 +20,7 @@ from .errors import SceneError, UnstableSimulation
 from .model import Model, build_model
 from .progress import Progress, SlowStepNotice
 from .scene import Scene
+from .stability import UnstableStepWarning, beyond_bound_message, resolve_step
 from .implicit import BackwardEuler, SolveStats
 from .stages import ParticleCollision, RigidCollision, Stage, build_stages
 from .state import DeviceState
@@ -151,13 +153,17 @@ class Simulator:
             raise ValueError(f"threads_per_particle must be None or a power of two up to 64 (1 on the CPU), "
                              f"got {threads_per_particle!r}")
         check_memory(scene, self.device)
-        self.scene = scene
         self.model: Model = build_model(scene)
+        # The step, chosen here where the scene sets none: from now on the scene is the one with that step.
+        self.model, self.step_choice = resolve_step(self.model)
+        self.scene = self.model.scene
+        check_work(self.scene, self.step_choice.substeps)
+        if self.step_choice.beyond_bound:
+            warnings.warn(UnstableStepWarning(beyond_bound_message(self.step_choice, scene.simulation)), stacklevel=2)
         self.state = DeviceState(self.model.positions, self.model.velocities, self.device)
         self.stages: list[Stage] = build_stages(self.model, self.device, threads_per_particle)
-        self.substeps_per_frame = scene.simulation.substeps_per_frame
-        self.dt = scene.simulation.step
-        check_work(scene, self.substeps_per_frame)
+        self.substeps_per_frame = self.step_choice.substeps
+        self.dt = self.step_choice.step
         self.frame = 0
         self.substep_count = 0
         self.use_graph = graph
