@@ -12,12 +12,12 @@ from .scene import (Box, Cloth, Collision, Ground, ImplicitSolver, Limit, Oscill
                     Simulation, Sphere, SpringKind)
 from .scene_file import builtin_scene_names, load_scene, scene_from_dict
 from .simulator import RunSummary, Simulator
-from .writers import PolyWriter, UsdWriter
+from .writers import CheckpointWriter, PolyWriter, UsdWriter
 
 __version__ = "0.1.0"
 
 __all__ = [
-    "Box", "Cloth", "Collision", "Ground", "ImplicitSolver", "Limit", "Oscillation", "Output", "Pin", "PolyWriter",
+    "Box", "CheckpointWriter", "Cloth", "Collision", "Ground", "ImplicitSolver", "Limit", "Oscillation", "Output", "Pin", "PolyWriter",
     "RunSummary", "Scene", "SceneError", "Simulation", "Simulator", "Sphere", "SpringKind", "UsdWriter",
     "builtin_scene_names", "load_scene", "scene_from_dict",
 ]
