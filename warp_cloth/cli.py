@@ -13,6 +13,7 @@ from .scene_file import builtin_scene_names, load_scene
 
 EXIT_BAD_INPUT = 2
 EXIT_UNSTABLE = 3
+EXIT_INTERRUPTED = 130
 EXIT_OUTPUT_FAILED = 4  # a writer failed (a full disk, ...): the run's frames are kept beside the output
 EXIT_SIGNAL_BASE = 128  # a run stopped by a signal exits with 128 + the signal's number (130 for Ctrl-C)
 
@@ -185,6 +186,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
         print(f"warp-cloth: error: {scene.name}: could not write the output ({exc}). Kept the frames so far in "
               f"{_kept(outputs)}{resume_hint}; nothing in place was replaced.", file=sys.stderr)
         return EXIT_OUTPUT_FAILED
+    except KeyboardInterrupt:  # a second Ctrl-C, SIGTERM or SIGHUP: the frame in progress is lost
+        print(f"warp-cloth: {scene.name}: stopped at once; kept the finished frames in {_kept(outputs)}"
+              f"{resume_hint}.", file=sys.stderr)
+        return EXIT_INTERRUPTED
     sim_settings = scene.simulation
     wrote = _kept(outputs)
     if summary.interrupted:

@@ -19,7 +19,8 @@ class CheckpointWriter:
         self.kept = False
 
     def _where(self) -> dict:
-        return {"outputs": {str(w.target): str(w.location or w.staging) for w in self.outputs}}
+        return {"outputs": {str(w.target.absolute()): str((w.location or w.staging).absolute())
+                            for w in self.outputs}}
 
     def begin(self, sim) -> None:
         pass
@@ -45,5 +46,5 @@ class CheckpointWriter:
 
 def frames_at(checkpoint_extra: dict, target: Path) -> Path | None:
     """Where the checkpointed run left the frames of the output ``target``."""
-    location = checkpoint_extra.get("outputs", {}).get(str(target))
+    location = checkpoint_extra.get("outputs", {}).get(str(target.absolute()))
     return Path(location) if location else None

@@ -75,9 +75,9 @@ class PolyWriter:
     def take_back(self, location: Path, frame: int, cloths: list[str]) -> None:
         """Before resuming: the frames an earlier run left at ``location`` go back into the staging folder
         (copied where they are in place: those files stay until the resumed run completes)."""
-        if location == self.staging:
+        if location.absolute() == self.staging.absolute():
             return
-        if location == self.directory:
+        if location.absolute() == self.directory.absolute():
             names = [frame_file_name(c, f) for c in cloths for f in range(frame + 1)]
             missing = next((n for n in names if not (location / n).is_file()), None)
             if missing:

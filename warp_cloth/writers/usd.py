@@ -65,9 +65,9 @@ class UsdWriter:
     def take_back(self, location: Path, frame: int, cloths: list[str]) -> None:
         """Before resuming: the frames an earlier run left at ``location`` go back under the staging name
         (copied where they are in place: that file stays until the resumed run completes)."""
-        if location == self.staging:
+        if location.absolute() == self.staging.absolute():
             return
-        if location == self.path:
+        if location.absolute() == self.path.absolute():
             if not Sdf.Layer.FindOrOpen(str(location)).Export(str(self.staging)):
                 raise OutputError(f"could not copy {location} to {self.staging}")
         else:
