@@ -327,6 +327,10 @@ def test_a_killed_run_resumes_to_the_frames_of_an_uninterrupted_run(tmp_path):
     process.kill()
     process.wait(timeout=60)
     assert (out / "fold_push.incomplete.usdc").exists() and (out / "fold_push.checkpoint.npz").exists()
+    frames_left = {k: v for k, v in files_under(out).items() if not k.endswith(".lock")}  # dead runs' locks go
+    fresh = run_cli("run", str(scene), "--frames", frames, "--device", "cpu", "--out", str(out), "--quiet", cwd=REPO)
+    assert fresh.returncode == 2 and "--resume" in one_error_line(fresh)
+    assert {k: v for k, v in files_under(out).items() if not k.endswith(".lock")} == frames_left
     resumed = run_cli("run", str(scene), "--frames", frames, "--device", "cpu", "--out", str(out), "--quiet",
                       "--resume", cwd=REPO)
     assert resumed.returncode == 0, resumed.stderr
