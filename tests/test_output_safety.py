@@ -184,6 +184,26 @@ def test_usd_save_is_refused_before_the_disk_is_full(tmp_path, monkeypatch):
     assert len(frames) == 3 and all(np.isfinite(p).all() for p in frames)  # frames 0 to 2, saved in time
 
 
+def test_a_full_disk_under_the_cli_ends_with_exit_4_and_one_line(tmp_path, monkeypatch, capsys):
+    from warp_cloth.cli import main
+    from warp_cloth.writers.poly import PolyWriter
+
+    write_frame = PolyWriter.write_frame
+
+    def fill_at_frame_3(self, sim, frame):
+        if frame == 3:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        write_frame(self, sim, frame)
+
+    monkeypatch.setattr(PolyWriter, "write_frame", fill_at_frame_3)
+    assert main(["run", "hanging", "--frames", "6", "--out", str(tmp_path), "--quiet"]) == 4
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "No space left on device" in err and "--resume" in err
+    assert len(usd_points(tmp_path / "hanging.failed.usdc")) == 4  # the USD writer had frame 3 already
+    assert len(list((tmp_path / "hanging" / "poly.failed").iterdir())) == 3
+    assert not (tmp_path / "hanging.usdc").exists() and not (tmp_path / "hanging" / "poly").exists()
+
+
 @contextlib.contextmanager
 def small_disk(folder: Path, size: str):
     folder.mkdir()
