@@ -27,9 +27,11 @@ def scene_fingerprint(scene) -> str:
     settings (a resumed run may ask for more frames), the step it runs at and this package's version."""
     from . import __version__
 
-    neutral = dataclasses.replace(scene, simulation=dataclasses.replace(scene.simulation, frames=1),
-                                  output=dataclasses.replace(scene.output, dir="", usd=True, poly=True))
-    text = f"{__version__}|{scene.simulation.step!r}|{neutral!r}"
+    fields = dataclasses.asdict(scene)
+    del fields["simulation"]["frames"]
+    for key in ("dir", "usd", "poly"):
+        del fields["output"][key]
+    text = f"{__version__}|{scene.simulation.step!r}|{fields!r}"
     return hashlib.sha256(text.encode()).hexdigest()
 
 

@@ -9,6 +9,8 @@ place only when the run completes; it holds a lock beside the output while it ru
 - ``out/hanging.interrupted.usdc``: the frames of a stopped run (Ctrl-C, SIGTERM, SIGHUP) where an output
   was already in place (a stopped run with nothing to replace puts its frames in place)
 - ``out/hanging.usdc.lock``: held while a run writes the output; it names the run's process
+- ``out/hanging.checkpoint.npz``: the state at the last saved frame, for ``--resume`` (see
+  ``warp_cloth.checkpoint``); ``out/hanging.exporting.usdc``: the compact copy being written at the end
 
 Where a labelled name is taken, ``.failed.2``, ``.failed.3``, ... are used: a run never replaces a file it
 did not make.
