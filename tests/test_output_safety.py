@@ -18,7 +18,7 @@ from pxr import Sdf, Usd, UsdGeom
 
 import warp_cloth as wc
 from conftest import REPO, run_cli, with_simulation
-from warp_cloth.output import OutputError, OutputLock
+from warp_cloth.output import OutputError, OutputLock, first_free, labelled
 
 FOLD_AROUND_A_MOVING_SPHERE = """
 description = "a small cloth folding onto itself and the ground, pushed by a moving sphere"
@@ -120,6 +120,14 @@ def test_unstable_run_keeps_the_previous_output_and_its_frames_beside_it(tmp_pat
     assert len(frames) == last_good + 1 and all(np.isfinite(p).all() for p in frames)
     assert len(list(failed_poly.glob("*.poly"))) == last_good + 1
     assert not list(tmp_path.rglob("*.incomplete*")) and not list(tmp_path.rglob("*.lock"))
+
+
+def test_labelled_names_say_what_they_are_and_never_reuse_a_taken_one(tmp_path):
+    assert labelled(Path("out/shot.usda"), "incomplete", ".usdc") == Path("out/shot.incomplete.usdc")
+    assert labelled(Path("renders/shot.v2"), "failed") == Path("renders/shot.v2.failed")  # a folder keeps its dots
+    (tmp_path / "hanging.failed.usdc").write_text("")
+    (tmp_path / "hanging.failed.2.usdc").write_text("")
+    assert first_free(tmp_path / "hanging.usdc", "failed", ".usdc") == tmp_path / "hanging.failed.3.usdc"
 
 
 class RaiseAt:

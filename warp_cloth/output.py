@@ -36,9 +36,10 @@ class OutputError(RuntimeError):
 
 
 def labelled(path: Path, label: str, suffix: str | None = None) -> Path:
-    """``out/hanging.usdc`` -> ``out/hanging.<label>.usdc`` (``suffix`` replaces the file's own);
-    a folder ``poly`` -> ``poly.<label>``."""
-    suffix = path.suffix if suffix is None else suffix
+    """A file: ``labelled(out/hanging.usdc, label, ".usdc")`` -> ``out/hanging.<label>.usdc`` (``suffix``
+    replaces the file's own); a folder (no ``suffix``): ``poly`` -> ``poly.<label>``."""
+    if suffix is None:
+        return path.with_name(f"{path.name}.{label}")
     return path.with_name(f"{path.name[:len(path.name) - len(path.suffix)]}.{label}{suffix}")
 
 

@@ -102,8 +102,9 @@ class PolyWriter:
                 raise SceneError("poly", f"frames up to the checkpoint's frame {sim.frame} in {self.staging}",
                                  f"no {missing[0]}")
             self.names += names
+        kept = set(self.names)
         for name in self._frame_files(self.staging, cloths):
-            if name not in self.names:
+            if name not in kept:
                 (self.staging / name).unlink()  # a later frame this run's earlier part wrote
         self.saved_through = sim.frame
 

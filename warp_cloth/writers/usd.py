@@ -225,7 +225,7 @@ class UsdWriter:
         self._save()
         size = os.path.getsize(self.staging)
         text = self.path.suffix.lower() == ".usda"
-        exported = labelled(self.path, "exporting")
+        exported = labelled(self.path, "exporting", self.path.suffix)
         if output.free_bytes(self.path.parent) < (4 if text else 1) * size + SAVE_MARGIN_BYTES:
             if text:
                 raise OutputError(f"not enough free space in {self.path.parent} to write {self.path} "
