@@ -184,12 +184,13 @@ def test_usd_save_is_refused_before_the_disk_is_full(tmp_path, monkeypatch):
                 free["bytes"] = 1000
 
     monkeypatch.setattr(output, "free_bytes", lambda folder: free["bytes"])
-    monkeypatch.setattr(wc.Simulator, "SYNC_SECONDS", 0.0)  # save after every frame
+    monkeypatch.setattr(wc.Simulator, "SYNC_SECONDS", 0.0)  # save as often as the run allows
     with pytest.raises(OutputError, match="not enough free space"):
         wc.Simulator(scene, device="cpu").run(6, writers=[FillDiskAt(3, None), wc.UsdWriter(path)])
     assert path.read_bytes() == before
     frames = usd_points(tmp_path / "hanging.failed.usdc")
-    assert len(frames) == 3 and all(np.isfinite(p).all() for p in frames)  # frames 0 to 2, saved in time
+    # the first sync (after frame 1) saved frames 0 and 1; frame 2 too if it was synced before frame 3 filled the disk
+    assert 2 <= len(frames) <= 3 and all(np.isfinite(p).all() for p in frames)
 
 
 def test_a_full_disk_under_the_cli_ends_with_exit_4_and_one_line(tmp_path, monkeypatch, capsys):

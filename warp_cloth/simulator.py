@@ -317,7 +317,7 @@ class Simulator:
                 if self.frame == 0:
                     for w in writers:
                         w.write_frame(self, 0)
-                last_sync = time.perf_counter()
+                last_sync, sync_every = time.perf_counter(), self.SYNC_SECONDS
                 unchecked = None  # without writers, a frame is checked while the next one runs
                 for _ in range(frames):
                     if stop.requested:
@@ -333,9 +333,12 @@ class Simulator:
                     written += 1
                     if bar:
                         bar.update(written)
-                    if writers and time.perf_counter() - last_sync >= self.SYNC_SECONDS:
+                    if writers and time.perf_counter() - last_sync >= sync_every:
+                        sync_started = time.perf_counter()
                         _sync(writers, self)
                         last_sync = time.perf_counter()
+                        # a large scene's saves take long: keep them to about a tenth of the run's time
+                        sync_every = max(self.SYNC_SECONDS, 10 * (last_sync - sync_started))
                 if unchecked is not None:
                     self._check_frame(unchecked)
                 wp.synchronize_device(self.device)
