@@ -121,7 +121,7 @@ def test_interrupted_run_leaves_a_valid_usd_with_every_finished_frame(tmp_path):
     command = [sys.executable, "-m", "warp_cloth", "run", "hanging", "--frames", "100000", "--no-poly",
                "--out", str(tmp_path), "--quiet"]
     process = subprocess.Popen(command, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    partial = tmp_path / ".hanging.partial.usdc"
+    partial = tmp_path / "hanging.incomplete.usdc"
     deadline = time.monotonic() + 120
     while not partial.exists() and time.monotonic() < deadline:
         time.sleep(0.1)

@@ -131,13 +131,14 @@ def test_unstable_run_keeps_every_written_frame_valid_and_writes_no_nan(tmp_path
     result = run_cli("run", "hanging", "--dt", "0.0104", "--out", str(tmp_path), "--quiet", cwd=tmp_path)
     assert result.returncode == 3, result.stderr
     assert "Traceback" not in result.stderr and "unstable at frame" in result.stderr
-    stage = Usd.Stage.Open(str(tmp_path / "hanging.usdc"))
+    # a failed run keeps its frames beside the output, under names that say so (issue 13)
+    stage = Usd.Stage.Open(str(tmp_path / "hanging.failed.usdc"))
     mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/World/cloth"))
     samples = mesh.GetPointsAttr().GetTimeSamples()
     assert samples == list(range(int(stage.GetEndTimeCode()) + 1)) and len(samples) >= 2
     for t in samples:
         assert np.isfinite(np.array(mesh.GetPointsAttr().Get(t))).all()
-    polys = sorted((tmp_path / "hanging" / "poly").iterdir())
+    polys = sorted((tmp_path / "hanging" / "poly.failed").iterdir())
     assert len(polys) == len(samples)
     assert all("nan" not in p.read_text().lower() for p in polys)
 

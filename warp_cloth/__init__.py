@@ -20,22 +20,23 @@ if TYPE_CHECKING:
     from .scene_file import builtin_scene_names, load_scene, scene_from_dict
     from .simulator import RunSummary, Simulator
     from .stability import UnstableStepWarning
-    from .writers import PolyWriter, UsdWriter
+    from .writers import CheckpointWriter, PolyWriter, UsdWriter
 
 # Imported at first use: they load numpy, Warp and USD (seconds on a first run), which the command line
 # does only once it can answer Ctrl-C with one line instead of a traceback.
 _IMPORTED_AT_FIRST_USE = {
     "builtin_scene_names": "scene_file", "load_scene": "scene_file", "scene_from_dict": "scene_file",
     "RunSummary": "simulator", "Simulator": "simulator", "PolyWriter": "writers", "UsdWriter": "writers",
+    "CheckpointWriter": "writers",
     "UnstableStepWarning": "stability",
 }
 
 __version__ = "0.1.0"
 
 __all__ = [
-    "Box", "Cloth", "Collision", "Ground", "ImplicitSolver", "Limit", "Oscillation", "Output", "Pin", "PolyWriter",
-    "RunSummary", "Scene", "SceneError", "Simulation", "Simulator", "Sphere", "SpringKind", "UnstableSimulation",
-    "UnstableStepWarning", "UsdWriter", "builtin_scene_names", "load_scene", "scene_from_dict",
+    "Box", "CheckpointWriter", "Cloth", "Collision", "Ground", "ImplicitSolver", "Limit", "Oscillation", "Output",
+    "Pin", "PolyWriter", "RunSummary", "Scene", "SceneError", "Simulation", "Simulator", "Sphere", "SpringKind",
+    "UnstableSimulation", "UnstableStepWarning", "UsdWriter", "builtin_scene_names", "load_scene", "scene_from_dict",
 ]
 
 

@@ -17,6 +17,8 @@ from .scene import INTEGRATORS, Scene
 EXIT_BAD_INPUT = 2
 EXIT_UNSTABLE = 3
 EXIT_INTERRUPTED = 130
+EXIT_OUTPUT_FAILED = 4  # a writer failed (a full disk, ...): the run's frames are kept beside the output
+EXIT_SIGNAL_BASE = 128  # a run stopped by a signal exits with 128 + the signal's number (130 for Ctrl-C)
 EXIT_BROKEN_PIPE = 141  # 128 + SIGPIPE, what a shell reports for a command stopped by a closed pipe
 
 
@@ -43,6 +45,9 @@ def _parser() -> argparse.ArgumentParser:
     poly = run.add_mutually_exclusive_group()
     poly.add_argument("--poly", metavar="DIR", help="folder for .poly files (default: OUT/SCENE/poly)")
     poly.add_argument("--no-poly", action="store_true", help="write no .poly files")
+    run.add_argument("--resume", action="store_true",
+                     help="continue the run that was stopped, killed or failed writing these outputs, from its "
+                          "checkpoint (the scene and its settings must be unchanged)")
     run.add_argument("--no-graph", action="store_true",
                      help="launch a frame's kernels one by one instead of replaying the frame as a captured graph "
                           "(a CUDA graph on a GPU, a Warp CPU graph on the CPU): slower, for debugging")
@@ -87,26 +92,64 @@ def _cmd_scenes() -> int:
     return 0
 
 
-def _cmd_run(args: argparse.Namespace) -> int:
-    import warp as wp
-
-    wp.config.log_level = wp.LOG_ERROR
-    from .scene_file import load_scene, resolve_scene_path
-    from .simulator import Simulator, resolve_device
-    from .stability import UnstableStepWarning
+def _writers(scene: Scene, args: argparse.Namespace) -> list:
+    """The run's output writers, their paths checked (before anything is simulated or written)."""
     from .writers import PolyWriter, UsdWriter
 
-    scene = _with_overrides(load_scene(args.scene), args)
+    out = Path(scene.output.dir)
+    writers = []
     try:
-        device = resolve_device(args.device)
+        if scene.output.usd:
+            writers.append(UsdWriter(args.usd or out / f"{scene.name}.usdc", scene.output.subdivision,
+                                     resume=args.resume))
+        if scene.output.poly:
+            writers.append(PolyWriter(args.poly or out / scene.name / "poly", resume=args.resume))
     except SceneError as exc:
-        raise SceneError("--device", exc.expected, exc.got, source="command line") from None
+        raise SceneError(f"--{exc.key}", exc.expected, exc.got, "command line", exc.has_got) from None
+    return writers
+
+
+def _prepare(writers: list) -> None:
+    """Take every output's lock, or release those taken and refuse."""
+    try:
+        for w in writers:
+            w.prepare()
+    except SceneError as exc:
+        for w in writers:
+            w.lock.release()
+        raise SceneError(f"--{exc.key}", exc.expected, exc.got, "command line", exc.has_got) from None
+
+
+def _take_back(checkpoint, scene: Scene, writers: list) -> None:
+    """Give each writer back the frames the checkpointed run left (under the staging name, in place, or
+    beside it as failed or interrupted)."""
+    from .writers.checkpoint import frames_at
+
+    for w in writers:
+        location = frames_at(checkpoint.extra, w.target)
+        if location is None:
+            raise SceneError("--resume", f"a checkpoint of a run that wrote {w.target} (it did not)", has_got=False,
+                             source="command line")
+        w.take_back(location, checkpoint.frame, [c.name for c in scene.cloths])
+
+
+def _kept(writers: list) -> str:
+    return ", ".join(f"{p}" for w in writers for p in w.outputs) or "nothing"
+
+
+def _simulator(scene: Scene, device: str, args: argparse.Namespace):
+    """The scene's simulator with its kernels compiled; says first the step it takes, and warns of a step
+    set past the stable bound."""
+    from .scene_file import resolve_scene_path
+    from .simulator import Simulator
+    from .stability import UnstableStepWarning
+
     # Building the stages compiles some kernels, prepare() the others: seconds of silence on a first run.
     with SlowStepNotice("compiling kernels") if not args.quiet else contextlib.nullcontext():
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", UnstableStepWarning)
             try:
-                sim = Simulator(scene, device=device.alias, graph=not args.no_graph)
+                sim = Simulator(scene, device=device, graph=not args.no_graph)
             except SceneError as exc:  # checks of the scene as a whole (overlaps, colliders, size): name its file
                 raise (exc.in_file(str(resolve_scene_path(args.scene))) if exc.source is None else exc) from None
         sim.prepare()
@@ -117,34 +160,93 @@ def _cmd_run(args: argparse.Namespace) -> int:
             print(f"warp-cloth: warning: {step_source}: {w.message}", file=sys.stderr, flush=True)
         else:
             warnings.showwarning(w.message, w.category, w.filename, w.lineno)
-    out = Path(scene.output.dir)
-    writers = []
-    if scene.output.usd:
-        writers.append(UsdWriter(args.usd or out / f"{scene.name}.usdc", scene.output.subdivision))
-    if scene.output.poly:
-        writers.append(PolyWriter(args.poly or out / scene.name / "poly"))
+    return sim
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    import signal
+
+    import warp as wp
+
+    wp.config.log_level = wp.LOG_ERROR
+    from .checkpoint import check_scene, checkpoint_path, load_checkpoint
+    from .output import OutputError
+    from .scene_file import load_scene
+    from .simulator import resolve_device
+    from .writers import CheckpointWriter
+
+    scene = _with_overrides(load_scene(args.scene), args)
+    try:
+        device = resolve_device(args.device)
+    except SceneError as exc:
+        raise SceneError("--device", exc.expected, exc.got, source="command line") from None
+    if args.out is not None and Path(args.out).exists() and not Path(args.out).is_dir():
+        raise SceneError("--out", "a folder (this is a file)", args.out, "command line")
+    writers = _writers(scene, args)
+    checkpoint_file = checkpoint_path(writers[0].target) if writers else None
+    checkpoint = None
+    if args.resume:
+        if checkpoint_file is None:
+            raise SceneError("--resume", "outputs to go on with (a run without USD and .poly keeps no checkpoint)",
+                             has_got=False, source="command line")
+        if not checkpoint_file.exists():
+            raise SceneError("--resume", f"a checkpoint of an earlier run at {checkpoint_file}", has_got=False,
+                             source="command line")
+        checkpoint = load_checkpoint(checkpoint_file)
+        check_scene(checkpoint, scene, str(checkpoint_file))
+    _prepare(writers)
+    try:
+        sim = _simulator(scene, device.alias, args)
+        if checkpoint is not None:
+            sim.restore(checkpoint)
+            _take_back(checkpoint, scene, writers)
+    except BaseException:
+        for w in writers:
+            w.lock.release()
+        raise
+    outputs = list(writers)
+    if checkpoint_file is not None:
+        writers.append(CheckpointWriter(checkpoint_file, outputs))
     check = None
     if args.check:
         from .diagnostics import CheckReport
 
         check = CheckReport(sys.stdout)
         writers.append(check)
+    frames = max(0, scene.simulation.frames - sim.frame)
+    resume_hint = "; continue it with --resume" if checkpoint_file is not None else ""
     try:
-        summary = sim.run(writers=writers, progress=not args.quiet and not args.check)
+        summary = sim.run(frames, writers=writers, progress=not args.quiet and not args.check)
     except UnstableSimulation as exc:
-        wrote = ", ".join(str(p) for w in writers for p in w.outputs) or "nothing"
-        print(f"warp-cloth: error: {scene.name}: {exc} Wrote {wrote} (frames 0 to {exc.frame - 1}).",
-              file=sys.stderr)
+        print(f"warp-cloth: error: {scene.name}: {exc} Kept frames 0 to {exc.frame - 1} in {_kept(outputs)}; "
+              "nothing in place was replaced.", file=sys.stderr)
         return EXIT_UNSTABLE
+    except (OutputError, OSError) as exc:
+        print(f"warp-cloth: error: {scene.name}: could not write the output ({exc}). Kept the frames so far in "
+              f"{_kept(outputs)}{resume_hint}; nothing in place was replaced.", file=sys.stderr)
+        return EXIT_OUTPUT_FAILED
+    except KeyboardInterrupt:  # a second Ctrl-C, SIGTERM or SIGHUP: the frame in progress is lost
+        print(f"warp-cloth: {scene.name}: stopped at once; kept the finished frames in {_kept(outputs)}"
+              f"{resume_hint}.", file=sys.stderr)
+        return EXIT_INTERRUPTED
     sim_settings = scene.simulation
-    wrote = ", ".join(str(p) for w in writers for p in w.outputs) or "nothing"
-    status = (f"interrupted after {summary.frames} of {sim_settings.frames} frames" if summary.interrupted
-              else f"{summary.frames} frames")
+    wrote = _kept(outputs)
+    if summary.interrupted:
+        name = signal.Signals(summary.stop_signal).name
+        status = f"interrupted after {summary.frames} of {sim_settings.frames} frames by {name}"
+        wrote += resume_hint
+    else:
+        status = f"{summary.frames} frames"
+    if checkpoint is not None:
+        status += f" (resumed at frame {checkpoint.frame})"
+    older = sum(getattr(w, "older_frames_left", 0) for w in outputs)
+    if older:
+        wrote += f" ({older} older .poly files of other frames left there)"
     print(f"{scene.name}: {status} ({summary.substeps} substeps of {sim.dt * 1e3:.3g} ms, "
           f"{sim_settings.integrator}) of {summary.particles} particles on {sim.device.alias} in "
           f"{summary.wall_seconds:.2f} s ({summary.particle_substeps_per_second:.3g} particle-substeps/s); "
           f"wrote {wrote}" + (f"; {check.summary()}" if check else ""))
-    return EXIT_INTERRUPTED if summary.interrupted else 0
+    return EXIT_SIGNAL_BASE + summary.stop_signal if summary.interrupted else 0
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -9,6 +9,7 @@ import threading
 import time
 import warnings
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Iterable, Protocol
 
 import numpy as np
@@ -16,8 +17,10 @@ import warp as wp
 
 from warp_cloth.kernels import guard
 
+from .checkpoint import Checkpoint, load_checkpoint, restore, save_checkpoint
 from .errors import SceneError, UnstableSimulation
 from .model import Model, build_model
+from .output import RunOutcome
 from .progress import Progress, SlowStepNotice
 from .scene import Scene
 from .stability import UnstableStepWarning, beyond_bound_message, resolve_step
@@ -40,7 +43,13 @@ MAX_PASSES_PER_FRAME = 1_000_000
 
 
 class FrameWriter(Protocol):
-    """Receives the state after every frame (frame 0 is the initial state)."""
+    """Receives the state after every frame (frame 0 is the initial state).
+
+    ``finish`` ends a run that completed. A writer may also have ``sync(sim)``, called every
+    ``Simulator.SYNC_SECONDS`` and before the run ends, to make the frames so far safe on disk, and
+    ``abandon(sim, frames_written, outcome)``, called instead of ``finish`` when the run was stopped by a
+    signal or failed (``warp_cloth.output.RunOutcome``); a writer without it gets ``finish``.
+    """
 
     def begin(self, sim: "Simulator") -> None: ...
 
@@ -56,6 +65,7 @@ class RunSummary:
     particles: int
     wall_seconds: float
     interrupted: bool
+    stop_signal: int | None = None  # the signal that stopped an interrupted run
 
     @property
     def particle_substeps_per_second(self) -> float:
@@ -110,27 +120,35 @@ def check_work(scene: Scene, substeps: int) -> None:
                               f"{substeps} substeps x {passes} passes a substep is {total:,}", factors[key])
 
 
-class StopOnInterrupt:
-    """Turns the first Ctrl-C into a request to stop after the frame in progress (a second one stops at
-    once), so that writers are never cut off in the middle of a frame."""
+STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
+
+
+class StopOnSignal:
+    """Turns the first Ctrl-C, SIGTERM or SIGHUP into a request to stop after the frame in progress (a second
+    one stops at once), so that writers are never cut off in the middle of a frame."""
 
     def __init__(self) -> None:
-        self.requested = False
-        self._previous = None
+        self.signal: int | None = None
+        self._previous: dict = {}
 
-    def __enter__(self) -> "StopOnInterrupt":
+    @property
+    def requested(self) -> bool:
+        return self.signal is not None
+
+    def __enter__(self) -> "StopOnSignal":
         if threading.current_thread() is threading.main_thread():
-            self._previous = signal.signal(signal.SIGINT, self._handle)
+            for number in STOP_SIGNALS:
+                self._previous[number] = signal.signal(number, self._handle)
         return self
 
     def _handle(self, signum, frame) -> None:
-        if self.requested:
+        if self.signal is not None:
             raise KeyboardInterrupt
-        self.requested = True
+        self.signal = signum
 
     def __exit__(self, *exc) -> None:
-        if self._previous is not None:
-            signal.signal(signal.SIGINT, self._previous)
+        for number, previous in self._previous.items():
+            signal.signal(number, previous)
 
 
 class Simulator:
@@ -144,6 +162,7 @@ class Simulator:
 
     INITIAL_OVERLAP_LIMIT = 0.5  # of the contact distance: closer starting pairs are refused
     INITIAL_COLLIDER_DEPTH_LIMIT = 0.5  # of a cell: particles starting deeper in a collider are refused
+    SYNC_SECONDS = 2.0  # how often ``run`` has its writers make their frames safe on disk
 
     def __init__(self, scene: Scene, device: str | None = None, graph: bool = True,
                  threads_per_particle: int | None = None) -> None:
@@ -252,7 +271,7 @@ class Simulator:
         for stage in self.stages:
             for part in (stage, getattr(stage, "colliders", None)):
                 if isinstance(part, RigidCollision) and part.bundle.center.shape[0] > 0:
-                    return part.bundle.center.numpy()
+                    return self._host_copy(part.bundle.center)
         return np.zeros((0, 3), dtype=np.float32)
 
     def solver_stats(self) -> "SolveStats | None":
@@ -345,30 +364,48 @@ class Simulator:
                 self._frame_substeps(slot)
             self.state.parity = parity
 
+    def save_checkpoint(self, path: str | Path) -> None:
+        """Write the state the next frame needs (see ``warp_cloth.checkpoint``)."""
+        save_checkpoint(self, path)
+
+    def restore(self, checkpoint: "str | Path | Checkpoint") -> None:
+        """Go back to a checkpoint of this scene (a path or a loaded ``Checkpoint``); the frames that follow
+        are those the run it was taken from made. Raises ``SceneError`` if the scene changed since."""
+        if not isinstance(checkpoint, Checkpoint):
+            source = str(checkpoint)
+            checkpoint = load_checkpoint(checkpoint)
+        else:
+            source = "checkpoint"
+        restore(self, checkpoint, source)
+
     def run(self, frames: int | None = None, writers: Iterable[FrameWriter] = (), progress: bool = False) -> RunSummary:
         """Simulate ``frames`` frames (default: the scene's), handing every frame to the writers.
 
-        Writers get the initial state as frame 0 when the simulation has not moved yet. They are finished
-        whatever happens, so an interrupted run (Ctrl-C) leaves every completed frame written. Without
-        writers, each frame's blow-up check waits until the next frame is queued, so the device never idles
-        between frames; ``UnstableSimulation`` then names the same frame, but the state has gone one
-        frame further.
+        Writers get the initial state as frame 0 when the simulation has not moved yet. A first Ctrl-C,
+        SIGTERM or SIGHUP stops the run after the frame in progress: the writers are synced and abandoned
+        (see ``FrameWriter``) with every completed frame, and the summary says which signal stopped it. A
+        failure (``UnstableSimulation``, a writer's error) abandons them too, then is raised. Without writers,
+        each frame's blow-up check waits until the next frame is queued, so the device never idles between
+        frames; ``UnstableSimulation`` then names the same frame, but the state has gone one frame further.
         """
         frames = self.scene.simulation.frames if frames is None else frames
         writers = list(writers)
         with SlowStepNotice("compiling kernels") if progress else contextlib.nullcontext():
             self.prepare()
         bar = Progress(frames, f"{self.scene.name} on {self.device.alias}") if progress else None
-        for w in writers:
-            w.begin(self)
+        begun: list[FrameWriter] = []
         written = 0
-        if self.frame == 0:
-            for w in writers:
-                w.write_frame(self, 0)
         start_substeps = self.substep_count
         started = time.perf_counter()
         try:
-            with StopOnInterrupt() as stop:
+            with StopOnSignal() as stop:
+                for w in writers:
+                    w.begin(self)
+                    begun.append(w)
+                if self.frame == 0:
+                    for w in writers:
+                        w.write_frame(self, 0)
+                last_sync, sync_every = time.perf_counter(), self.SYNC_SECONDS
                 unchecked = None  # without writers, a frame is checked while the next one runs
                 for _ in range(frames):
                     if stop.requested:
@@ -384,17 +421,37 @@ class Simulator:
                     written += 1
                     if bar:
                         bar.update(written)
+                    if writers and time.perf_counter() - last_sync >= sync_every:
+                        sync_started = time.perf_counter()
+                        _sync(writers, self)
+                        last_sync = time.perf_counter()
+                        # a large scene's saves take long: keep them to about a tenth of the run's time
+                        sync_every = max(self.SYNC_SECONDS, 10 * (last_sync - sync_started))
                 if unchecked is not None:
                     self._check_frame(unchecked)
                 wp.synchronize_device(self.device)
-            interrupted = stop.requested
+                _sync(writers, self)
+                stopped_by = stop.signal
+                if stopped_by is not None:
+                    begun = []
+                    _abandon(writers, RunOutcome(interrupted=True), self)
+                else:
+                    for k, w in enumerate(writers):
+                        try:
+                            w.finish(self, self.frame)
+                        except BaseException:
+                            begun = writers[k:]
+                            raise
+                begun = []
+        except BaseException as exc:
+            _abandon(begun, RunOutcome(interrupted=False, error=exc), self)
+            raise
         finally:
-            for w in writers:
-                w.finish(self, self.frame)
             if bar:
                 bar.close()
         wall = time.perf_counter() - started
-        return RunSummary(written, self.substep_count - start_substeps, self.model.particle_count, wall, interrupted)
+        return RunSummary(written, self.substep_count - start_substeps, self.model.particle_count, wall,
+                          stopped_by is not None, stopped_by)
 
     def _frame_substeps(self, slot: int) -> None:
         status = self._guard_status[slot]
@@ -407,3 +464,25 @@ class Simulator:
                       outputs=[status], device=self.device)
         if self.device.is_cuda:
             wp.copy(self._guard_host[slot], status)
+
+
+def _sync(writers: list, sim: Simulator) -> None:
+    for w in writers:
+        if hasattr(w, "sync"):
+            w.sync(sim)
+
+
+def _abandon(writers: list, outcome: RunOutcome, sim: Simulator) -> None:
+    """Every writer gets its ``abandon`` (or ``finish``), even when one of them fails; the first failure is
+    raised after all have been called."""
+    failure = None
+    for w in writers:
+        try:
+            if hasattr(w, "abandon"):
+                w.abandon(sim, sim.frame, outcome)
+            else:
+                w.finish(sim, sim.frame)
+        except Exception as exc:
+            failure = failure or exc
+    if failure is not None and outcome.error is None:
+        raise failure

@@ -210,6 +210,10 @@ class MoveSpheres:
         self.motion = (_upload(s.center, wp.vec3, device), _upload(s.amplitude, wp.vec3, device),
                        _upload(s.frequency, float, device), _upload(s.phase, float, device))
 
+    def carried_arrays(self) -> dict[str, wp.array]:
+        """Where the spheres are, which the next substep's colliders read before this stage moves them."""
+        return {"center": self.target.center, "velocity": self.target.velocity}
+
     def run(self, state: DeviceState) -> None:
         launch(motion.move_spheres, self.target.center.shape[0], state, inputs=[state.clock, self.h, *self.motion],
                outputs=[self.target.center, self.target.velocity])
@@ -330,6 +334,13 @@ class ParticleCollision:
                   inputs=[x, self.radius, self.settings.separation, self.neighbors, self.counts,
                           self.settings.max_neighbors], outputs=[ratio], device=x.device)
         return float(ratio.numpy()[0])
+
+    def carried_arrays(self) -> dict[str, wp.array]:
+        """What one substep leaves for the next: the neighbour lists and where they were made, the hash
+        table and its epoch, the remake flag, the collider contact flags, the overflow count."""
+        return {"neighbors": self.neighbors, "counts": self.counts, "x_built": self.x_built, "rebuild": self.rebuild,
+                "epoch": self.epoch, "bucket_size": self.bucket_size, "bucket_items": self.bucket_items,
+                "resting": self.resting, "overflow": self.overflow, "pushed": self.pushed}
 
     def start_arguments(self) -> tuple[list, list]:
         """What ``begin_contact`` takes besides the state, as (inputs, outputs)."""

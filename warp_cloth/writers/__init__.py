@@ -1,8 +1,9 @@
-"""Frame writers: USD time samples and Houdini .poly files. Each writes under a temporary name and puts
-the result in place when the run finishes (also when it is interrupted), so a failed run never leaves a
-half-made file where the user's previous one was."""
+"""Frame writers: USD time samples, Houdini .poly files and the checkpoint a run can be resumed from. The
+outputs are written under staging names and put in place when the run completes (see ``warp_cloth.output``),
+so a failed run never replaces what was there."""
 
+from .checkpoint import CheckpointWriter
 from .poly import PolyWriter
 from .usd import UsdWriter
 
-__all__ = ["PolyWriter", "UsdWriter"]
+__all__ = ["CheckpointWriter", "PolyWriter", "UsdWriter"]

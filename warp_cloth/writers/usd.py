@@ -1,8 +1,12 @@
 """USD output: one stage, a Mesh per cloth with points and extent as time samples, spheres and ground.
 
 Conventions (see DESIGN.md): ``/World`` default prim, Y up, metres, timeCodesPerSecond = fps, time code =
-frame number with the initial state at 0. The stage is saved after every frame (``.usdc`` appends), so an
-interrupted run keeps every finished frame.
+frame number with the initial state at 0.
+
+The run writes a binary stage under a staging name beside the output (see ``warp_cloth.output``) and saves
+it when the simulator syncs its writers (every few seconds, with a checkpoint), not after every frame: each
+save of a ``.usdc`` appends the whole structure again. A completed run exports the stage once, compact,
+to the output's own format (``.usda`` too) and moves it into place.
 """
 
 from __future__ import annotations
@@ -13,26 +17,68 @@ from pathlib import Path
 import numpy as np
 from pxr import Gf, Sdf, Tf, Usd, UsdGeom, Vt
 
+from .. import output
+from ..errors import SceneError
+from ..output import INCOMPLETE, OutputError, OutputLock, RunOutcome, check_file_output, first_free, fsync_path, labelled
+
+USD_SUFFIXES = (".usd", ".usda", ".usdc")
+# A save appends the new samples and the whole structure again: small, but with every sample's time.
+SAVE_MARGIN_BYTES = 64 * 1024
+BYTES_PER_SAMPLE_TIME = 16
+# Frames are saved early where they would take more than this fraction of the free space.
+EARLY_SAVE_FRACTION = 1 / 8
+
 
 def prim_name(name: str) -> str:
     return Tf.MakeValidIdentifier(name)
 
 
 class UsdWriter:
-    def __init__(self, path: str | Path, subdivision: str = "none") -> None:
+    """Writes ``path`` (.usd, .usda or .usdc). ``resume``: go on with the frames of an earlier run of the same
+    scene, found under the staging name, from the simulator's frame (see ``Simulator.restore``)."""
+
+    def __init__(self, path: str | Path, subdivision: str = "none", resume: bool = False) -> None:
         self.path = Path(path)
-        self.partial = self.path.with_name(f".{self.path.stem}.partial{self.path.suffix}")
+        check_file_output(self.path, USD_SUFFIXES, "usd")
+        self.staging = labelled(self.path, INCOMPLETE, ".usdc")
+        self.lock = OutputLock(self.path)
         self.subdivision = subdivision
+        self.resume = resume
+        self.location: Path | None = None  # where the frames are once the run has ended
+        self.saved_through = -1  # the last frame the file on disk holds
         self.stage: Usd.Stage | None = None
+        self._last_frame = -1
+        self._pending_bytes = 0
         self._points: list[Usd.Attribute] = []
         self._extents: list[Usd.Attribute] = []
         self._sphere_translates: list[Usd.Attribute] = []
 
+    def prepare(self) -> None:
+        """Take the output's lock and check that no killed run's frames would be overwritten (done by
+        ``begin`` too; call it first to be refused before simulating)."""
+        self.lock.acquire("usd")
+        if not self.resume and self.staging.exists():
+            self.lock.release()
+            raise SceneError("usd", f"an output without a killed run's frames beside it: {self.staging} holds "
+                                    "them; continue that run with --resume or move the file away", has_got=False)
+
+    def take_back(self, location: Path, frame: int, cloths: list[str]) -> None:
+        """Before resuming: the frames an earlier run left at ``location`` go back under the staging name
+        (copied where they are in place: that file stays until the resumed run completes)."""
+        if location.absolute() == self.staging.absolute():
+            return
+        if location.absolute() == self.path.absolute():
+            if not Sdf.Layer.FindOrOpen(str(location)).Export(str(self.staging)):
+                raise OutputError(f"could not copy {location} to {self.staging}")
+        else:
+            os.replace(location, self.staging)
+
     def begin(self, sim) -> None:
-        self.partial.parent.mkdir(parents=True, exist_ok=True)
-        if self.partial.exists():
-            self.partial.unlink()
-        stage = Usd.Stage.CreateNew(str(self.partial))
+        self.prepare()
+        if self.resume:
+            self._reopen(sim)
+            return
+        stage = Usd.Stage.CreateNew(str(self.staging))
         self.stage = stage
         fps = sim.scene.simulation.fps
         UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
@@ -60,6 +106,31 @@ class UsdWriter:
                 translate.Set(Gf.Vec3d(*sphere.center))
         if sim.scene.ground is not None:
             self._define_ground(sim)
+        self._save()
+
+    def _reopen(self, sim) -> None:
+        """The staging stage of the run being resumed, cut back to the simulator's frame."""
+        if not self.staging.exists():
+            raise SceneError("usd", f"the frames of the run to resume in {self.staging}", has_got=False)
+        self.stage = stage = Usd.Stage.Open(str(self.staging))
+        self._points = [stage.GetPrimAtPath(f"/World/{prim_name(c.name)}").GetAttribute("points")
+                        for c in sim.scene.cloths]
+        self._extents = [stage.GetPrimAtPath(f"/World/{prim_name(c.name)}").GetAttribute("extent")
+                         for c in sim.scene.cloths]
+        if sim.model.spheres is not None and sim.model.spheres.moving:
+            self._sphere_translates = [UsdGeom.Sphere(stage.GetPrimAtPath(f"/World/{prim_name(s.name)}"))
+                                       .GetOrderedXformOps()[0].GetAttr() for s in sim.scene.spheres]
+        last = max(self._points[0].GetTimeSamples(), default=-1)
+        if last < sim.frame:
+            raise SceneError("usd", f"frames up to the checkpoint's frame {sim.frame} in {self.staging}",
+                             f"frames up to {last:g}")
+        for attr in self._points + self._extents + self._sphere_translates:
+            for t in attr.GetTimeSamples():
+                if t > sim.frame:
+                    attr.ClearAtTime(t)
+        stage.SetEndTimeCode(sim.frame)
+        self._last_frame = sim.frame
+        self._save()
 
     def _define_cloth(self, sim, c: int, cloth) -> None:
         grid = sim.model.grids[c]
@@ -104,15 +175,106 @@ class UsdWriter:
             for attr, center in zip(self._sphere_translates, sim.sphere_centers().tolist()):
                 attr.Set(Gf.Vec3d(*center), code)
         self.stage.SetEndTimeCode(frame)
-        self.stage.Save()
+        self._last_frame = frame
+        self._pending_bytes += positions.nbytes + 32 * (len(sim.scene.cloths) + len(sim.scene.spheres))
+        if self._pending_bytes > EARLY_SAVE_FRACTION * output.free_bytes(self.staging.parent):
+            self._save()  # the disk is filling up: keep what fits now
+
+    def sync(self, sim) -> None:
+        """Save the frames so far (a killed run keeps them, with the checkpoint saved alongside)."""
+        self._save()
+
+    def _save(self) -> None:
+        # A save that runs out of space leaves the crate file unreadable (and the stage unusable), so it is
+        # checked first; where the frames so far do not all fit, those that do are saved.
+        pending = self._last_frame - self.saved_through
+        free = output.free_bytes(self.staging.parent)
+        attributes = len(self._points) + len(self._extents) + len(self._sphere_translates)
+        margin = SAVE_MARGIN_BYTES + BYTES_PER_SAMPLE_TIME * attributes * max(0, self._last_frame + 1)
+        shortfall = 2 * self._pending_bytes + margin - free
+        if shortfall > 0:
+            fit = max(0, (free - margin) // max(1, 2 * self._pending_bytes // max(1, pending)))
+            self._drop_frames_after(self.saved_through + min(pending, fit))
+            if fit > 0:
+                self._write()
+            raise OutputError(f"not enough free space in {self.staging.parent} to save {self.staging}: about "
+                              f"{shortfall / 2**20:.1f} MiB more needed")
+        self._write()
+
+    def _drop_frames_after(self, last: int) -> None:
+        for attr in self._points + self._extents + self._sphere_translates:
+            for t in attr.GetTimeSamples():
+                if t > last:
+                    attr.ClearAtTime(t)
+        self.stage.SetEndTimeCode(max(last, self.stage.GetStartTimeCode()))
+        self._last_frame = last
+        self._pending_bytes = 0
+
+    def _write(self) -> None:
+        try:
+            self.stage.Save()
+        except Tf.ErrorException as exc:
+            self.stage = None
+            raise OutputError(f"could not save {self.staging}: {str(exc).strip().splitlines()[-1]}") from None
+        fsync_path(self.staging)
+        self.saved_through = self._last_frame
+        self._pending_bytes = 0
 
     def finish(self, sim, frames_written: int) -> None:
-        if self.stage is None:
+        """Save, export compactly in the output's format and put the result in place."""
+        self._save()
+        size = os.path.getsize(self.staging)
+        text = self.path.suffix.lower() == ".usda"
+        exported = labelled(self.path, "exporting", self.path.suffix)
+        if output.free_bytes(self.path.parent) < (4 if text else 1) * size + SAVE_MARGIN_BYTES:
+            if text:
+                raise OutputError(f"not enough free space in {self.path.parent} to write {self.path} "
+                                  f"(about {4 * size / 2**20:.1f} MiB of text)")
+            exported = self.staging  # already binary: put in place as it is
+        else:
+            try:
+                if not self.stage.GetRootLayer().Export(str(exported)):
+                    raise OutputError(f"could not write {exported}")
+            except Tf.ErrorException as exc:
+                exported.unlink(missing_ok=True)
+                raise OutputError(f"could not write {exported}: {str(exc).strip().splitlines()[-1]}") from None
+        os.replace(exported, self.path)
+        fsync_path(self.path.parent)
+        if exported != self.staging:
+            self.staging.unlink()
+        self._end(self.path)
+
+    def abandon(self, sim, frames_written: int, outcome: RunOutcome) -> None:
+        """Keep the frames so far: in place if the run was stopped and there is nothing to replace, else
+        beside the output as ``<name>.interrupted.usdc`` or ``<name>.failed.usdc``."""
+        if self.stage is not None:
+            try:
+                self._save()
+            except OutputError:
+                pass  # the file keeps the frames of the last save
+        if not self.staging.exists():
+            self.stage = None
+            self.lock.release()
             return
-        self.stage.Save()
+        if outcome.interrupted and not self.path.exists():
+            try:
+                self.finish(sim, frames_written)
+                return
+            except OutputError:
+                pass
+        target = first_free(self.path, outcome.label, ".usdc")
+        os.replace(self.staging, target)
+        self._end(target)
+
+    def _end(self, location: Path) -> None:
         self.stage = None
-        os.replace(self.partial, self.path)
+        self.location = location
+        self.lock.release()
+
+    @property
+    def target(self) -> Path:
+        return self.path
 
     @property
     def outputs(self) -> list[Path]:
-        return [self.path]
+        return [self.location or self.path]

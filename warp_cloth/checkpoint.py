@@ -1,0 +1,117 @@
+"""Checkpoints: what a simulation needs to go on from a frame exactly as if it had never stopped.
+
+A checkpoint is one ``.npz`` file: the positions and velocities, the substep clock, and every device array a
+stage carries from one substep to the next (``carried_arrays``: moving spheres' centres, the collision's
+neighbour lists and hash table), with the frame, the substep count and a fingerprint of the scene. It is
+written under a temporary name and renamed, so a kill leaves the previous one whole.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+from .errors import SceneError
+from .output import fsync_path
+
+FORMAT = 1
+
+
+def scene_fingerprint(scene) -> str:
+    """A hash of everything that decides the frames: the scene without its frame count and output
+    settings (a resumed run may ask for more frames), the step it runs at and this package's version."""
+    from . import __version__
+
+    fields = dataclasses.asdict(scene)
+    del fields["simulation"]["frames"]
+    for key in ("dir", "usd", "poly"):
+        del fields["output"][key]
+    text = f"{__version__}|{scene.simulation.step!r}|{fields!r}"
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def checkpoint_path(output: Path) -> Path:
+    """The checkpoint beside a run's first output: ``out/hanging.usdc`` -> ``out/hanging.checkpoint.npz``,
+    a folder ``poly`` -> ``poly.checkpoint.npz``."""
+    stem = output.name[:len(output.name) - len(output.suffix)]
+    return output.with_name(f"{stem}.checkpoint.npz")
+
+
+def _arrays(sim) -> dict:
+    arrays = {"x": sim.state.x, "v": sim.state.v, "clock": sim.state.clock}
+    for k, stage in enumerate(sim.stages):
+        carried = getattr(stage, "carried_arrays", None)
+        for name, array in (carried() if carried else {}).items():
+            arrays[f"stage{k}.{name}"] = array
+    return arrays
+
+
+@dataclasses.dataclass
+class Checkpoint:
+    frame: int
+    substeps: int
+    scene: str  # the scene's fingerprint
+    arrays: dict[str, np.ndarray]
+    extra: dict  # what the writer of the checkpoint keeps with it (the CLI: where each output's frames are)
+
+
+def save_checkpoint(sim, path: str | Path, extra: dict | None = None) -> None:
+    arrays = {name: array.numpy() for name, array in _arrays(sim).items()}
+    _write(Path(path), Checkpoint(sim.frame, sim.substep_count, scene_fingerprint(sim.scene), arrays, extra or {}))
+
+
+def rewrite_extra(path: Path, extra: dict) -> None:
+    """The checkpoint at ``path`` with ``extra`` in place of what it kept."""
+    checkpoint = load_checkpoint(path)
+    checkpoint.extra = extra
+    _write(path, checkpoint)
+
+
+def _write(path: Path, checkpoint: Checkpoint) -> None:
+    meta = {"format": FORMAT, "frame": checkpoint.frame, "substeps": checkpoint.substeps, "scene": checkpoint.scene,
+            "extra": checkpoint.extra}
+    arrays = checkpoint.arrays
+    temporary = path.with_name(path.name + ".tmp")
+    with open(temporary, "wb") as f:
+        np.savez(f, meta=np.array(json.dumps(meta)), **arrays)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(temporary, path)
+    fsync_path(path.parent)
+
+
+def load_checkpoint(path: str | Path) -> Checkpoint:
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            meta = json.loads(str(data["meta"]))
+            arrays = {name: data[name] for name in data.files if name != "meta"}
+    except (OSError, ValueError, KeyError) as exc:
+        raise SceneError("checkpoint", "a checkpoint written by warp-cloth", f"{path} ({exc})") from None
+    if meta.get("format") != FORMAT:
+        raise SceneError("checkpoint", f"a checkpoint of format {FORMAT}", meta.get("format"), str(path))
+    return Checkpoint(meta["frame"], meta["substeps"], meta["scene"], arrays, meta.get("extra", {}))
+
+
+def check_scene(checkpoint: Checkpoint, scene, source: str) -> None:
+    if checkpoint.scene != scene_fingerprint(scene):
+        raise SceneError("scene", "the scene and settings the checkpoint was made with (they changed since; "
+                                  "run without --resume to start over)", has_got=False, source=source)
+
+
+def restore(sim, checkpoint: Checkpoint, source: str = "checkpoint") -> None:
+    check_scene(checkpoint, sim.scene, source)
+    arrays = _arrays(sim)
+    if set(arrays) != set(checkpoint.arrays):
+        raise SceneError("checkpoint", "the arrays of this simulator", sorted(checkpoint.arrays), source)
+    for name, array in arrays.items():
+        values = checkpoint.arrays[name]
+        if values.shape != array.numpy().shape:
+            raise SceneError(f"checkpoint.{name}", f"shape {array.numpy().shape}", values.shape, source)
+        array.assign(values)
+    sim.frame = checkpoint.frame
+    sim.substep_count = checkpoint.substeps

@@ -1,0 +1,202 @@
+"""Where a run's files go and how they get there, without losing anything the user had.
+
+A run writes each output (the USD file, the .poly folder) under a staging name beside it and moves it into
+place only when the run completes; it holds a lock beside the output while it runs. For an output
+``out/hanging.usdc`` (a folder ``out/hanging/poly`` alike, without a suffix):
+
+- ``out/hanging.incomplete.usdc``: the frames of the run in progress, or of one that was killed
+- ``out/hanging.failed.usdc``: the frames of a run that failed (unstable, a full disk, a writer's error)
+- ``out/hanging.interrupted.usdc``: the frames of a stopped run (Ctrl-C, SIGTERM, SIGHUP) where an output
+  was already in place (a stopped run with nothing to replace puts its frames in place)
+- ``out/hanging.usdc.lock``: held while a run writes the output; it names the run's process
+- ``out/hanging.checkpoint.npz``: the state at the last saved frame, for ``--resume`` (see
+  ``warp_cloth.checkpoint``); ``out/hanging.exporting.usdc``: the compact copy being written at the end
+
+Where a labelled name is taken, ``.failed.2``, ``.failed.3``, ... are used: a run never replaces a file it
+did not make.
+"""
+
+from __future__ import annotations
+
+import errno
+import fcntl
+import os
+import shutil
+from pathlib import Path
+
+from .errors import SceneError
+
+INCOMPLETE = "incomplete"
+FAILED = "failed"
+INTERRUPTED = "interrupted"
+
+
+class OutputError(RuntimeError):
+    """An output could not be written (a full disk, a folder that went away); the run ends as failed."""
+
+
+def labelled(path: Path, label: str, suffix: str | None = None) -> Path:
+    """A file: ``labelled(out/hanging.usdc, label, ".usdc")`` -> ``out/hanging.<label>.usdc`` (``suffix``
+    replaces the file's own); a folder (no ``suffix``): ``poly`` -> ``poly.<label>``."""
+    if suffix is None:
+        return path.with_name(f"{path.name}.{label}")
+    return path.with_name(f"{path.name[:len(path.name) - len(path.suffix)]}.{label}{suffix}")
+
+
+def first_free(path: Path, label: str, suffix: str | None = None) -> Path:
+    """The first of ``labelled(path, label)``, then ``label.2``, ``label.3``, ... that does not exist."""
+    candidate = labelled(path, label, suffix)
+    n = 2
+    while os.path.lexists(candidate):
+        candidate = labelled(path, f"{label}.{n}", suffix)
+        n += 1
+    return candidate
+
+
+def _nearest_existing(path: Path) -> Path:
+    path = path.absolute()
+    while not path.exists() and path != path.parent:
+        path = path.parent
+    return path
+
+
+def check_writable_place(path: Path, key: str, source: str | None = None) -> None:
+    """Refuse an output whose folder cannot be made or written (before the simulation starts)."""
+    existing = _nearest_existing(path.parent)
+    if not existing.is_dir():
+        raise SceneError(key, f"a path whose folders can be made ({existing} is a file)", str(path), source)
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise SceneError(key, f"an output in a folder this user can write ({existing} is read-only)", str(path),
+                         source)
+
+
+def check_file_output(path: Path, suffixes: tuple[str, ...], key: str, source: str | None = None) -> None:
+    if path.suffix.lower() not in suffixes:
+        raise SceneError(key, f"a file name ending in {', '.join(suffixes)}", str(path), source)
+    if path.is_dir():
+        raise SceneError(key, "a file name (this is a folder)", str(path), source)
+    check_writable_place(path, key, source)
+
+
+def check_folder_output(path: Path, key: str, source: str | None = None) -> None:
+    if path.exists() and not path.is_dir():
+        raise SceneError(key, "a folder (this is a file)", str(path), source)
+    check_writable_place(path / "x", key, source)
+
+
+class OutputLock:
+    """``<output>.lock``, held with ``flock`` for as long as the run writes the output. The kernel drops the
+    lock when its process dies, however it dies, so a lock file left by a dead run is simply taken over."""
+
+    def __init__(self, output: Path) -> None:
+        self.output = output
+        self.path = output.with_name(output.name + ".lock")
+        self._fd: int | None = None
+        self._made: list[Path] = []  # folders made for the lock, removed with it if still empty
+
+    def acquire(self, key: str, source: str | None = None) -> None:
+        if self._fd is not None:
+            return
+        missing = [p for p in (self.path.parent, *self.path.parent.parents) if not p.exists()]
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._made = missing
+        while True:
+            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError as exc:
+                os.close(fd)
+                if exc.errno not in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+                    raise
+                self._remove_made()
+                raise SceneError(key, f"an output no other run is writing (the run with process id "
+                                      f"{self._holder()} holds {self.path})", str(self.output), source) from None
+            # The holder before us may have removed the file after we opened it: lock the file that is there.
+            try:
+                same = os.path.samestat(os.fstat(fd), os.stat(self.path))
+            except FileNotFoundError:
+                same = False
+            if same:
+                break
+            os.close(fd)
+        os.ftruncate(fd, 0)
+        os.write(fd, f"{os.getpid()}\n".encode())
+        self._fd = fd
+
+    def _holder(self) -> str:
+        try:
+            return self.path.read_text().strip() or "?"
+        except OSError:
+            return "?"
+
+    def release(self) -> None:
+        if self._fd is None:
+            return
+        try:
+            self.path.unlink()
+        except FileNotFoundError:
+            pass
+        os.close(self._fd)
+        self._fd = None
+        self._remove_made()
+
+    def _remove_made(self) -> None:
+        for folder in self._made:
+            try:
+                folder.rmdir()
+            except OSError:
+                break
+        self._made = []
+
+
+def fsync_path(path: Path) -> None:
+    """Ask the disk to keep ``path`` (a file or a folder) over a power cut."""
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def free_bytes(folder: Path) -> int:
+    stats = os.statvfs(folder)
+    return stats.f_bavail * stats.f_frsize
+
+
+def require_space(folder: Path, needed: int, what: str) -> None:
+    """Raise ``OutputError`` before writing ``needed`` bytes where fewer are free."""
+    free = free_bytes(folder)
+    if free < needed:
+        raise OutputError(f"not enough free space in {folder} to save {what}: about {needed / 2**20:.1f} MiB "
+                          f"needed, {free / 2**20:.1f} MiB free")
+
+
+def move_files_into(staging: Path, folder: Path, names: list[str]) -> None:
+    """Move the named files from ``staging`` into ``folder`` (replacing files of those names only), then
+    remove ``staging`` if that left it empty."""
+    folder.mkdir(parents=True, exist_ok=True)
+    for name in names:
+        os.replace(staging / name, folder / name)
+    try:
+        staging.rmdir()
+    except OSError:
+        pass
+
+
+def copy_tree_files(source: Path, target: Path, names: list[str]) -> None:
+    target.mkdir(parents=True, exist_ok=True)
+    for name in names:
+        shutil.copy2(source / name, target / name)
+
+
+class RunOutcome:
+    """How a run that did not complete ended: stopped by a signal after a whole frame (``interrupted``), or
+    failed with ``error``. Writers' ``abandon`` gets it."""
+
+    def __init__(self, interrupted: bool, error: BaseException | None = None) -> None:
+        self.interrupted = interrupted
+        self.error = error
+
+    @property
+    def label(self) -> str:
+        return INTERRUPTED if self.interrupted else FAILED
