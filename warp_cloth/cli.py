@@ -115,9 +115,14 @@ def _prepare(writers: list) -> None:
         for w in writers:
             w.prepare()
     except SceneError as exc:
-        for w in writers:
-            w.lock.release()
+        _release(writers)
         raise SceneError(f"--{exc.key}", exc.expected, exc.got, "command line", exc.has_got) from None
+
+
+def _release(writers: list) -> None:
+    """Give back the outputs' locks, last taken first, so that the folders made for them go too."""
+    for w in reversed(writers):
+        w.lock.release()
 
 
 def _take_back(checkpoint, scene: Scene, writers: list) -> None:
@@ -201,8 +206,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
             sim.restore(checkpoint)
             _take_back(checkpoint, scene, writers)
     except BaseException:
-        for w in writers:
-            w.lock.release()
+        _release(writers)
         raise
     outputs = list(writers)
     if checkpoint_file is not None:
