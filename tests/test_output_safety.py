@@ -3,7 +3,6 @@ output and puts its own frames beside it, a full disk ends with a message, two r
 output, and a killed run can be resumed to the same frames an uninterrupted run makes."""
 
 import contextlib
-import dataclasses
 import errno
 import os
 import signal

@@ -8,7 +8,6 @@ import sys
 import time
 
 import numpy as np
-import pytest
 from pxr import Sdf, Usd, UsdGeom, UsdValidation
 
 import warp_cloth as wc

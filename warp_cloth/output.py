@@ -189,6 +189,40 @@ def copy_tree_files(source: Path, target: Path, names: list[str]) -> None:
         shutil.copy2(source / name, target / name)
 
 
+class StagedOutput:
+    """What the USD and .poly writers share: an output at ``target`` written under ``staging`` beside it,
+    the lock held while the run writes it, and where its frames are once the run has ended. ``key`` names
+    the output in messages (``usd``, ``poly``); ``kind`` says what moving it away means (``file``, ``folder``)."""
+
+    key = ""
+    kind = ""
+
+    def __init__(self, target: Path, staging: Path, resume: bool) -> None:
+        self.target = target
+        self.staging = staging
+        self.lock = OutputLock(target)
+        self.resume = resume
+        self.location: Path | None = None  # where the frames are once the run has ended
+
+    def prepare(self) -> None:
+        """Take the output's lock and check that no killed run's frames would be overwritten (done by
+        ``begin`` too; call it first to be refused before simulating)."""
+        self.lock.acquire(self.key)
+        if not self.resume and self.staging.exists():
+            self.lock.release()
+            raise SceneError(self.key, f"an output without a killed run's frames beside it: {self.staging} holds "
+                                       f"them; continue that run with --resume or move the {self.kind} away",
+                             has_got=False)
+
+    def _end(self, location: Path) -> None:
+        self.location = location
+        self.lock.release()
+
+    @property
+    def outputs(self) -> list[Path]:
+        return [self.location or self.target]
+
+
 class RunOutcome:
     """How a run that did not complete ended: stopped by a signal after a whole frame (``interrupted``), or
     failed with ``error``. Writers' ``abandon`` gets it."""

@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SceneError
-from ..output import (INCOMPLETE, OutputLock, RunOutcome, check_folder_output, check_writable_place, copy_tree_files,
-                      first_free, fsync_path, labelled, move_files_into)
+from ..output import (INCOMPLETE, RunOutcome, StagedOutput, check_folder_output, check_writable_place,
+                      copy_tree_files, first_free, fsync_path, labelled, move_files_into)
 
 
 def format_points(points: np.ndarray) -> str:
@@ -41,36 +41,27 @@ def frame_file_name(cloth: str, frame: int) -> str:
     return f"{cloth}.{frame:04d}.poly"
 
 
-class PolyWriter:
+class PolyWriter(StagedOutput):
     """Writes ``<cloth>.<frame:04d>.poly`` files into ``directory``. They are written into a staging folder
     beside it and moved in when the run completes, replacing only files of the same names (see
     ``warp_cloth.output``). ``resume``: go on with the frames of an earlier run found in the staging folder,
     from the simulator's frame."""
+
+    key = "poly"
+    kind = "folder"
 
     def __init__(self, directory: str | Path, resume: bool = False) -> None:
         self.directory = Path(directory)
         if self.directory.name in ("", ".", ".."):
             self.directory = self.directory.resolve()  # a name to put the staging folder's beside
         check_folder_output(self.directory, "poly")
-        self.staging = labelled(self.directory, INCOMPLETE)
+        super().__init__(self.directory, labelled(self.directory, INCOMPLETE), resume)
         check_writable_place(self.staging, "poly")
-        self.lock = OutputLock(self.directory)
-        self.resume = resume
-        self.location: Path | None = None  # where the frames are once the run has ended
         self.saved_through = -1  # the last frame whose files are all written
         self.names: list[str] = []  # the files this run wrote, in the staging folder
         self.older_frames_left = 0  # files of other frames of these cloths found in the folder on completion
         self._unsynced: list[str] = []
         self._polys: list[str] = []  # each cloth's POLYS section
-
-    def prepare(self) -> None:
-        """Take the output's lock and check that no killed run's frames would be overwritten (done by
-        ``begin`` too; call it first to be refused before simulating)."""
-        self.lock.acquire("poly")
-        if not self.resume and self.staging.exists():
-            self.lock.release()
-            raise SceneError("poly", f"an output without a killed run's frames beside it: {self.staging} holds "
-                                     "them; continue that run with --resume or move the folder away", has_got=False)
 
     def take_back(self, location: Path, frame: int, cloths: list[str]) -> None:
         """Before resuming: the frames an earlier run left at ``location`` go back into the staging folder
@@ -161,15 +152,3 @@ class PolyWriter:
         target = first_free(self.directory, outcome.label)
         os.replace(self.staging, target)
         self._end(target)
-
-    def _end(self, location: Path) -> None:
-        self.location = location
-        self.lock.release()
-
-    @property
-    def target(self) -> Path:
-        return self.directory
-
-    @property
-    def outputs(self) -> list[Path]:
-        return [self.location or self.directory]

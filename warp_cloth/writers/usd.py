@@ -19,7 +19,8 @@ from pxr import Gf, Sdf, Tf, Usd, UsdGeom, Vt
 
 from .. import output
 from ..errors import SceneError
-from ..output import INCOMPLETE, OutputError, OutputLock, RunOutcome, check_file_output, first_free, fsync_path, labelled
+from ..output import (INCOMPLETE, OutputError, RunOutcome, StagedOutput, check_file_output, first_free, fsync_path,
+                      labelled)
 
 USD_SUFFIXES = (".usd", ".usda", ".usdc")
 # A save appends the new samples and the whole structure again: small, but with every sample's time.
@@ -33,18 +34,18 @@ def prim_name(name: str) -> str:
     return Tf.MakeValidIdentifier(name)
 
 
-class UsdWriter:
+class UsdWriter(StagedOutput):
     """Writes ``path`` (.usd, .usda or .usdc). ``resume``: go on with the frames of an earlier run of the same
     scene, found under the staging name, from the simulator's frame (see ``Simulator.restore``)."""
+
+    key = "usd"
+    kind = "file"
 
     def __init__(self, path: str | Path, subdivision: str = "none", resume: bool = False) -> None:
         self.path = Path(path)
         check_file_output(self.path, USD_SUFFIXES, "usd")
-        self.staging = labelled(self.path, INCOMPLETE, ".usdc")
-        self.lock = OutputLock(self.path)
+        super().__init__(self.path, labelled(self.path, INCOMPLETE, ".usdc"), resume)
         self.subdivision = subdivision
-        self.resume = resume
-        self.location: Path | None = None  # where the frames are once the run has ended
         self.saved_through = -1  # the last frame the file on disk holds
         self.stage: Usd.Stage | None = None
         self._last_frame = -1
@@ -52,15 +53,6 @@ class UsdWriter:
         self._points: list[Usd.Attribute] = []
         self._extents: list[Usd.Attribute] = []
         self._sphere_translates: list[Usd.Attribute] = []
-
-    def prepare(self) -> None:
-        """Take the output's lock and check that no killed run's frames would be overwritten (done by
-        ``begin`` too; call it first to be refused before simulating)."""
-        self.lock.acquire("usd")
-        if not self.resume and self.staging.exists():
-            self.lock.release()
-            raise SceneError("usd", f"an output without a killed run's frames beside it: {self.staging} holds "
-                                    "them; continue that run with --resume or move the file away", has_got=False)
 
     def take_back(self, location: Path, frame: int, cloths: list[str]) -> None:
         """Before resuming: the frames an earlier run left at ``location`` go back under the staging name
@@ -268,13 +260,4 @@ class UsdWriter:
 
     def _end(self, location: Path) -> None:
         self.stage = None
-        self.location = location
-        self.lock.release()
-
-    @property
-    def target(self) -> Path:
-        return self.path
-
-    @property
-    def outputs(self) -> list[Path]:
-        return [self.location or self.path]
+        super()._end(location)
