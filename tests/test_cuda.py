@@ -116,3 +116,28 @@ def test_implicit_agrees_between_cpu_and_cuda():
     print(f"implicit hanging: max |x_cpu - x_cuda| after 12 frames = {difference:.3g} m")
     assert difference < CPU_CUDA_TOLERANCE[12] * 100  # CG stops at a relative 1e-4: rounding moves it
 
+
+
+@pytest.mark.parametrize("scene", [
+    wc.load_scene("seed_default"),
+    wc.load_scene("oscillating_pins"),
+    with_simulation(wc.load_scene("hanging"), integrator="implicit", dt=1 / 96),
+], ids=["collision-and-moving-sphere", "oscillating-pins", "implicit"])
+def test_a_checkpoint_restored_into_captured_graphs_makes_the_same_frames(tmp_path, scene):
+    """As ``warp-cloth run --resume`` does on a GPU: the graphs are captured before the state is restored
+    into their buffers, and the frames that follow are those of the run that never stopped."""
+    sim = wc.Simulator(scene, device="cuda")
+    sim.run(6)
+    sim.save_checkpoint(tmp_path / "state.npz")
+    expected = []
+    for _ in range(6):
+        sim.step()
+        expected.append((sim.positions(), sim.velocities(), sim.sphere_centers()))
+    restored = wc.Simulator(scene, device="cuda")
+    restored.prepare()
+    restored.restore(tmp_path / "state.npz")
+    for x, v, centers in expected:
+        restored.step()
+        np.testing.assert_array_equal(restored.positions(), x)
+        np.testing.assert_array_equal(restored.velocities(), v)
+        np.testing.assert_array_equal(restored.sphere_centers(), centers)
