@@ -288,9 +288,11 @@ TOO_MUCH_WORK = [
      "in [1, 100000]"),
     # Each within its own bound, together past what a frame may take (checked at start-up).
     (("substeps = 2", 'substeps = 10000\nlimit_iterations = 1000'), "simulation.substeps",
-     "at most 1,000,000 passes a frame"),
+     "at most 50,000 passes a frame"),
+    (("substeps = 2", 'substeps = 100\nlimit_iterations = 999'), "simulation.limit_iterations",
+     "at most 50,000 passes a frame"),
     (("substeps = 2", 'substeps = 20\nintegrator = "implicit"\n[implicit]\nnewton_iterations = 100\n'
-                      'cg_max_iterations = 100000'), "implicit.cg_max_iterations", "at most 1,000,000 passes a frame"),
+                      'cg_max_iterations = 100000'), "implicit.cg_max_iterations", "at most 50,000 passes a frame"),
 ]
 
 

@@ -437,10 +437,14 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     wp.config.log_level = wp.LOG_ERROR
     try:
-        resolve_device(args.device)
+        if args.repeats < 1:
+            raise SceneError("--repeats", "a whole number >= 1", args.repeats, "command line")
+        try:
+            resolve_device(args.device)
+        except SceneError as exc:
+            raise SceneError("--device", exc.expected, exc.got, "command line") from None
     except SceneError as exc:
-        print(f"warp-cloth bench: error: {SceneError('--device', exc.expected, exc.got, 'command line')}",
-              file=sys.stderr)
+        print(f"warp-cloth bench: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
     # the integrators suite runs the seed's steps past the stable bound on purpose; its table says which blew up
     warnings.simplefilter("ignore", UnstableStepWarning)

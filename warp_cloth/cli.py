@@ -6,7 +6,9 @@ import argparse
 import contextlib
 import dataclasses
 import os
+import signal
 import sys
+import threading
 import warnings
 from pathlib import Path
 
@@ -97,26 +99,46 @@ def _writers(scene: Scene, args: argparse.Namespace) -> list:
     from .writers import PolyWriter, UsdWriter
 
     out = Path(scene.output.dir)
+    usd = Path(args.usd) if args.usd else out / f"{scene.name}.usdc"
+    poly = Path(args.poly) if args.poly else out / scene.name / "poly"
+    if scene.output.usd and scene.output.poly and usd.absolute() == poly.absolute():
+        raise _output_error(SceneError("poly", "a folder other than the USD file", str(poly)), args)
     writers = []
     try:
         if scene.output.usd:
-            writers.append(UsdWriter(args.usd or out / f"{scene.name}.usdc", scene.output.subdivision,
-                                     resume=args.resume))
+            writers.append(UsdWriter(usd, scene.output.subdivision, resume=args.resume))
         if scene.output.poly:
-            writers.append(PolyWriter(args.poly or out / scene.name / "poly", resume=args.resume))
+            writers.append(PolyWriter(poly, resume=args.resume))
     except SceneError as exc:
-        raise SceneError(f"--{exc.key}", exc.expected, exc.got, "command line", exc.has_got) from None
+        raise _output_error(exc, args) from None
     return writers
 
 
-def _prepare(writers: list) -> None:
+def _output_error(exc: SceneError, args: argparse.Namespace) -> SceneError:
+    """A writer's refusal of its path (key ``usd`` or ``poly``), named as the user gave the path: its own
+    option, ``--out``, or the scene file's ``output.dir``."""
+    from .scene_file import resolve_scene_path
+
+    if getattr(args, exc.key, None):
+        key, source = f"--{exc.key}", "command line"
+    elif args.out is not None:
+        key, source = "--out", "command line"
+    else:
+        key, source = "output.dir", str(resolve_scene_path(args.scene))
+    return SceneError(key, exc.expected, exc.got, source, exc.has_got)
+
+
+def _prepare(writers: list, args: argparse.Namespace) -> None:
     """Take every output's lock, or release those taken and refuse."""
     try:
         for w in writers:
             w.prepare()
     except SceneError as exc:
         _release(writers)
-        raise SceneError(f"--{exc.key}", exc.expected, exc.got, "command line", exc.has_got) from None
+        raise _output_error(exc, args) from None
+    except BaseException:
+        _release(writers)
+        raise
 
 
 def _release(writers: list) -> None:
@@ -169,13 +191,11 @@ def _simulator(scene: Scene, device: str, args: argparse.Namespace):
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    import signal
-
     import warp as wp
 
     wp.config.log_level = wp.LOG_ERROR
     from .checkpoint import check_scene, checkpoint_path, load_checkpoint
-    from .output import OutputError
+    from .output import OutputError, check_folder_output
     from .scene_file import load_scene
     from .simulator import resolve_device
     from .writers import CheckpointWriter
@@ -185,8 +205,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         device = resolve_device(args.device)
     except SceneError as exc:
         raise SceneError("--device", exc.expected, exc.got, source="command line") from None
-    if args.out is not None and Path(args.out).exists() and not Path(args.out).is_dir():
-        raise SceneError("--out", "a folder (this is a file)", args.out, "command line")
+    if args.out is not None:
+        check_folder_output(Path(args.out), "--out", "command line")
     writers = _writers(scene, args)
     checkpoint_file = checkpoint_path(writers[0].target) if writers else None
     checkpoint = None
@@ -199,7 +219,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
                              source="command line")
         checkpoint = load_checkpoint(checkpoint_file)
         check_scene(checkpoint, scene, str(checkpoint_file))
-    _prepare(writers)
+        if scene.simulation.frames <= checkpoint.frame:
+            raise SceneError("--frames", f"more frames than the checkpoint's {checkpoint.frame} to resume",
+                             scene.simulation.frames, "command line")
+    _prepare(writers, args)
     try:
         sim = _simulator(scene, device.alias, args)
         if checkpoint is not None:
@@ -217,7 +240,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
         check = CheckReport(sys.stdout)
         writers.append(check)
-    frames = max(0, scene.simulation.frames - sim.frame)
+    frames = scene.simulation.frames - sim.frame
     resume_hint = "; continue it with --resume" if checkpoint_file is not None else ""
     try:
         summary = sim.run(frames, writers=writers, progress=not args.quiet and not args.check)
@@ -253,13 +276,33 @@ def _cmd_run(args: argparse.Namespace) -> int:
     return EXIT_SIGNAL_BASE + summary.stop_signal if summary.interrupted else 0
 
 
+class _StoppedBySignal(KeyboardInterrupt):
+    """SIGTERM or SIGHUP before a run's frames (a run turns them into a stop after a frame)."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = signum
+
+
+def _raise_stopped(signum: int, frame) -> None:
+    raise _StoppedBySignal(signum)
+
+
 def main(argv: list[str] | None = None) -> int:
-    """The ``warp-cloth`` command. Ctrl-C before a run can stop cleanly (while Warp loads and compiles)
-    and a reader that closes the pipe (``warp-cloth scenes | head -1``) end it without a traceback."""
+    """The ``warp-cloth`` command. Ctrl-C, SIGTERM and SIGHUP before a run (while Warp loads and compiles)
+    end it with one line and nothing left behind, and a reader that closes the pipe (``warp-cloth scenes |
+    head -1``) ends it without a traceback."""
+    stop_signals = [s for s in (getattr(signal, "SIGTERM", None), getattr(signal, "SIGHUP", None)) if s]
+    previous = {}
+    if threading.current_thread() is threading.main_thread():
+        previous = {number: signal.signal(number, _raise_stopped) for number in stop_signals}
     try:
         code = _main(argv)
         sys.stdout.flush()  # so that a closed pipe shows here rather than at exit
         return code
+    except _StoppedBySignal as exc:
+        print(f"warp-cloth: stopped by {signal.Signals(exc.signum).name}", file=sys.stderr)
+        return EXIT_SIGNAL_BASE + exc.signum
     except KeyboardInterrupt:
         print("warp-cloth: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
@@ -267,6 +310,9 @@ def main(argv: list[str] | None = None) -> int:
         # Python flushes stdout once more at exit: leave it nothing to fail on.
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return EXIT_BROKEN_PIPE
+    finally:
+        for number, handler in previous.items():
+            signal.signal(number, handler)
 
 
 def _main(argv: list[str] | None) -> int:

@@ -32,6 +32,8 @@ def builtin_scene_names() -> list[str]:
 def resolve_scene_path(name_or_path: str | Path) -> Path:
     """A path to an existing scene file, or a built-in's file when given a built-in's name."""
     text = str(name_or_path)
+    if not text:
+        raise SceneError("scene", "a built-in scene name or a path to a .toml file", text)
     if text in builtin_scene_names():
         return Path(str(resources.files(_BUILTIN_PACKAGE).joinpath(f"{text}.toml")))
     path = Path(text)

@@ -38,8 +38,10 @@ COLLISION_DEVICE_BYTES_PER_PARTICLE = 320  # neighbour lists, spatial hash bucke
 
 # Passes over the particles in one frame (substeps x the passes of a substep). Ctrl-C stops a run only
 # between frames, and a captured frame holds every launch (about 0.4 kB and 50 us of capture each on the
-# CPU), so a frame past this is refused rather than left to hang.
-MAX_PASSES_PER_FRAME = 1_000_000
+# CPU; a pass of a tiny cloth runs in about 80 us), so a frame past this is refused rather than left to
+# seem hung: at the bound a 2x2 cloth's frame takes seconds on this project's CPU. The study's finest
+# references (10000 substeps a frame of 4 limit passes) fit.
+MAX_PASSES_PER_FRAME = 50_000
 
 
 class FrameWriter(Protocol):
