@@ -16,7 +16,7 @@ import pytest
 from pxr import Sdf, Usd, UsdGeom
 
 import warp_cloth as wc
-from conftest import REPO, run_cli, with_simulation
+from conftest import REPO, run_cli, run_cli_in_process, with_simulation
 from warp_cloth.output import OutputError, OutputLock, first_free, labelled
 
 FOLD_AROUND_A_MOVING_SPHERE = """
@@ -474,3 +474,39 @@ def test_usd_is_as_small_as_its_data(tmp_path):
     Sdf.Layer.FindOrOpen(str(path)).Export(str(compact))
     assert os.path.getsize(path) <= 1.05 * os.path.getsize(compact)
     assert len(usd_points(path)) == 121
+
+
+# A checkpoint a run did not complete stays until it is resumed or moved away; an unstable run's goes
+
+
+def test_an_unstable_run_removes_its_own_checkpoint_and_a_fresh_run_may_start(tmp_path, monkeypatch):
+    monkeypatch.setattr(wc.Simulator, "SYNC_SECONDS", 0.0)  # a checkpoint after every frame
+    for failed_usd in ("hanging.failed.usdc", "hanging.failed.2.usdc"):  # a second failure is not refused either
+        code, _, err = run_cli_in_process("run", "hanging", "--frames", "40", "--substeps", "1", "--out",
+                                          str(tmp_path), "--quiet", cwd=tmp_path)
+        assert code == 3 and "--resume" not in err and failed_usd in err
+        assert int(err.split("Kept frames 0 to ")[1].split()[0]) >= 1  # it was checkpointed before it blew up
+        assert not (tmp_path / "hanging.checkpoint.npz").exists()
+    failed = files_under(tmp_path)
+    code, _, err = run_cli_in_process("run", "hanging", "--frames", "2", "--out", str(tmp_path), "--quiet",
+                                      cwd=tmp_path)
+    assert code == 0, err
+    assert {k: v for k, v in files_under(tmp_path).items() if k in failed} == failed
+    assert len(usd_points(tmp_path / "hanging.usdc")) == 3
+
+
+def test_saved_says_whether_the_run_has_a_checkpoint_to_resume(tmp_path, monkeypatch):
+    scene = with_simulation(wc.load_scene("hanging"), frames=3)
+    usd = wc.UsdWriter(tmp_path / "hanging.usdc")
+    checkpoint = wc.CheckpointWriter(tmp_path / "hanging.checkpoint.npz", [usd])
+    assert not checkpoint.saved
+    monkeypatch.setattr(wc.Simulator, "SYNC_SECONDS", 1e9)  # no save before the failure at frame 1
+    with pytest.raises(RuntimeError):
+        wc.Simulator(scene, device="cpu").run(3, writers=[usd, checkpoint, RaiseAt(1, RuntimeError())])
+    assert not checkpoint.saved and not checkpoint.path.exists()
+    monkeypatch.setattr(wc.Simulator, "SYNC_SECONDS", 0.0)
+    usd = wc.UsdWriter(tmp_path / "hanging.usdc")
+    checkpoint = wc.CheckpointWriter(tmp_path / "hanging.checkpoint.npz", [usd])
+    with pytest.raises(RuntimeError):
+        wc.Simulator(scene, device="cpu").run(3, writers=[usd, checkpoint, RaiseAt(2, RuntimeError())])
+    assert checkpoint.saved and checkpoint.path.exists()
