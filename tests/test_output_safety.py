@@ -510,3 +510,28 @@ def test_saved_says_whether_the_run_has_a_checkpoint_to_resume(tmp_path, monkeyp
     with pytest.raises(RuntimeError):
         wc.Simulator(scene, device="cpu").run(3, writers=[usd, checkpoint, RaiseAt(2, RuntimeError())])
     assert checkpoint.saved and checkpoint.path.exists()
+
+
+# A full disk's message
+
+
+def test_a_full_disk_message_says_how_much_more_is_needed(tmp_path, monkeypatch):
+    import re
+
+    import warp_cloth.output as output
+    from warp_cloth.writers.usd import SAVE_MARGIN_BYTES
+
+    free = {"bytes": 10**12}
+
+    class FillDiskAt(RaiseAt):
+        def write_frame(self, sim, frame):
+            if frame == self.frame:
+                free["bytes"] = SAVE_MARGIN_BYTES  # a few KiB short of what the next save needs
+
+    monkeypatch.setattr(output, "free_bytes", lambda folder: free["bytes"])
+    with pytest.raises(OutputError) as raised:
+        wc.Simulator(wc.load_scene("hanging"), device="cpu").run(
+            4, writers=[FillDiskAt(2, None), wc.UsdWriter(tmp_path / "hanging.usdc")])
+    amount = re.search(r"about ([\d.]+) (bytes|KiB|MiB) more needed", str(raised.value))
+    assert amount and float(amount.group(1)) > 0, str(raised.value)
+

@@ -163,12 +163,13 @@ def free_bytes(folder: Path) -> int:
     return stats.f_bavail * stats.f_frsize
 
 
-def require_space(folder: Path, needed: int, what: str) -> None:
-    """Raise ``OutputError`` before writing ``needed`` bytes where fewer are free."""
-    free = free_bytes(folder)
-    if free < needed:
-        raise OutputError(f"not enough free space in {folder} to save {what}: about {needed / 2**20:.1f} MiB "
-                          f"needed, {free / 2**20:.1f} MiB free")
+def describe_size(size: float) -> str:
+    """``size`` bytes for a message: in MiB, or KiB or bytes where that would read 0.0 MiB."""
+    if size >= 0.1 * 2**20:
+        return f"{size / 2**20:.1f} MiB"
+    if size >= 1024:
+        return f"{size / 1024:.0f} KiB"
+    return f"{size:.0f} bytes"
 
 
 def move_files_into(staging: Path, folder: Path, names: list[str]) -> None:

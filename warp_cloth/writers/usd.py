@@ -190,7 +190,7 @@ class UsdWriter(StagedOutput):
             if fit > 0:
                 self._write()
             raise OutputError(f"not enough free space in {self.staging.parent} to save {self.staging}: about "
-                              f"{shortfall / 2**20:.1f} MiB more needed")
+                              f"{output.describe_size(shortfall)} more needed")
         self._write()
 
     def _drop_frames_after(self, last: int) -> None:
@@ -221,7 +221,7 @@ class UsdWriter(StagedOutput):
         if output.free_bytes(self.path.parent) < (4 if text else 1) * size + SAVE_MARGIN_BYTES:
             if text:
                 raise OutputError(f"not enough free space in {self.path.parent} to write {self.path} "
-                                  f"(about {4 * size / 2**20:.1f} MiB of text)")
+                                  f"(about {output.describe_size(4 * size)} of text)")
             exported = self.staging  # already binary: put in place as it is
         else:
             try:
