@@ -159,6 +159,8 @@ def test_a_writer_that_raises_keeps_the_previous_output(tmp_path, error):
 
 
 def test_a_second_failure_does_not_replace_the_first_ones_frames(tmp_path):
+    # Without a checkpoint writer nothing holds a second run back (under the CLI, a failure that keeps its
+    # checkpoint refuses a fresh run instead: see the checkpoint tests below).
     scene = with_simulation(wc.load_scene("hanging"), frames=3)
     usd = tmp_path / "hanging.usdc"
     for _ in range(2):
@@ -493,6 +495,46 @@ def test_an_unstable_run_removes_its_own_checkpoint_and_a_fresh_run_may_start(tm
     assert code == 0, err
     assert {k: v for k, v in files_under(tmp_path).items() if k in failed} == failed
     assert len(usd_points(tmp_path / "hanging.usdc")) == 3
+
+
+def stop_at_frame_3_with_sigterm(self, sim, frame):
+    if frame == 3:
+        os.kill(os.getpid(), signal.SIGTERM)  # the run stops after this frame, as it would for a real signal
+
+
+def fail_at_frame_3_with_a_full_disk(self, sim, frame):
+    if frame == 3:
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+
+@pytest.mark.parametrize("end, code", [(fail_at_frame_3_with_a_full_disk, 4), (stop_at_frame_3_with_sigterm, 143)],
+                         ids=["write-failure", "signal"])
+def test_a_fresh_run_is_refused_while_a_run_that_did_not_complete_keeps_its_checkpoint(tmp_path, monkeypatch, end,
+                                                                                        code):
+    from warp_cloth.writers.poly import PolyWriter
+
+    write_frame = PolyWriter.write_frame
+
+    def ending_at_frame_3(self, sim, frame):
+        end(self, sim, frame)
+        write_frame(self, sim, frame)
+
+    monkeypatch.setattr(wc.Simulator, "SYNC_SECONDS", 0.0)  # a checkpoint after every frame
+    monkeypatch.setattr(PolyWriter, "write_frame", ending_at_frame_3)
+    run = ("run", "hanging", "--out", str(tmp_path), "--quiet")
+    ended, out, err = run_cli_in_process(*run, "--frames", "6", cwd=tmp_path)
+    assert ended == code and "--resume" in out + err
+    monkeypatch.setattr(PolyWriter, "write_frame", write_frame)
+    left = files_under(tmp_path)
+    assert "hanging.checkpoint.npz" in left
+    fresh, _, err = run_cli_in_process(*run, "--frames", "2", cwd=tmp_path)
+    assert fresh == 2 and len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert "hanging.checkpoint.npz" in err and "--resume" in err
+    assert files_under(tmp_path) == left
+    resumed, out, err = run_cli_in_process(*run, "--frames", "6", "--resume", cwd=tmp_path)
+    assert resumed == 0, err
+    assert "resumed at frame" in out and len(usd_points(tmp_path / "hanging.usdc")) == 7
+    assert not (tmp_path / "hanging.checkpoint.npz").exists()
 
 
 def test_saved_says_whether_the_run_has_a_checkpoint_to_resume(tmp_path, monkeypatch):

@@ -10,10 +10,12 @@ place only when the run completes; it holds a lock beside the output while it ru
   was already in place (a stopped run with nothing to replace puts its frames in place)
 - ``out/hanging.usdc.lock``: held while a run writes the output; it names the run's process
 - ``out/hanging.checkpoint.npz``: the state at the last saved frame, for ``--resume`` (see
-  ``warp_cloth.checkpoint``); ``out/hanging.exporting.usdc``: the compact copy being written at the end
+  ``warp_cloth.checkpoint``); removed when the run completes or goes unstable, kept when it was stopped,
+  killed or failed otherwise. ``out/hanging.exporting.usdc``: the compact copy being written at the end
 
 Where a labelled name is taken, ``.failed.2``, ``.failed.3``, ... are used: a run never replaces a file it
-did not make.
+did not make. A new run (not ``--resume``) is refused before simulating while a staging name or the
+checkpoint of a run that did not complete is there.
 """
 
 from __future__ import annotations
@@ -206,14 +208,28 @@ class StagedOutput:
         self.location: Path | None = None  # where the frames are once the run has ended
 
     def prepare(self) -> None:
-        """Take the output's lock and check that no killed run's frames would be overwritten (done by
-        ``begin`` too; call it first to be refused before simulating)."""
+        """Take the output's lock and check that no unfinished run's frames or checkpoint would be
+        overwritten (done by ``begin`` too; call it first to be refused before simulating)."""
         self.lock.acquire(self.key)
-        if not self.resume and self.staging.exists():
+        try:
+            if not self.resume:
+                self._refuse_an_unfinished_run()
+        except BaseException:
             self.lock.release()
+            raise
+
+    def _refuse_an_unfinished_run(self) -> None:
+        from .checkpoint import checkpoint_path
+
+        if self.staging.exists():
             raise SceneError(self.key, f"an output without a killed run's frames beside it: {self.staging} holds "
                                        f"them; continue that run with --resume or move the {self.kind} away",
                              has_got=False)
+        checkpoint = checkpoint_path(self.target)
+        if checkpoint.exists():
+            raise SceneError(self.key, f"an output without an unfinished run's checkpoint beside it: {checkpoint} "
+                                       "holds the state of a run that did not complete; continue it with --resume "
+                                       "or move it away", has_got=False)
 
     def _end(self, location: Path) -> None:
         self.location = location
