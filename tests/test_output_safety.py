@@ -257,14 +257,14 @@ def test_a_second_run_on_the_same_output_is_refused_at_once(tmp_path):
         assert result.returncode == 2
         line = one_error_line(result)
         assert f"process id {os.getpid()}" in line and "hanging.usdc" in line
-        assert sorted(p.name for p in tmp_path.iterdir()) == ["hanging.usdc.lock"]
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["hanging.lock"]
         assert time.monotonic() - started < 60
     finally:
         lock.release()
 
 
 def test_a_lock_left_by_a_dead_run_is_taken_over(tmp_path):
-    (tmp_path / "hanging.usdc.lock").write_text("999999\n")
+    (tmp_path / "hanging.lock").write_text("999999\n")
     result = run_cli("run", "hanging", "--frames", "3", "--out", str(tmp_path), "--no-poly", "--quiet", cwd=REPO)
     assert result.returncode == 0, result.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["hanging.usdc"]
@@ -552,6 +552,55 @@ def test_saved_says_whether_the_run_has_a_checkpoint_to_resume(tmp_path, monkeyp
     with pytest.raises(RuntimeError):
         wc.Simulator(scene, device="cpu").run(3, writers=[usd, checkpoint, RaiseAt(2, RuntimeError())])
     assert checkpoint.saved and checkpoint.path.exists()
+
+
+# One lock covers what outputs of one stem share (the staging file, the checkpoint)
+
+
+@contextlib.contextmanager
+def lock_held_by_another_process(path: Path):
+    holder = subprocess.Popen(
+        [sys.executable, "-c", "import fcntl, os, sys\n"
+                               "fd = os.open(sys.argv[1], os.O_RDWR | os.O_CREAT)\n"
+                               "fcntl.flock(fd, fcntl.LOCK_EX)\n"
+                               "os.write(fd, b'%d\\n' % os.getpid())\n"
+                               "print('held', flush=True)\n"
+                               "sys.stdin.read()\n", str(path)],
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        yield holder.pid
+    finally:
+        holder.stdin.close()
+        holder.wait(timeout=30)
+
+
+@pytest.mark.parametrize("outputs", [["--usd", "shot.usd", "--no-poly"], ["--usd", "shot.usdc", "--no-poly"],
+                                     ["--no-usd", "--poly", "shot"]], ids=["usd", "usdc", "poly"])
+def test_outputs_that_share_a_staging_file_or_checkpoint_share_one_lock(tmp_path, outputs):
+    (tmp_path / "out").mkdir()
+    outputs = [str(tmp_path / "out" / o) if o.startswith("shot") else o for o in outputs]
+    with lock_held_by_another_process(OutputLock(tmp_path / "out" / "shot.usda").path) as holder:
+        code, _, err = run_cli_in_process("run", "hanging", "--frames", "2", "--quiet", *outputs, cwd=tmp_path)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and f"process id {holder}" in err
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["shot.lock"]
+
+
+def test_two_outputs_of_one_run_with_one_lock_share_it(tmp_path):
+    out = tmp_path / "out"
+    code, _, err = run_cli_in_process("run", "hanging", "--frames", "2", "--quiet", "--usd", str(out / "p.usdc"),
+                                      "--poly", str(out / "p"), cwd=tmp_path)
+    assert code == 0, err
+    assert len(usd_points(out / "p.usdc")) == 3 and len(list((out / "p").glob("*.poly"))) == 3
+    assert sorted(p.name for p in out.iterdir()) == ["p", "p.usdc"]
+
+
+def test_a_usd_file_and_a_poly_folder_of_one_name_are_refused(tmp_path):
+    code, _, err = run_cli_in_process("run", "hanging", "--frames", "2", "--quiet", "--usd", str(tmp_path / "p.usdc"),
+                                      "--poly", str(tmp_path / "p.usdc"), cwd=tmp_path)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert err.startswith("warp-cloth: error: command line: --poly") and "another output of this run" in err
+    assert list(tmp_path.iterdir()) == []
 
 
 # A full disk's message

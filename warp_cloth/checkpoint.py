@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import SceneError
-from .output import fsync_path
+from .output import fsync_path, stem_path
 
 FORMAT = 1
 
@@ -37,9 +37,8 @@ def scene_fingerprint(scene) -> str:
 
 def checkpoint_path(output: Path) -> Path:
     """The checkpoint beside a run's first output: ``out/hanging.usdc`` -> ``out/hanging.checkpoint.npz``,
-    a folder ``poly`` -> ``poly.checkpoint.npz``."""
-    stem = output.name[:len(output.name) - len(output.suffix)]
-    return output.with_name(f"{stem}.checkpoint.npz")
+    a folder ``poly`` -> ``poly.checkpoint.npz`` (see ``warp_cloth.output.stem_path``)."""
+    return output.with_name(f"{stem_path(output).name}.checkpoint.npz")
 
 
 def _arrays(sim) -> dict:

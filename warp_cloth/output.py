@@ -8,7 +8,10 @@ place only when the run completes; it holds a lock beside the output while it ru
 - ``out/hanging.failed.usdc``: the frames of a run that failed (unstable, a full disk, a writer's error)
 - ``out/hanging.interrupted.usdc``: the frames of a stopped run (Ctrl-C, SIGTERM, SIGHUP) where an output
   was already in place (a stopped run with nothing to replace puts its frames in place)
-- ``out/hanging.usdc.lock``: held while a run writes the output; it names the run's process
+- ``out/hanging.lock``: held while a run writes the output; it names the run's process. It is named after
+  the output's stem, like the checkpoint, so that it covers every output sharing those names:
+  ``hanging.usd``, ``.usda`` and ``.usdc`` (one staging file), and a folder ``out/hanging`` (one
+  checkpoint). Outputs of one run share it (see ``OutputLock``).
 - ``out/hanging.checkpoint.npz``: the state at the last saved frame, for ``--resume`` (see
   ``warp_cloth.checkpoint``); removed when the run completes or goes unstable, kept when it was stopped,
   killed or failed otherwise. ``out/hanging.exporting.usdc``: the compact copy being written at the end
@@ -55,6 +58,17 @@ def first_free(path: Path, label: str, suffix: str | None = None) -> Path:
     return candidate
 
 
+def stem_path(output: Path) -> Path:
+    """What an output's lock and checkpoint are named after: ``out/hanging.usdc`` -> ``out/hanging`` (so
+    ``hanging.usd``, ``.usda`` and ``.usdc``, whose staging file is one, share them); a folder
+    ``out/hanging/poly`` -> itself, ``renders/shot.v2`` -> ``renders/shot`` (as a file would)."""
+    return output.with_name(output.name[:len(output.name) - len(output.suffix)])
+
+
+def lock_path(output: Path) -> Path:
+    return output.with_name(f"{stem_path(output).name}.lock")
+
+
 def _nearest_existing(path: Path) -> Path:
     path = path.absolute()
     while not path.exists() and path != path.parent:
@@ -86,22 +100,46 @@ def check_folder_output(path: Path, key: str, source: str | None = None) -> None
     check_writable_place(path / "x", key, source)
 
 
-class OutputLock:
-    """``<output>.lock``, held with ``flock`` for as long as the run writes the output. The kernel drops the
-    lock when its process dies, however it dies, so a lock file left by a dead run is simply taken over."""
+class _HeldLock:
+    """A lock file this process holds, with the outputs it holds it for."""
 
-    def __init__(self, output: Path) -> None:
+    def __init__(self, fd: int, made: list[Path]) -> None:
+        self.fd = fd
+        self.made = made  # folders made for the lock, removed with it if still empty
+        self.claims: set[Path] = set()  # the targets and staging names of the outputs holding it
+
+
+class OutputLock:
+    """``<stem>.lock`` beside an ``output`` (see ``stem_path``), held with ``flock`` for as long as the run
+    writes the output. One lock covers every output that shares the stem's staging and checkpoint names, so
+    runs on ``x.usd`` and ``x.usdc`` (or ``--usd out/p.usdc`` and ``--no-usd --poly out/p``) exclude each
+    other. Within one process the outputs of one run share the lock, as long as none of them writes a file
+    (``claims``: its target and staging name) another one holding it writes. The kernel drops the lock when
+    its process dies, however it dies, so a lock file left by a dead run is simply taken over."""
+
+    _held: dict[Path, _HeldLock] = {}  # by the lock file's absolute path
+
+    def __init__(self, output: Path, claims: tuple[Path, ...] = ()) -> None:
         self.output = output
-        self.path = output.with_name(output.name + ".lock")
-        self._fd: int | None = None
-        self._made: list[Path] = []  # folders made for the lock, removed with it if still empty
+        self.path = lock_path(output)
+        self.claims = {p.absolute() for p in (output, *claims)}
+        self._holding = False
 
     def acquire(self, key: str, source: str | None = None) -> None:
-        if self._fd is not None:
+        if self._holding:
             return
+        held = self._held.get(self.path.absolute())
+        if held is None:
+            held = self._held[self.path.absolute()] = self._lock(key, source)
+        elif held.claims & self.claims:
+            raise SceneError(key, f"an output no other output of this run writes (another output of this run "
+                                  f"writes {min(held.claims & self.claims)})", str(self.output), source)
+        held.claims |= self.claims
+        self._holding = True
+
+    def _lock(self, key: str, source: str | None) -> _HeldLock:
         missing = [p for p in (self.path.parent, *self.path.parent.parents) if not p.exists()]
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._made = missing
         while True:
             fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
             try:
@@ -110,7 +148,7 @@ class OutputLock:
                 os.close(fd)
                 if exc.errno not in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
                     raise
-                self._remove_made()
+                _remove_empty(missing)
                 raise SceneError(key, f"an output no other run is writing (the run with process id "
                                       f"{self._holder()} holds {self.path})", str(self.output), source) from None
             # The holder before us may have removed the file after we opened it: lock the file that is there.
@@ -123,7 +161,7 @@ class OutputLock:
             os.close(fd)
         os.ftruncate(fd, 0)
         os.write(fd, f"{os.getpid()}\n".encode())
-        self._fd = fd
+        return _HeldLock(fd, missing)
 
     def _holder(self) -> str:
         try:
@@ -132,23 +170,28 @@ class OutputLock:
             return "?"
 
     def release(self) -> None:
-        if self._fd is None:
+        if not self._holding:
             return
+        self._holding = False
+        held = self._held[self.path.absolute()]
+        held.claims -= self.claims
+        if held.claims:
+            return  # another output of this run still holds it
+        del self._held[self.path.absolute()]
         try:
             self.path.unlink()
         except FileNotFoundError:
             pass
-        os.close(self._fd)
-        self._fd = None
-        self._remove_made()
+        os.close(held.fd)
+        _remove_empty(held.made)
 
-    def _remove_made(self) -> None:
-        for folder in self._made:
-            try:
-                folder.rmdir()
-            except OSError:
-                break
-        self._made = []
+
+def _remove_empty(folders: list[Path]) -> None:
+    for folder in folders:
+        try:
+            folder.rmdir()
+        except OSError:
+            break
 
 
 def fsync_path(path: Path) -> None:
@@ -203,7 +246,7 @@ class StagedOutput:
     def __init__(self, target: Path, staging: Path, resume: bool) -> None:
         self.target = target
         self.staging = staging
-        self.lock = OutputLock(target)
+        self.lock = OutputLock(target, claims=(staging,))
         self.resume = resume
         self.location: Path | None = None  # where the frames are once the run has ended
 
