@@ -603,6 +603,17 @@ def test_a_usd_file_and_a_poly_folder_of_one_name_are_refused(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+# Output paths the file system cannot hold
+
+
+def test_a_poly_folder_with_no_parent_to_stage_beside_is_refused(tmp_path):
+    code, _, err = run_cli_in_process("run", "hanging", "--frames", "2", "--quiet", "--out", str(tmp_path / "out"),
+                                      "--poly", "/", cwd=tmp_path)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert err.startswith("warp-cloth: error: command line: --poly")
+    assert list(tmp_path.iterdir()) == []
+
+
 # A full disk's message
 
 
