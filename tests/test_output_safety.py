@@ -614,6 +614,34 @@ def test_a_poly_folder_with_no_parent_to_stage_beside_is_refused(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize("option, name", [
+    ("--poly", "p" * 250),  # fits, but its staging folder's name does not
+    ("--poly", "p" * 300 + "/poly"),
+    ("--usd", "u" * 300 + ".usdc"),
+    ("--usd", "u" * 245 + ".usdc"),  # fits, but its staging file's name does not
+])
+def test_names_too_long_for_the_file_system_are_refused_with_one_line(tmp_path, option, name):
+    code, _, err = run_cli_in_process("run", "hanging", "--frames", "2", "--quiet", "--out", str(tmp_path / "out"),
+                                      option, str(tmp_path / name), cwd=tmp_path)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert err.startswith(f"warp-cloth: error: command line: {option}") and "file system can hold" in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_usd_whose_staging_path_is_too_long_is_refused_with_one_line(tmp_path):
+    limit = os.pathconf(tmp_path, "PC_PATH_MAX")
+    folder = tmp_path
+    while len(os.fsencode(str(folder))) < limit - 300:
+        folder = folder / ("d" * 200)
+    folder.mkdir(parents=True)
+    usd = folder / ("u" * (limit - 10 - len(os.fsencode(str(folder)))) + ".usdc")  # fits, its staging name not
+    code, _, err = run_cli_in_process("run", "hanging", "--frames", "2", "--quiet", "--usd", str(usd), "--no-poly",
+                                      cwd=tmp_path)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert err.startswith("warp-cloth: error: command line: --usd") and "file system can hold" in err
+    assert list(folder.iterdir()) == []
+
+
 # A full disk's message
 
 
@@ -636,4 +664,3 @@ def test_a_full_disk_message_says_how_much_more_is_needed(tmp_path, monkeypatch)
             4, writers=[FillDiskAt(2, None), wc.UsdWriter(tmp_path / "hanging.usdc")])
     amount = re.search(r"about ([\d.]+) (bytes|KiB|MiB) more needed", str(raised.value))
     assert amount and float(amount.group(1)) > 0, str(raised.value)
-

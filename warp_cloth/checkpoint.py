@@ -41,6 +41,11 @@ def checkpoint_path(output: Path) -> Path:
     return output.with_name(f"{stem_path(output).name}.checkpoint.npz")
 
 
+def temporary_path(path: Path) -> Path:
+    """Where a checkpoint is written before it is renamed to ``path``."""
+    return path.with_name(path.name + ".tmp")
+
+
 def _arrays(sim) -> dict:
     arrays = {"x": sim.state.x, "v": sim.state.v, "clock": sim.state.clock}
     for k, stage in enumerate(sim.stages):
@@ -75,7 +80,7 @@ def _write(path: Path, checkpoint: Checkpoint) -> None:
     meta = {"format": FORMAT, "frame": checkpoint.frame, "substeps": checkpoint.substeps, "scene": checkpoint.scene,
             "extra": checkpoint.extra}
     arrays = checkpoint.arrays
-    temporary = path.with_name(path.name + ".tmp")
+    temporary = temporary_path(path)
     with open(temporary, "wb") as f:
         np.savez(f, meta=np.array(json.dumps(meta)), **arrays)
         f.flush()

@@ -18,11 +18,13 @@ place only when the run completes; it holds a lock beside the output while it ru
 
 Where a labelled name is taken, ``.failed.2``, ``.failed.3``, ... are used: a run never replaces a file it
 did not make. A new run (not ``--resume``) is refused before simulating while a staging name or the
-checkpoint of a run that did not complete is there.
+checkpoint of a run that did not complete is there, and where one of these names would be longer than the
+file system allows.
 """
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import fcntl
 import os
@@ -71,9 +73,44 @@ def lock_path(output: Path) -> Path:
 
 def _nearest_existing(path: Path) -> Path:
     path = path.absolute()
-    while not path.exists() and path != path.parent:
+    while not os.path.exists(path) and path != path.parent:  # os.path: False for a name too long, not OSError
         path = path.parent
     return path
+
+
+def _limit(existing: Path, name: str, default: int) -> int:
+    try:
+        return os.pathconf(existing, name)
+    except (OSError, ValueError):
+        return default
+
+
+@contextlib.contextmanager
+def file_system_refusals(key: str, path: Path, source: str | None = None):
+    """Turn the file system's refusal of an output path (a name too long, a folder it cannot make) into
+    bad input, before the simulation starts."""
+    try:
+        yield
+    except OSError as exc:
+        what = "a path the file system can hold" if exc.errno == errno.ENAMETOOLONG else "a path this run can write"
+        raise SceneError(key, f"{what} ({exc.strerror or exc})", str(path), source) from None
+
+
+def check_names_fit(target: Path, made: list[str], key: str, source: str | None = None) -> None:
+    """Refuse ``target`` where one of the folders to make for it, or one of the names ``made`` beside it,
+    is longer than its file system allows (``NAME_MAX``), or the whole path of one is (``PATH_MAX``; USD
+    opens its files by their absolute paths)."""
+    target = target.absolute()
+    existing = _nearest_existing(target)
+    name_max, path_max = _limit(existing, "PC_NAME_MAX", 255), _limit(existing, "PC_PATH_MAX", 4096)
+    checks = [(name, name_max) for name in (*target.relative_to(existing).parts, *made)]
+    checks += [(str(target.with_name(name)), path_max - 1) for name in made]  # PATH_MAX counts the final NUL
+    for name, limit in checks:
+        size = len(os.fsencode(name))
+        if size > limit:
+            shown = name if len(name) <= 40 else f"{name[:20]}...{name[-16:]}"
+            raise SceneError(key, f"a path the file system can hold (File name too long: {shown} is {size} bytes, "
+                                  f"at most {limit})", str(target), source)
 
 
 def check_writable_place(path: Path, key: str, source: str | None = None) -> None:
@@ -89,15 +126,17 @@ def check_writable_place(path: Path, key: str, source: str | None = None) -> Non
 def check_file_output(path: Path, suffixes: tuple[str, ...], key: str, source: str | None = None) -> None:
     if path.suffix.lower() not in suffixes:
         raise SceneError(key, f"a file name ending in {', '.join(suffixes)}", str(path), source)
-    if path.is_dir():
-        raise SceneError(key, "a file name (this is a folder)", str(path), source)
-    check_writable_place(path, key, source)
+    with file_system_refusals(key, path, source):
+        if path.is_dir():
+            raise SceneError(key, "a file name (this is a folder)", str(path), source)
+        check_writable_place(path, key, source)
 
 
 def check_folder_output(path: Path, key: str, source: str | None = None) -> None:
-    if path.exists() and not path.is_dir():
-        raise SceneError(key, "a folder (this is a file)", str(path), source)
-    check_writable_place(path / "x", key, source)
+    with file_system_refusals(key, path, source):
+        if path.exists() and not path.is_dir():
+            raise SceneError(key, "a folder (this is a file)", str(path), source)
+        check_writable_place(path / "x", key, source)
 
 
 class _HeldLock:
@@ -238,10 +277,12 @@ def copy_tree_files(source: Path, target: Path, names: list[str]) -> None:
 class StagedOutput:
     """What the USD and .poly writers share: an output at ``target`` written under ``staging`` beside it,
     the lock held while the run writes it, and where its frames are once the run has ended. ``key`` names
-    the output in messages (``usd``, ``poly``); ``kind`` says what moving it away means (``file``, ``folder``)."""
+    the output in messages (``usd``, ``poly``); ``kind`` says what moving it away means (``file``, ``folder``);
+    ``suffix`` is that of the staging and labelled names (none for a folder)."""
 
     key = ""
     kind = ""
+    suffix: str | None = None
 
     def __init__(self, target: Path, staging: Path, resume: bool) -> None:
         self.target = target
@@ -249,17 +290,27 @@ class StagedOutput:
         self.lock = OutputLock(target, claims=(staging,))
         self.resume = resume
         self.location: Path | None = None  # where the frames are once the run has ended
+        check_names_fit(target, self._names_made(), self.key)
+
+    def _names_made(self) -> list[str]:
+        """The names a run makes beside the output (``interrupted.99`` the longest label, ``.tmp`` the
+        checkpoint's temporary name)."""
+        from .checkpoint import checkpoint_path, temporary_path
+
+        return [self.staging.name, labelled(self.target, f"{INTERRUPTED}.99", self.suffix).name,
+                self.lock.path.name, temporary_path(checkpoint_path(self.target)).name]
 
     def prepare(self) -> None:
         """Take the output's lock and check that no unfinished run's frames or checkpoint would be
         overwritten (done by ``begin`` too; call it first to be refused before simulating)."""
-        self.lock.acquire(self.key)
-        try:
-            if not self.resume:
-                self._refuse_an_unfinished_run()
-        except BaseException:
-            self.lock.release()
-            raise
+        with file_system_refusals(self.key, self.target):
+            self.lock.acquire(self.key)
+            try:
+                if not self.resume:
+                    self._refuse_an_unfinished_run()
+            except BaseException:
+                self.lock.release()
+                raise
 
     def _refuse_an_unfinished_run(self) -> None:
         from .checkpoint import checkpoint_path

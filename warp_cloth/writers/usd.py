@@ -40,11 +40,12 @@ class UsdWriter(StagedOutput):
 
     key = "usd"
     kind = "file"
+    suffix = ".usdc"
 
     def __init__(self, path: str | Path, subdivision: str = "none", resume: bool = False) -> None:
         self.path = Path(path)
         check_file_output(self.path, USD_SUFFIXES, "usd")
-        super().__init__(self.path, labelled(self.path, INCOMPLETE, ".usdc"), resume)
+        super().__init__(self.path, labelled(self.path, INCOMPLETE, self.suffix), resume)
         self.subdivision = subdivision
         self.saved_through = -1  # the last frame the file on disk holds
         self.stage: Usd.Stage | None = None
@@ -254,7 +255,7 @@ class UsdWriter(StagedOutput):
                 return
             except OutputError:
                 pass
-        target = first_free(self.path, outcome.label, ".usdc")
+        target = first_free(self.path, outcome.label, self.suffix)
         os.replace(self.staging, target)
         self._end(target)
 
