@@ -16,7 +16,7 @@ import pytest
 from pxr import Sdf, Usd, UsdGeom
 
 import warp_cloth as wc
-from conftest import REPO, run_cli, with_simulation
+from conftest import REPO, run_cli, run_cli_in_process, with_simulation
 from warp_cloth.output import OutputError, OutputLock, first_free, labelled
 
 FOLD_AROUND_A_MOVING_SPHERE = """
@@ -159,6 +159,8 @@ def test_a_writer_that_raises_keeps_the_previous_output(tmp_path, error):
 
 
 def test_a_second_failure_does_not_replace_the_first_ones_frames(tmp_path):
+    # Without a checkpoint writer nothing holds a second run back (under the CLI, a failure that keeps its
+    # checkpoint refuses a fresh run instead: see the checkpoint tests below).
     scene = with_simulation(wc.load_scene("hanging"), frames=3)
     usd = tmp_path / "hanging.usdc"
     for _ in range(2):
@@ -255,14 +257,14 @@ def test_a_second_run_on_the_same_output_is_refused_at_once(tmp_path):
         assert result.returncode == 2
         line = one_error_line(result)
         assert f"process id {os.getpid()}" in line and "hanging.usdc" in line
-        assert sorted(p.name for p in tmp_path.iterdir()) == ["hanging.usdc.lock"]
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["hanging.lock"]
         assert time.monotonic() - started < 60
     finally:
         lock.release()
 
 
 def test_a_lock_left_by_a_dead_run_is_taken_over(tmp_path):
-    (tmp_path / "hanging.usdc.lock").write_text("999999\n")
+    (tmp_path / "hanging.lock").write_text("999999\n")
     result = run_cli("run", "hanging", "--frames", "3", "--out", str(tmp_path), "--no-poly", "--quiet", cwd=REPO)
     assert result.returncode == 0, result.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["hanging.usdc"]
@@ -474,3 +476,191 @@ def test_usd_is_as_small_as_its_data(tmp_path):
     Sdf.Layer.FindOrOpen(str(path)).Export(str(compact))
     assert os.path.getsize(path) <= 1.05 * os.path.getsize(compact)
     assert len(usd_points(path)) == 121
+
+
+# A checkpoint a run did not complete stays until it is resumed or moved away; an unstable run's goes
+
+
+def test_an_unstable_run_removes_its_own_checkpoint_and_a_fresh_run_may_start(tmp_path, monkeypatch):
+    monkeypatch.setattr(wc.Simulator, "SYNC_SECONDS", 0.0)  # a checkpoint after every frame
+    for failed_usd in ("hanging.failed.usdc", "hanging.failed.2.usdc"):  # a second failure is not refused either
+        code, _, err = run_cli_in_process("run", "hanging", "--frames", "40", "--substeps", "1", "--out",
+                                          str(tmp_path), "--quiet", cwd=tmp_path)
+        assert code == 3 and "--resume" not in err and failed_usd in err
+        assert int(err.split("Kept frames 0 to ")[1].split()[0]) >= 1  # it was checkpointed before it blew up
+        assert not (tmp_path / "hanging.checkpoint.npz").exists()
+    failed = files_under(tmp_path)
+    code, _, err = run_cli_in_process("run", "hanging", "--frames", "2", "--out", str(tmp_path), "--quiet",
+                                      cwd=tmp_path)
+    assert code == 0, err
+    assert {k: v for k, v in files_under(tmp_path).items() if k in failed} == failed
+    assert len(usd_points(tmp_path / "hanging.usdc")) == 3
+
+
+def stop_at_frame_3_with_sigterm(self, sim, frame):
+    if frame == 3:
+        os.kill(os.getpid(), signal.SIGTERM)  # the run stops after this frame, as it would for a real signal
+
+
+def fail_at_frame_3_with_a_full_disk(self, sim, frame):
+    if frame == 3:
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+
+@pytest.mark.parametrize("end, code", [(fail_at_frame_3_with_a_full_disk, 4), (stop_at_frame_3_with_sigterm, 143)],
+                         ids=["write-failure", "signal"])
+def test_a_fresh_run_is_refused_while_a_run_that_did_not_complete_keeps_its_checkpoint(tmp_path, monkeypatch, end,
+                                                                                        code):
+    from warp_cloth.writers.poly import PolyWriter
+
+    write_frame = PolyWriter.write_frame
+
+    def ending_at_frame_3(self, sim, frame):
+        end(self, sim, frame)
+        write_frame(self, sim, frame)
+
+    monkeypatch.setattr(wc.Simulator, "SYNC_SECONDS", 0.0)  # a checkpoint after every frame
+    monkeypatch.setattr(PolyWriter, "write_frame", ending_at_frame_3)
+    run = ("run", "hanging", "--out", str(tmp_path), "--quiet")
+    ended, out, err = run_cli_in_process(*run, "--frames", "6", cwd=tmp_path)
+    assert ended == code and "--resume" in out + err
+    monkeypatch.setattr(PolyWriter, "write_frame", write_frame)
+    left = files_under(tmp_path)
+    assert "hanging.checkpoint.npz" in left
+    fresh, _, err = run_cli_in_process(*run, "--frames", "2", cwd=tmp_path)
+    assert fresh == 2 and len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert "hanging.checkpoint.npz" in err and "--resume" in err
+    assert files_under(tmp_path) == left
+    resumed, out, err = run_cli_in_process(*run, "--frames", "6", "--resume", cwd=tmp_path)
+    assert resumed == 0, err
+    assert "resumed at frame" in out and len(usd_points(tmp_path / "hanging.usdc")) == 7
+    assert not (tmp_path / "hanging.checkpoint.npz").exists()
+
+
+def test_saved_says_whether_the_run_has_a_checkpoint_to_resume(tmp_path, monkeypatch):
+    scene = with_simulation(wc.load_scene("hanging"), frames=3)
+    usd = wc.UsdWriter(tmp_path / "hanging.usdc")
+    checkpoint = wc.CheckpointWriter(tmp_path / "hanging.checkpoint.npz", [usd])
+    assert not checkpoint.saved
+    monkeypatch.setattr(wc.Simulator, "SYNC_SECONDS", 1e9)  # no save before the failure at frame 1
+    with pytest.raises(RuntimeError):
+        wc.Simulator(scene, device="cpu").run(3, writers=[usd, checkpoint, RaiseAt(1, RuntimeError())])
+    assert not checkpoint.saved and not checkpoint.path.exists()
+    monkeypatch.setattr(wc.Simulator, "SYNC_SECONDS", 0.0)
+    usd = wc.UsdWriter(tmp_path / "hanging.usdc")
+    checkpoint = wc.CheckpointWriter(tmp_path / "hanging.checkpoint.npz", [usd])
+    with pytest.raises(RuntimeError):
+        wc.Simulator(scene, device="cpu").run(3, writers=[usd, checkpoint, RaiseAt(2, RuntimeError())])
+    assert checkpoint.saved and checkpoint.path.exists()
+
+
+# One lock covers what outputs of one stem share (the staging file, the checkpoint)
+
+
+@contextlib.contextmanager
+def lock_held_by_another_process(path: Path):
+    holder = subprocess.Popen(
+        [sys.executable, "-c", "import fcntl, os, sys\n"
+                               "fd = os.open(sys.argv[1], os.O_RDWR | os.O_CREAT)\n"
+                               "fcntl.flock(fd, fcntl.LOCK_EX)\n"
+                               "os.write(fd, b'%d\\n' % os.getpid())\n"
+                               "print('held', flush=True)\n"
+                               "sys.stdin.read()\n", str(path)],
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        yield holder.pid
+    finally:
+        holder.stdin.close()
+        holder.wait(timeout=30)
+
+
+@pytest.mark.parametrize("outputs", [["--usd", "shot.usd", "--no-poly"], ["--usd", "shot.usdc", "--no-poly"],
+                                     ["--no-usd", "--poly", "shot"]], ids=["usd", "usdc", "poly"])
+def test_outputs_that_share_a_staging_file_or_checkpoint_share_one_lock(tmp_path, outputs):
+    (tmp_path / "out").mkdir()
+    outputs = [str(tmp_path / "out" / o) if o.startswith("shot") else o for o in outputs]
+    with lock_held_by_another_process(OutputLock(tmp_path / "out" / "shot.usda").path) as holder:
+        code, _, err = run_cli_in_process("run", "hanging", "--frames", "2", "--quiet", *outputs, cwd=tmp_path)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and f"process id {holder}" in err
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["shot.lock"]
+
+
+def test_two_outputs_of_one_run_with_one_lock_share_it(tmp_path):
+    out = tmp_path / "out"
+    code, _, err = run_cli_in_process("run", "hanging", "--frames", "2", "--quiet", "--usd", str(out / "p.usdc"),
+                                      "--poly", str(out / "p"), cwd=tmp_path)
+    assert code == 0, err
+    assert len(usd_points(out / "p.usdc")) == 3 and len(list((out / "p").glob("*.poly"))) == 3
+    assert sorted(p.name for p in out.iterdir()) == ["p", "p.usdc"]
+
+
+def test_a_usd_file_and_a_poly_folder_of_one_name_are_refused(tmp_path):
+    code, _, err = run_cli_in_process("run", "hanging", "--frames", "2", "--quiet", "--usd", str(tmp_path / "p.usdc"),
+                                      "--poly", str(tmp_path / "p.usdc"), cwd=tmp_path)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert err.startswith("warp-cloth: error: command line: --poly") and "another output of this run" in err
+    assert list(tmp_path.iterdir()) == []
+
+
+# Output paths the file system cannot hold
+
+
+def test_a_poly_folder_with_no_parent_to_stage_beside_is_refused(tmp_path):
+    code, _, err = run_cli_in_process("run", "hanging", "--frames", "2", "--quiet", "--out", str(tmp_path / "out"),
+                                      "--poly", "/", cwd=tmp_path)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert err.startswith("warp-cloth: error: command line: --poly")
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("option, name", [
+    ("--poly", "p" * 250),  # fits, but its staging folder's name does not
+    ("--poly", "p" * 300 + "/poly"),
+    ("--usd", "u" * 300 + ".usdc"),
+    ("--usd", "u" * 245 + ".usdc"),  # fits, but its staging file's name does not
+])
+def test_names_too_long_for_the_file_system_are_refused_with_one_line(tmp_path, option, name):
+    code, _, err = run_cli_in_process("run", "hanging", "--frames", "2", "--quiet", "--out", str(tmp_path / "out"),
+                                      option, str(tmp_path / name), cwd=tmp_path)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert err.startswith(f"warp-cloth: error: command line: {option}") and "file system can hold" in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_usd_whose_staging_path_is_too_long_is_refused_with_one_line(tmp_path):
+    limit = os.pathconf(tmp_path, "PC_PATH_MAX")
+    folder = tmp_path
+    while len(os.fsencode(str(folder))) < limit - 300:
+        folder = folder / ("d" * 200)
+    folder.mkdir(parents=True)
+    usd = folder / ("u" * (limit - 10 - len(os.fsencode(str(folder)))) + ".usdc")  # fits, its staging name not
+    code, _, err = run_cli_in_process("run", "hanging", "--frames", "2", "--quiet", "--usd", str(usd), "--no-poly",
+                                      cwd=tmp_path)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert err.startswith("warp-cloth: error: command line: --usd") and "file system can hold" in err
+    assert list(folder.iterdir()) == []
+
+
+# A full disk's message
+
+
+def test_a_full_disk_message_says_how_much_more_is_needed(tmp_path, monkeypatch):
+    import re
+
+    import warp_cloth.output as output
+    from warp_cloth.writers.usd import SAVE_MARGIN_BYTES
+
+    free = {"bytes": 10**12}
+
+    class FillDiskAt(RaiseAt):
+        def write_frame(self, sim, frame):
+            if frame == self.frame:
+                free["bytes"] = SAVE_MARGIN_BYTES  # a few KiB short of what the next save needs
+
+    monkeypatch.setattr(output, "free_bytes", lambda folder: free["bytes"])
+    with pytest.raises(OutputError) as raised:
+        wc.Simulator(wc.load_scene("hanging"), device="cpu").run(
+            4, writers=[FillDiskAt(2, None), wc.UsdWriter(tmp_path / "hanging.usdc")])
+    amount = re.search(r"about ([\d.]+) (bytes|KiB|MiB) more needed", str(raised.value))
+    assert amount and float(amount.group(1)) > 0, str(raised.value)

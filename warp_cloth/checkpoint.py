@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import SceneError
-from .output import fsync_path
+from .output import fsync_path, stem_path
 
 FORMAT = 1
 
@@ -37,9 +37,13 @@ def scene_fingerprint(scene) -> str:
 
 def checkpoint_path(output: Path) -> Path:
     """The checkpoint beside a run's first output: ``out/hanging.usdc`` -> ``out/hanging.checkpoint.npz``,
-    a folder ``poly`` -> ``poly.checkpoint.npz``."""
-    stem = output.name[:len(output.name) - len(output.suffix)]
-    return output.with_name(f"{stem}.checkpoint.npz")
+    a folder ``poly`` -> ``poly.checkpoint.npz`` (see ``warp_cloth.output.stem_path``)."""
+    return output.with_name(f"{stem_path(output).name}.checkpoint.npz")
+
+
+def temporary_path(path: Path) -> Path:
+    """Where a checkpoint is written before it is renamed to ``path``."""
+    return path.with_name(path.name + ".tmp")
 
 
 def _arrays(sim) -> dict:
@@ -76,7 +80,7 @@ def _write(path: Path, checkpoint: Checkpoint) -> None:
     meta = {"format": FORMAT, "frame": checkpoint.frame, "substeps": checkpoint.substeps, "scene": checkpoint.scene,
             "extra": checkpoint.extra}
     arrays = checkpoint.arrays
-    temporary = path.with_name(path.name + ".tmp")
+    temporary = temporary_path(path)
     with open(temporary, "wb") as f:
         np.savez(f, meta=np.array(json.dumps(meta)), **arrays)
         f.flush()

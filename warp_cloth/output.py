@@ -8,16 +8,23 @@ place only when the run completes; it holds a lock beside the output while it ru
 - ``out/hanging.failed.usdc``: the frames of a run that failed (unstable, a full disk, a writer's error)
 - ``out/hanging.interrupted.usdc``: the frames of a stopped run (Ctrl-C, SIGTERM, SIGHUP) where an output
   was already in place (a stopped run with nothing to replace puts its frames in place)
-- ``out/hanging.usdc.lock``: held while a run writes the output; it names the run's process
+- ``out/hanging.lock``: held while a run writes the output; it names the run's process. It is named after
+  the output's stem, like the checkpoint, so that it covers every output sharing those names:
+  ``hanging.usd``, ``.usda`` and ``.usdc`` (one staging file), and a folder ``out/hanging`` (one
+  checkpoint). Outputs of one run share it (see ``OutputLock``).
 - ``out/hanging.checkpoint.npz``: the state at the last saved frame, for ``--resume`` (see
-  ``warp_cloth.checkpoint``); ``out/hanging.exporting.usdc``: the compact copy being written at the end
+  ``warp_cloth.checkpoint``); removed when the run completes or goes unstable, kept when it was stopped,
+  killed or failed otherwise. ``out/hanging.exporting.usdc``: the compact copy being written at the end
 
 Where a labelled name is taken, ``.failed.2``, ``.failed.3``, ... are used: a run never replaces a file it
-did not make.
+did not make. A new run (not ``--resume``) is refused before simulating while a staging name or the
+checkpoint of a run that did not complete is there, and where one of these names would be longer than the
+file system allows.
 """
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import fcntl
 import os
@@ -53,11 +60,57 @@ def first_free(path: Path, label: str, suffix: str | None = None) -> Path:
     return candidate
 
 
+def stem_path(output: Path) -> Path:
+    """What an output's lock and checkpoint are named after: ``out/hanging.usdc`` -> ``out/hanging`` (so
+    ``hanging.usd``, ``.usda`` and ``.usdc``, whose staging file is one, share them); a folder
+    ``out/hanging/poly`` -> itself, ``renders/shot.v2`` -> ``renders/shot`` (as a file would)."""
+    return output.with_name(output.name[:len(output.name) - len(output.suffix)])
+
+
+def lock_path(output: Path) -> Path:
+    return output.with_name(f"{stem_path(output).name}.lock")
+
+
 def _nearest_existing(path: Path) -> Path:
     path = path.absolute()
-    while not path.exists() and path != path.parent:
+    while not os.path.exists(path) and path != path.parent:  # os.path: False for a name too long, not OSError
         path = path.parent
     return path
+
+
+def _limit(existing: Path, name: str, default: int) -> int:
+    try:
+        return os.pathconf(existing, name)
+    except (OSError, ValueError):
+        return default
+
+
+@contextlib.contextmanager
+def file_system_refusals(key: str, path: Path, source: str | None = None):
+    """Turn the file system's refusal of an output path (a name too long, a folder it cannot make) into
+    bad input, before the simulation starts."""
+    try:
+        yield
+    except OSError as exc:
+        what = "a path the file system can hold" if exc.errno == errno.ENAMETOOLONG else "a path this run can write"
+        raise SceneError(key, f"{what} ({exc.strerror or exc})", str(path), source) from None
+
+
+def check_names_fit(target: Path, made: list[str], key: str, source: str | None = None) -> None:
+    """Refuse ``target`` where one of the folders to make for it, or one of the names ``made`` beside it,
+    is longer than its file system allows (``NAME_MAX``), or the whole path of one is (``PATH_MAX``; USD
+    opens its files by their absolute paths)."""
+    target = target.absolute()
+    existing = _nearest_existing(target)
+    name_max, path_max = _limit(existing, "PC_NAME_MAX", 255), _limit(existing, "PC_PATH_MAX", 4096)
+    checks = [(name, name_max) for name in (*target.relative_to(existing).parts, *made)]
+    checks += [(str(target.with_name(name)), path_max - 1) for name in made]  # PATH_MAX counts the final NUL
+    for name, limit in checks:
+        size = len(os.fsencode(name))
+        if size > limit:
+            shown = name if len(name) <= 40 else f"{name[:20]}...{name[-16:]}"
+            raise SceneError(key, f"a path the file system can hold (File name too long: {shown} is {size} bytes, "
+                                  f"at most {limit})", str(target), source)
 
 
 def check_writable_place(path: Path, key: str, source: str | None = None) -> None:
@@ -73,33 +126,59 @@ def check_writable_place(path: Path, key: str, source: str | None = None) -> Non
 def check_file_output(path: Path, suffixes: tuple[str, ...], key: str, source: str | None = None) -> None:
     if path.suffix.lower() not in suffixes:
         raise SceneError(key, f"a file name ending in {', '.join(suffixes)}", str(path), source)
-    if path.is_dir():
-        raise SceneError(key, "a file name (this is a folder)", str(path), source)
-    check_writable_place(path, key, source)
+    with file_system_refusals(key, path, source):
+        if path.is_dir():
+            raise SceneError(key, "a file name (this is a folder)", str(path), source)
+        check_writable_place(path, key, source)
 
 
 def check_folder_output(path: Path, key: str, source: str | None = None) -> None:
-    if path.exists() and not path.is_dir():
-        raise SceneError(key, "a folder (this is a file)", str(path), source)
-    check_writable_place(path / "x", key, source)
+    with file_system_refusals(key, path, source):
+        if path.exists() and not path.is_dir():
+            raise SceneError(key, "a folder (this is a file)", str(path), source)
+        check_writable_place(path / "x", key, source)
+
+
+class _HeldLock:
+    """A lock file this process holds, with the outputs it holds it for."""
+
+    def __init__(self, fd: int, made: list[Path]) -> None:
+        self.fd = fd
+        self.made = made  # folders made for the lock, removed with it if still empty
+        self.claims: set[Path] = set()  # the targets and staging names of the outputs holding it
 
 
 class OutputLock:
-    """``<output>.lock``, held with ``flock`` for as long as the run writes the output. The kernel drops the
-    lock when its process dies, however it dies, so a lock file left by a dead run is simply taken over."""
+    """``<stem>.lock`` beside an ``output`` (see ``stem_path``), held with ``flock`` for as long as the run
+    writes the output. One lock covers every output that shares the stem's staging and checkpoint names, so
+    runs on ``x.usd`` and ``x.usdc`` (or ``--usd out/p.usdc`` and ``--no-usd --poly out/p``) exclude each
+    other. Within one process the outputs of one run share the lock, as long as none of them writes a file
+    (``claims``: its target and staging name) another one holding it writes. The kernel drops the lock when
+    its process dies, however it dies, so a lock file left by a dead run is simply taken over."""
 
-    def __init__(self, output: Path) -> None:
+    _held: dict[Path, _HeldLock] = {}  # by the lock file's absolute path
+
+    def __init__(self, output: Path, claims: tuple[Path, ...] = ()) -> None:
         self.output = output
-        self.path = output.with_name(output.name + ".lock")
-        self._fd: int | None = None
-        self._made: list[Path] = []  # folders made for the lock, removed with it if still empty
+        self.path = lock_path(output)
+        self.claims = {p.absolute() for p in (output, *claims)}
+        self._holding = False
 
     def acquire(self, key: str, source: str | None = None) -> None:
-        if self._fd is not None:
+        if self._holding:
             return
+        held = self._held.get(self.path.absolute())
+        if held is None:
+            held = self._held[self.path.absolute()] = self._lock(key, source)
+        elif held.claims & self.claims:
+            raise SceneError(key, f"an output no other output of this run writes (another output of this run "
+                                  f"writes {min(held.claims & self.claims)})", str(self.output), source)
+        held.claims |= self.claims
+        self._holding = True
+
+    def _lock(self, key: str, source: str | None) -> _HeldLock:
         missing = [p for p in (self.path.parent, *self.path.parent.parents) if not p.exists()]
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._made = missing
         while True:
             fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
             try:
@@ -108,7 +187,7 @@ class OutputLock:
                 os.close(fd)
                 if exc.errno not in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
                     raise
-                self._remove_made()
+                _remove_empty(missing)
                 raise SceneError(key, f"an output no other run is writing (the run with process id "
                                       f"{self._holder()} holds {self.path})", str(self.output), source) from None
             # The holder before us may have removed the file after we opened it: lock the file that is there.
@@ -121,7 +200,7 @@ class OutputLock:
             os.close(fd)
         os.ftruncate(fd, 0)
         os.write(fd, f"{os.getpid()}\n".encode())
-        self._fd = fd
+        return _HeldLock(fd, missing)
 
     def _holder(self) -> str:
         try:
@@ -130,23 +209,28 @@ class OutputLock:
             return "?"
 
     def release(self) -> None:
-        if self._fd is None:
+        if not self._holding:
             return
+        self._holding = False
+        held = self._held[self.path.absolute()]
+        held.claims -= self.claims
+        if held.claims:
+            return  # another output of this run still holds it
+        del self._held[self.path.absolute()]
         try:
             self.path.unlink()
         except FileNotFoundError:
             pass
-        os.close(self._fd)
-        self._fd = None
-        self._remove_made()
+        os.close(held.fd)
+        _remove_empty(held.made)
 
-    def _remove_made(self) -> None:
-        for folder in self._made:
-            try:
-                folder.rmdir()
-            except OSError:
-                break
-        self._made = []
+
+def _remove_empty(folders: list[Path]) -> None:
+    for folder in folders:
+        try:
+            folder.rmdir()
+        except OSError:
+            break
 
 
 def fsync_path(path: Path) -> None:
@@ -163,12 +247,13 @@ def free_bytes(folder: Path) -> int:
     return stats.f_bavail * stats.f_frsize
 
 
-def require_space(folder: Path, needed: int, what: str) -> None:
-    """Raise ``OutputError`` before writing ``needed`` bytes where fewer are free."""
-    free = free_bytes(folder)
-    if free < needed:
-        raise OutputError(f"not enough free space in {folder} to save {what}: about {needed / 2**20:.1f} MiB "
-                          f"needed, {free / 2**20:.1f} MiB free")
+def describe_size(size: float) -> str:
+    """``size`` bytes for a message: in MiB, or KiB or bytes where that would read 0.0 MiB."""
+    if size >= 0.1 * 2**20:
+        return f"{size / 2**20:.1f} MiB"
+    if size >= 1024:
+        return f"{size / 1024:.0f} KiB"
+    return f"{size:.0f} bytes"
 
 
 def move_files_into(staging: Path, folder: Path, names: list[str]) -> None:
@@ -192,27 +277,53 @@ def copy_tree_files(source: Path, target: Path, names: list[str]) -> None:
 class StagedOutput:
     """What the USD and .poly writers share: an output at ``target`` written under ``staging`` beside it,
     the lock held while the run writes it, and where its frames are once the run has ended. ``key`` names
-    the output in messages (``usd``, ``poly``); ``kind`` says what moving it away means (``file``, ``folder``)."""
+    the output in messages (``usd``, ``poly``); ``kind`` says what moving it away means (``file``, ``folder``);
+    ``suffix`` is that of the staging and labelled names (none for a folder)."""
 
     key = ""
     kind = ""
+    suffix: str | None = None
 
     def __init__(self, target: Path, staging: Path, resume: bool) -> None:
         self.target = target
         self.staging = staging
-        self.lock = OutputLock(target)
+        self.lock = OutputLock(target, claims=(staging,))
         self.resume = resume
         self.location: Path | None = None  # where the frames are once the run has ended
+        check_names_fit(target, self._names_made(), self.key)
+
+    def _names_made(self) -> list[str]:
+        """The names a run makes beside the output (``interrupted.99`` the longest label, ``.tmp`` the
+        checkpoint's temporary name)."""
+        from .checkpoint import checkpoint_path, temporary_path
+
+        return [self.staging.name, labelled(self.target, f"{INTERRUPTED}.99", self.suffix).name,
+                self.lock.path.name, temporary_path(checkpoint_path(self.target)).name]
 
     def prepare(self) -> None:
-        """Take the output's lock and check that no killed run's frames would be overwritten (done by
-        ``begin`` too; call it first to be refused before simulating)."""
-        self.lock.acquire(self.key)
-        if not self.resume and self.staging.exists():
-            self.lock.release()
+        """Take the output's lock and check that no unfinished run's frames or checkpoint would be
+        overwritten (done by ``begin`` too; call it first to be refused before simulating)."""
+        with file_system_refusals(self.key, self.target):
+            self.lock.acquire(self.key)
+            try:
+                if not self.resume:
+                    self._refuse_an_unfinished_run()
+            except BaseException:
+                self.lock.release()
+                raise
+
+    def _refuse_an_unfinished_run(self) -> None:
+        from .checkpoint import checkpoint_path
+
+        if self.staging.exists():
             raise SceneError(self.key, f"an output without a killed run's frames beside it: {self.staging} holds "
                                        f"them; continue that run with --resume or move the {self.kind} away",
                              has_got=False)
+        checkpoint = checkpoint_path(self.target)
+        if checkpoint.exists():
+            raise SceneError(self.key, f"an output without an unfinished run's checkpoint beside it: {checkpoint} "
+                                       "holds the state of a run that did not complete; continue it with --resume "
+                                       "or move it away", has_got=False)
 
     def _end(self, location: Path) -> None:
         self.location = location

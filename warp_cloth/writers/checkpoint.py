@@ -1,11 +1,14 @@
 """The checkpoint as a frame writer: saved whenever the simulator syncs its writers, so that it always
-matches frames the other outputs hold on disk; removed when the run completes, kept when it does not."""
+matches frames the other outputs hold on disk; removed when the run completes or goes unstable (resuming it
+would blow up again), kept when it was stopped or failed otherwise (a fresh run is then refused, see
+``warp_cloth.output.StagedOutput.prepare``, until it is resumed or moved away)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 from ..checkpoint import rewrite_extra, save_checkpoint
+from ..errors import UnstableSimulation
 from ..output import RunOutcome
 
 
@@ -16,7 +19,11 @@ class CheckpointWriter:
     def __init__(self, path: str | Path, outputs: list) -> None:
         self.path = Path(path)
         self.outputs = outputs
-        self.kept = False
+
+    @property
+    def saved(self) -> bool:
+        """Whether there is a checkpoint of this run to continue from (with ``--resume``)."""
+        return self.path.exists()
 
     def _where(self) -> dict:
         return {"outputs": {str(w.target.absolute()): str((w.location or w.staging).absolute())
@@ -36,12 +43,14 @@ class CheckpointWriter:
 
     def abandon(self, sim, frames_written: int, outcome: RunOutcome) -> None:
         """A stopped run is checkpointed at its last frame; a failed one keeps its last synced checkpoint,
-        told where the outputs have put their frames."""
+        told where the outputs have put their frames, unless it went unstable: resumed at the same settings it
+        would blow up again, and with others it cannot be resumed."""
         if outcome.interrupted:
             save_checkpoint(sim, self.path, self._where())
+        elif isinstance(outcome.error, UnstableSimulation):
+            self.path.unlink(missing_ok=True)
         elif self.path.exists():
             rewrite_extra(self.path, self._where())
-        self.kept = self.path.exists()
 
 
 def frames_at(checkpoint_extra: dict, target: Path) -> Path | None:

@@ -54,6 +54,9 @@ class PolyWriter(StagedOutput):
         self.directory = Path(directory)
         if self.directory.name in ("", ".", ".."):
             self.directory = self.directory.resolve()  # a name to put the staging folder's beside
+        if not self.directory.name:
+            raise SceneError("poly", "a folder inside another one, where its frames can be staged beside it (not "
+                                     "the root folder)", str(directory))
         check_folder_output(self.directory, "poly")
         super().__init__(self.directory, labelled(self.directory, INCOMPLETE), resume)
         check_writable_place(self.staging, "poly")

@@ -40,11 +40,12 @@ class UsdWriter(StagedOutput):
 
     key = "usd"
     kind = "file"
+    suffix = ".usdc"
 
     def __init__(self, path: str | Path, subdivision: str = "none", resume: bool = False) -> None:
         self.path = Path(path)
         check_file_output(self.path, USD_SUFFIXES, "usd")
-        super().__init__(self.path, labelled(self.path, INCOMPLETE, ".usdc"), resume)
+        super().__init__(self.path, labelled(self.path, INCOMPLETE, self.suffix), resume)
         self.subdivision = subdivision
         self.saved_through = -1  # the last frame the file on disk holds
         self.stage: Usd.Stage | None = None
@@ -190,7 +191,7 @@ class UsdWriter(StagedOutput):
             if fit > 0:
                 self._write()
             raise OutputError(f"not enough free space in {self.staging.parent} to save {self.staging}: about "
-                              f"{shortfall / 2**20:.1f} MiB more needed")
+                              f"{output.describe_size(shortfall)} more needed")
         self._write()
 
     def _drop_frames_after(self, last: int) -> None:
@@ -221,7 +222,7 @@ class UsdWriter(StagedOutput):
         if output.free_bytes(self.path.parent) < (4 if text else 1) * size + SAVE_MARGIN_BYTES:
             if text:
                 raise OutputError(f"not enough free space in {self.path.parent} to write {self.path} "
-                                  f"(about {4 * size / 2**20:.1f} MiB of text)")
+                                  f"(about {output.describe_size(4 * size)} of text)")
             exported = self.staging  # already binary: put in place as it is
         else:
             try:
@@ -254,7 +255,7 @@ class UsdWriter(StagedOutput):
                 return
             except OutputError:
                 pass
-        target = first_free(self.path, outcome.label, ".usdc")
+        target = first_free(self.path, outcome.label, self.suffix)
         os.replace(self.staging, target)
         self._end(target)
 
