@@ -211,7 +211,9 @@ def test_a_full_disk_under_the_cli_ends_with_exit_4_and_one_line(tmp_path, monke
     monkeypatch.setattr(PolyWriter, "write_frame", fill_at_frame_3)
     assert main(["run", "hanging", "--frames", "6", "--out", str(tmp_path), "--quiet"]) == 4
     err = capsys.readouterr().err
-    assert len(err.strip().splitlines()) == 1 and "No space left on device" in err and "--resume" in err
+    assert len(err.strip().splitlines()) == 1 and "No space left on device" in err
+    # it failed before its first sync: there is no checkpoint, so --resume is not offered
+    assert "--resume" not in err and not (tmp_path / "hanging.checkpoint.npz").exists()
     assert len(usd_points(tmp_path / "hanging.failed.usdc")) == 4  # the USD writer had frame 3 already
     assert len(list((tmp_path / "hanging" / "poly.failed").iterdir())) == 3
     assert not (tmp_path / "hanging.usdc").exists() and not (tmp_path / "hanging" / "poly").exists()
@@ -236,7 +238,9 @@ def test_full_disk_ends_the_run_with_a_message_and_readable_frames(tmp_path, pol
                          *([] if poly else ["--no-poly"]), cwd=REPO)
         assert result.returncode == 4, result.stderr
         line = one_error_line(result)
-        assert "could not write the output" in line and "--resume" in line
+        assert "could not write the output" in line
+        # --resume is offered exactly where the run left a checkpoint to go on from
+        assert ("--resume" in line) == (disk / "hanging.checkpoint.npz").exists()
         frames = usd_points(disk / "hanging.failed.usdc")
         assert len(frames) >= 2 and all(np.isfinite(p).all() for p in frames)
         if poly:

@@ -101,8 +101,6 @@ def _writers(scene: Scene, args: argparse.Namespace) -> list:
     out = Path(scene.output.dir)
     usd = Path(args.usd) if args.usd else out / f"{scene.name}.usdc"
     poly = Path(args.poly) if args.poly else out / scene.name / "poly"
-    if scene.output.usd and scene.output.poly and usd.absolute() == poly.absolute():
-        raise _output_error(SceneError("poly", "a folder other than the USD file", str(poly)), args)
     writers = []
     try:
         if scene.output.usd:
@@ -158,6 +156,11 @@ def _take_back(checkpoint, scene: Scene, writers: list) -> None:
             raise SceneError("--resume", f"a checkpoint of a run that wrote {w.target} (it did not)", has_got=False,
                              source="command line")
         w.take_back(location, checkpoint.frame, [c.name for c in scene.cloths])
+
+
+def _resume_hint(checkpointer) -> str:
+    """Said where a run that did not complete left a checkpoint to go on from."""
+    return "; continue it with --resume" if checkpointer is not None and checkpointer.saved else ""
 
 
 def _kept(writers: list) -> str:
@@ -232,8 +235,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
         _release(writers)
         raise
     outputs = list(writers)
-    if checkpoint_file is not None:
-        writers.append(CheckpointWriter(checkpoint_file, outputs))
+    checkpointer = CheckpointWriter(checkpoint_file, outputs) if checkpoint_file is not None else None
+    if checkpointer is not None:
+        writers.append(checkpointer)
     check = None
     if args.check:
         from .diagnostics import CheckReport
@@ -241,7 +245,6 @@ def _cmd_run(args: argparse.Namespace) -> int:
         check = CheckReport(sys.stdout)
         writers.append(check)
     frames = scene.simulation.frames - sim.frame
-    resume_hint = "; continue it with --resume" if checkpoint_file is not None else ""
     try:
         summary = sim.run(frames, writers=writers, progress=not args.quiet and not args.check)
     except UnstableSimulation as exc:
@@ -250,18 +253,18 @@ def _cmd_run(args: argparse.Namespace) -> int:
         return EXIT_UNSTABLE
     except (OutputError, OSError) as exc:
         print(f"warp-cloth: error: {scene.name}: could not write the output ({exc}). Kept the frames so far in "
-              f"{_kept(outputs)}{resume_hint}; nothing in place was replaced.", file=sys.stderr)
+              f"{_kept(outputs)}{_resume_hint(checkpointer)}; nothing in place was replaced.", file=sys.stderr)
         return EXIT_OUTPUT_FAILED
     except KeyboardInterrupt:  # a second Ctrl-C, SIGTERM or SIGHUP: the frame in progress is lost
         print(f"warp-cloth: {scene.name}: stopped at once; kept the finished frames in {_kept(outputs)}"
-              f"{resume_hint}.", file=sys.stderr)
+              f"{_resume_hint(checkpointer)}.", file=sys.stderr)
         return EXIT_INTERRUPTED
     sim_settings = scene.simulation
     wrote = _kept(outputs)
     if summary.interrupted:
         name = signal.Signals(summary.stop_signal).name
         status = f"interrupted after {summary.frames} of {sim_settings.frames} frames by {name}"
-        wrote += resume_hint
+        wrote += _resume_hint(checkpointer)
     else:
         status = f"{summary.frames} frames"
     if checkpoint is not None:
