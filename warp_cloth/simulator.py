@@ -189,6 +189,7 @@ class Simulator:
         self.substep_count = 0
         self.use_graph = graph
         self._graphs: dict[tuple[int, int], tuple[wp.Graph, int]] = {}
+        self._launches_recorded = False  # without graphs: prepare() has recorded a frame (its modules are loaded)
         # One flag per substep of a frame, set by the blow-up guard (see kernels/guard.py), in two slots
         # that alternate by frame, so that a frame can run while the one before it is checked. On a GPU
         # each frame ends by copying its slot to pinned host memory, and an event says when it is there.
@@ -355,16 +356,17 @@ class Simulator:
         that its wall time and progress count simulation only.
 
         With graphs it captures the next frame's graph; without, on the CPU, it records a frame's launches
-        and runs none of them. Without graphs on a GPU, where capture may be what the user avoids, the
-        first frame compiles."""
+        and runs none of them, once: a later ``run`` finds the modules loaded. Without graphs on a GPU, where
+        capture may be what the user avoids, the first frame compiles."""
         slot = self.frame % 2
         if self.use_graph:
             self._frame_graph(slot)
-        elif self.device.is_cpu:
+        elif self.device.is_cpu and not self._launches_recorded:
             parity = self.state.parity
             with wp.ScopedCapture(device=self.device):
                 self._frame_substeps(slot)
             self.state.parity = parity
+            self._launches_recorded = True
 
     def save_checkpoint(self, path: str | Path) -> None:
         """Write the state the next frame needs (see ``warp_cloth.checkpoint``)."""
