@@ -55,3 +55,19 @@ def run_cli_in_process(*args: str, cwd: Path) -> tuple[int, str, str]:
     with contextlib.chdir(cwd), contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
         code = cli.main(list(args))
     return code, out.getvalue(), err.getvalue()
+
+
+def assert_restored_run_continues(sim: wc.Simulator, restored: wc.Simulator, checkpoint: Path, frames: int = 6) -> None:
+    """Saves ``sim``'s checkpoint, steps it ``frames`` more frames, restores ``restored`` from the checkpoint
+    and checks that it makes the same frames: positions, velocities and sphere centres, bit for bit."""
+    sim.save_checkpoint(checkpoint)
+    expected = []
+    for _ in range(frames):
+        sim.step()
+        expected.append((sim.positions(), sim.velocities(), sim.sphere_centers()))
+    restored.restore(checkpoint)
+    for x, v, centers in expected:
+        restored.step()
+        np.testing.assert_array_equal(restored.positions(), x)
+        np.testing.assert_array_equal(restored.velocities(), v)
+        np.testing.assert_array_equal(restored.sphere_centers(), centers)
