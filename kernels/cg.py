@@ -133,3 +133,11 @@ def update_direction(z: wp.array(dtype=wp.vec3), scalars: wp.array(dtype=float),
 def subtract(a: wp.array(dtype=wp.vec3), b: wp.array(dtype=wp.vec3), out: wp.array(dtype=wp.vec3)):
     i = wp.tid()
     out[i] = a[i] - b[i]
+
+
+@wp.kernel
+def record_solve(scalars: wp.array(dtype=float), counts: wp.array(dtype=int), stats: wp.array(dtype=float)):
+    """After a solve: stats[0] and stats[1] keep the most iterations and the largest r.z / r0.z0 so far."""
+    stats[0] = wp.max(stats[0], float(counts[ITERATIONS]))
+    if scalars[CG_RZ0] > 0.0:
+        stats[1] = wp.max(stats[1], scalars[CG_RZ] / scalars[CG_RZ0])

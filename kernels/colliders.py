@@ -6,9 +6,11 @@ moving sphere takes the sphere's normal speed). What is still approaching the co
 removed, and friction takes tangential speed relative to the collider in proportion to the normal speed
 taken away (Coulomb), so a cloth sliding on the ground decelerates at mu g.
 
-All of a scene's colliders travel in one ``RigidColliders`` and act through ``collide_particle``, so that
-the kernels that move particles (the strain limit's and the collision's passes) can end with them
-instead of launching another kernel: every collider acts on one particle alone.
+All of a scene's colliders travel in one ``RigidColliders`` and act through ``collide_particle``, which
+runs each kind in turn on one particle alone, so that the passes that move particles can end with them
+instead of launching another kernel. A new collider kind is its fields here (filled in by
+warp_cloth/device_model.py, or the state where it moves), one ``collide_<kind>`` function of the form
+below, and its line in ``collide_particle``.
 
 With particle collision, the colliders also mark the particles they hold up (``resting``), which the
 collision passes read. A pass reads one bit of it (``read_bit``, 1 or 2) and its colliders write the
@@ -18,9 +20,7 @@ alternate the bits.
 
 import warp as wp
 
-from .lanes import FAST_MATH
-
-wp.set_module_options(FAST_MATH)
+wp.set_module_options({"fast_math": True})  # as the gathering kernels (see gathering.py)
 
 
 @wp.struct
@@ -28,7 +28,7 @@ class RigidColliders:
     ground: int  # 1 when the scene has a ground plane
     ground_height: float
     ground_friction: float
-    center: wp.array(dtype=wp.vec3)  # spheres (none: empty arrays)
+    center: wp.array(dtype=wp.vec3)  # spheres (none: empty arrays); centres and velocities are state
     velocity: wp.array(dtype=wp.vec3)
     radius: wp.array(dtype=float)
     friction: wp.array(dtype=float)
@@ -52,16 +52,18 @@ def contact_velocity(v: wp.vec3, collider_velocity: wp.vec3, normal: wp.vec3, pu
 
 
 @wp.func
-def collide_particle(p: wp.vec3, vel: wp.vec3, colliders: RigidColliders, h: float):
-    """A free particle's position and velocity after the ground, then each sphere; and 1 if any of them
-    touched it."""
-    hit = int(0)
+def collide_ground(p: wp.vec3, vel: wp.vec3, hit: int, colliders: RigidColliders, h: float):
     if colliders.ground != 0 and p[1] < colliders.ground_height:
         depth = colliders.ground_height - p[1]
         p = wp.vec3(p[0], colliders.ground_height, p[2])
         up = wp.vec3(0.0, 1.0, 0.0)
         vel = contact_velocity(vel + up * (depth / h), wp.vec3(0.0), up, depth / h, colliders.ground_friction)
         hit = 1
+    return p, vel, hit
+
+
+@wp.func
+def collide_spheres(p: wp.vec3, vel: wp.vec3, hit: int, colliders: RigidColliders, h: float):
     for s in range(colliders.center.shape[0]):
         d = p - colliders.center[s]
         dist = wp.length(d)
@@ -78,23 +80,40 @@ def collide_particle(p: wp.vec3, vel: wp.vec3, colliders: RigidColliders, h: flo
 
 
 @wp.func
-def collide_and_mark(i: int, p: wp.vec3, vel: wp.vec3, colliders: RigidColliders, h: float,
-                     resting: wp.array(dtype=int), read_bit: int):
-    """``collide_particle``, then particle i is marked resting for the next pass if it was for this one or
-    a collider touched it now (``resting`` empty: no marks)."""
-    p, vel, hit = collide_particle(p, vel, colliders, h)
+def collide_particle(p: wp.vec3, vel: wp.vec3, colliders: RigidColliders, h: float):
+    """A free particle's position and velocity after every collider kind in turn; and 1 if any of them
+    touched it."""
+    hit = int(0)
+    p, vel, hit = collide_ground(p, vel, hit, colliders, h)
+    p, vel, hit = collide_spheres(p, vel, hit, colliders, h)
+    return p, vel, hit
+
+
+@wp.func
+def mark_resting(i: int, hit: int, resting: wp.array(dtype=int), read_bit: int):
+    """Particle i is marked resting for the next pass if it was for this one or a collider touched it now
+    (``resting`` empty: no marks)."""
     if resting.shape[0] > 0:
         seen = resting[i] & read_bit
         if seen != 0 or hit != 0:
             resting[i] = seen | (3 - read_bit)
         else:
             resting[i] = 0
+
+
+@wp.func
+def collide_and_mark(i: int, p: wp.vec3, vel: wp.vec3, colliders: RigidColliders, h: float,
+                     resting: wp.array(dtype=int), read_bit: int):
+    """``collide_particle``, then ``mark_resting``."""
+    p, vel, hit = collide_particle(p, vel, colliders, h)
+    mark_resting(i, hit, resting, read_bit)
     return p, vel
 
 
 @wp.kernel
 def collide(colliders: RigidColliders, h: float, inv_mass: wp.array(dtype=float), x: wp.array(dtype=wp.vec3),
             v: wp.array(dtype=wp.vec3)):
+    """The colliders alone, where no other pass moves particles after integration."""
     i = wp.tid()
     if inv_mass[i] == 0.0:
         return

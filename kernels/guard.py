@@ -10,8 +10,10 @@ NOT_FINITE = wp.constant(2)
 @wp.kernel
 def check_state(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), max_speed: float, substep: int,
                 status: wp.array(dtype=int)):
-    """status[substep] becomes the worst finding of that substep (NOT_FINITE over TOO_FAST over 0)."""
+    """status[substep] becomes the worst finding of that substep (NOT_FINITE over TOO_FAST over 0). A
+    substep past the end of ``status`` is flagged in its last element, never written out of bounds."""
     i = wp.tid()
+    substep = wp.min(substep, status.shape[0] - 1)
     p = x[i]
     u = v[i]
     if not (wp.isfinite(p) and wp.isfinite(u)):

@@ -3,21 +3,22 @@
 Each particle gathers the corrections of its limited springs that are out of range, weighted by inverse
 mass (a pinned end does not move), and moves by their average. Reading one buffer and writing another
 keeps the pass free of races and deterministic. The velocity gets the same correction divided by h, so
-that it stays consistent with the positions (as the seed's velocity fix does). A pass ends with the
-rigid colliders (an empty ``RigidColliders`` for none), which act on each particle alone, and mark the
-particles they hold up in ``resting`` (see colliders.py; empty where no collision stage reads it).
-Long-range attachments (``attachment_pin``, empty for none) then pull each particle back within reach of
-its pin; a pin does not move in the pass, so this needs no averaging.
+that it stays consistent with the positions (as the seed's velocity fix does). Long-range attachments
+(``attachment_pin``, empty for none) then pull each particle back within reach of its pin; a pin does not
+move in the pass, so this needs no averaging.
 """
-
-import functools
 
 import warp as wp
 
-from .colliders import RigidColliders, collide_and_mark
-from .lanes import FAST_MATH, lane_particle, lane_sum
 
-wp.set_module_options(FAST_MATH)
+@wp.struct
+class StrainLimits:
+    offsets: wp.array(dtype=int)  # (n + 1,) particle i's limited springs are offsets[i]:offsets[i + 1]
+    other: wp.array(dtype=int)  # per incidence: the particle at the other end
+    min_length: wp.array(dtype=float)  # per incidence: the allowed range of the spring's length
+    max_length: wp.array(dtype=float)
+    attachment_pin: wp.array(dtype=int)  # (n,) or empty: each particle's nearest pin (-1: none)
+    attachment_length: wp.array(dtype=float)  # (n,) or empty: how far from it the particle may be
 
 
 @wp.func
@@ -33,110 +34,43 @@ def limit_correction(xi: wp.vec3, wi: float, xj: wp.vec3, wj: float, min_length:
 
 
 @wp.func
-def hold_to_pin(p: wp.vec3, vel: wp.vec3, pin: int, max_length: float, h: float, x: wp.array(dtype=wp.vec3)):
-    """A particle farther than ``max_length`` from its pin (-1: none) is put back at that distance, its
+def limit_corrections(limits: StrainLimits, i: int, first: int, stride: int, x: wp.array(dtype=wp.vec3),
+                      inv_mass: wp.array(dtype=float)) -> wp.vec4:
+    """Sum of free particle i's shares of the corrections of its limited springs offsets[i] + first,
+    + stride, ... (xyz), and how many of them are out of their limits (w)."""
+    xi = x[i]
+    wi = inv_mass[i]
+    total = wp.vec4(0.0)
+    for e in range(limits.offsets[i] + first, limits.offsets[i + 1], stride):
+        j = limits.other[e]
+        c, out = limit_correction(xi, wi, x[j], inv_mass[j], limits.min_length[e], limits.max_length[e])
+        total = total + wp.vec4(c[0], c[1], c[2], float(out))
+    return total
+
+
+@wp.func
+def mean_of(total: wp.vec4) -> wp.vec3:
+    """The mean of the corrections whose sum and count ``total`` holds (zero for none)."""
+    correction = wp.vec3(total[0], total[1], total[2])
+    if total[3] > 0.0:
+        correction = correction / total[3]
+    return correction
+
+
+@wp.func
+def hold_to_pin(limits: StrainLimits, i: int, p: wp.vec3, vel: wp.vec3, h: float, x: wp.array(dtype=wp.vec3)):
+    """Particle i, farther than its attachment length from its pin, is put back at that distance, its
     velocity changed by that correction over h, as for every projection here. (Only removing its speed
     away from the pin instead left the fast_sphere hard case at 50 % strain with 24 crossing pairs.)"""
+    if limits.attachment_pin.shape[0] == 0:
+        return p, vel
+    pin = limits.attachment_pin[i]
     if pin < 0:
         return p, vel
+    max_length = limits.attachment_length[i]
     d = p - x[pin]
     length = wp.length(d)
     if length <= max_length:
         return p, vel
     correction = d * (max_length / length - 1.0)
     return p + correction, vel + correction / h
-
-
-@wp.func
-def gather_limit_corrections(i: int, first: int, stride: int, xi: wp.vec3, wi: float, x: wp.array(dtype=wp.vec3),
-                             inv_mass: wp.array(dtype=float), offsets: wp.array(dtype=int),
-                             other: wp.array(dtype=int), min_length: wp.array(dtype=float),
-                             max_length: wp.array(dtype=float)):
-    """Sum of particle i's shares of the corrections of its limited springs first, first + stride, ...,
-    and how many of them are out of their limits."""
-    correction = wp.vec3(0.0)
-    violated = int(0)
-    for e in range(first, offsets[i + 1], stride):
-        j = other[e]
-        c, out = limit_correction(xi, wi, x[j], inv_mass[j], min_length[e], max_length[e])
-        correction = correction + c
-        violated += out
-    return correction, violated
-
-
-@wp.func
-def move_and_hold(i: int, xi: wp.vec3, correction: wp.vec3, x: wp.array(dtype=wp.vec3),
-                  attachment_pin: wp.array(dtype=int), attachment_length: wp.array(dtype=float), h: float,
-                  colliders: RigidColliders, resting: wp.array(dtype=int), read_bit: int,
-                  x_out: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3)):
-    """Moves free particle i by ``correction`` (its velocity by correction / h), then holds it to its pin
-    and puts it out of the colliders."""
-    p = xi + correction
-    vel = v[i] + correction / h
-    if attachment_pin.shape[0] > 0:
-        p, vel = hold_to_pin(p, vel, attachment_pin[i], attachment_length[i], h, x)
-    p, vel = collide_and_mark(i, p, vel, colliders, h, resting, read_bit)
-    x_out[i] = p
-    v[i] = vel
-
-
-@wp.func
-def finish_limit_pass(i: int, xi: wp.vec3, correction: wp.vec3, violated: int, x: wp.array(dtype=wp.vec3),
-                      attachment_pin: wp.array(dtype=int), attachment_length: wp.array(dtype=float), h: float,
-                      colliders: RigidColliders, resting: wp.array(dtype=int), read_bit: int,
-                      x_out: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3)):
-    """Moves free particle i by the mean of its corrections (``move_and_hold``)."""
-    if violated > 0:
-        correction = correction / float(violated)
-    move_and_hold(i, xi, correction, x, attachment_pin, attachment_length, h, colliders, resting, read_bit, x_out, v)
-
-
-@wp.kernel
-def project_strain_limits(x: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float),
-                          offsets: wp.array(dtype=int), other: wp.array(dtype=int),
-                          min_length: wp.array(dtype=float), max_length: wp.array(dtype=float),
-                          attachment_pin: wp.array(dtype=int), attachment_length: wp.array(dtype=float), h: float,
-                          colliders: RigidColliders, resting: wp.array(dtype=int), read_bit: int,
-                          x_out: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3)):
-    i = wp.tid()
-    xi = x[i]
-    wi = inv_mass[i]
-    if wi == 0.0:
-        x_out[i] = xi
-        return
-    correction, violated = gather_limit_corrections(i, offsets[i], 1, xi, wi, x, inv_mass, offsets, other,
-                                                    min_length, max_length)
-    finish_limit_pass(i, xi, correction, violated, x, attachment_pin, attachment_length, h, colliders, resting,
-                      read_bit, x_out, v)
-
-
-@functools.cache
-def project_strain_limits_lanes(lanes: int, block: int) -> wp.Kernel:
-    """``project_strain_limits`` with ``lanes`` threads per particle (see lanes.py)."""
-    per_block = block // lanes
-    sum_over_lanes = lane_sum(per_block, lanes)
-
-    @wp.kernel(module="unique", module_options=FAST_MATH)
-    def project_strain_limits(x: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float),
-                              offsets: wp.array(dtype=int), other: wp.array(dtype=int),
-                              min_length: wp.array(dtype=float), max_length: wp.array(dtype=float),
-                              attachment_pin: wp.array(dtype=int), attachment_length: wp.array(dtype=float),
-                              h: float, colliders: RigidColliders, resting: wp.array(dtype=int), read_bit: int,
-                              x_out: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3)):
-        block_id, lane = wp.tid()
-        i, slot, owner, xi, wi = lane_particle(block_id, lane, wp.static(per_block), wp.static(lanes), x, inv_mass)
-        correction = wp.vec3(0.0)
-        violated = int(0)
-        if wi != 0.0:
-            correction, violated = gather_limit_corrections(i, offsets[i] + slot, wp.static(lanes), xi, wi, x,
-                                                            inv_mass, offsets, other, min_length, max_length)
-        correction = sum_over_lanes(correction, lane)
-        violated = sum_over_lanes(violated, lane)
-        if owner:
-            if wi == 0.0:
-                x_out[i] = xi
-            else:
-                finish_limit_pass(i, xi, correction, violated, x, attachment_pin, attachment_length, h, colliders,
-                                  resting, read_bit, x_out, v)
-
-    return project_strain_limits

@@ -4,7 +4,7 @@ capacity, and each particle is appended to its cell's bucket. Cells are hashed i
 runs of 8 buckets, so that the 27 cells around a point lie in at most 8 runs of the table, not 27
 scattered places (a table of 4M particles' buckets outgrows a GPU's L2 cache). A query visits the 27
 cells around a point; points from other cells in a bucket are candidates like any other (callers test the
-distance), and a bucket that two of the 27 cells share is visited twice (callers drop the repeats).
+distance), and a bucket that two of the 27 cells share is visited at the first of them (``first_visit``).
 
 A bucket's size is stamped with the epoch of the table it belongs to (the caller counts epochs up), so a
 new table needs no clearing: a bucket whose stamp is not the current epoch's is empty. Stamps keep the
@@ -33,6 +33,16 @@ def bucket_of(cell: wp.vec3i, mask: int) -> int:
 def neighbour_bucket(center: wp.vec3i, k: int, mask: int) -> int:
     """The bucket of the k-th (0..26) cell of the 3x3x3 block around ``center``."""
     return bucket_of(center + wp.vec3i(k % 3 - 1, (k / 3) % 3 - 1, k / 9 - 1), mask)
+
+
+@wp.func
+def first_visit(center: wp.vec3i, k: int, bucket: int, mask: int) -> bool:
+    """Whether no cell before the k-th of the 27 around ``center`` hashes to ``bucket`` (so that a query
+    visits each bucket once)."""
+    for earlier in range(k):
+        if neighbour_bucket(center, earlier, mask) == bucket:
+            return False
+    return True
 
 
 COUNT_BITS = 7  # a bucket's size: its stamp above these bits, its count (up to the capacity) in them

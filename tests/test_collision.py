@@ -11,9 +11,12 @@ import warp_cloth as wc
 from conftest import run_cli, with_simulation
 from warp_cloth.diagnostics import ContactGaps, TriangleIntersections
 from warp_cloth.kernels import particle_collision, spatial_hash
-from warp_cloth.kernels.projection import project_limits_and_separation
 from warp_cloth.model import collision_radius, needs_adjacent_exclusion
-from warp_cloth.stages import ParticleCollision, rigid_colliders
+from warp_cloth.device_model import no_colliders
+from warp_cloth.kernels import passes as fused
+from warp_cloth.kernels.gathering import launch_gathering
+from warp_cloth.kernels.limits import StrainLimits
+from warp_cloth.passes import separation_pass
 
 # Jacobi passes with averaging leave pairs that are squeezed from several sides slightly inside contact:
 # at worst 0.93 of the contact distance in fold and pile; seed_default, whose 60 m cloth folds onto itself
@@ -76,7 +79,7 @@ def test_hash_grid_stage_matches_brute_force(seed, limit_a, self_on, between_on)
                                                               iterations=1, max_neighbors=64,
                                                               broad_phase="hash_grid"))
     sim = wc.Simulator(scene, device="cpu")
-    stage = next(s for s in sim.stages if isinstance(s, ParticleCollision))
+    lists = sim.plan.lists
     rng = np.random.default_rng(seed)
     n = sim.model.particle_count
     # A random tangle: every particle somewhere in a small box, so that many pairs overlap.
@@ -85,25 +88,23 @@ def test_hash_grid_stage_matches_brute_force(seed, limit_a, self_on, between_on)
     contacts = sim.model.contacts
     exclude = contacts.exclude_adjacent
     assert (exclude is not None) == (not limit_a and self_on)
-    s = stage.settings
+    s = scene.collision
     x_dev, v_dev = wp.array(x, dtype=wp.vec3), wp.array(v, dtype=wp.vec3)
-    assert stage.epoch.numpy()[0] == 1  # the table still holds the start check's points, uncleared
-    stage.make_lists(x_dev)
-    assert stage.overflow.numpy()[0] == 0
-    counts, neighbors = stage.counts.numpy(), stage.neighbors.numpy().reshape(n, s.max_neighbors)
+    assert sim.state.contacts.epoch.numpy()[0] == 1  # the table still holds the start check's points, uncleared
+    lists.remake_now(x_dev)
+    assert lists.overflow == 0
+    candidates = lists.candidates()
     radius = contacts.radius
     reference = brute_force_pairs(x, radius, s.separation, sim.model.cloth_id, contacts.grid_xy, exclude,
                                   self_on, between_on)
-    found = {(i, int(j)) for i in range(n) for j in neighbors[i, :counts[i]]
+    found = {(i, int(j)) for i in range(n) for j in candidates[i]
              if np.linalg.norm(x[i] - x[j]) < s.separation * 0.5 * (radius[i] + radius[j])}
     assert found == reference and len(reference) > 50
 
     x_out = wp.empty_like(x_dev)
-    stage.pushed.zero_()
-    wp.launch(particle_collision.separate_particles, n,
-              inputs=[x_dev, stage.inv_mass, stage.radius, s.separation, sim.dt, stage.neighbors, stage.counts,
-                      s.max_neighbors, stage.resting, 1, stage.no_colliders],
-              outputs=[x_out, v_dev, stage.pushed])
+    sim.state.contacts.pushed.zero_()
+    separation = separation_pass(sim.device_model, sim.state, 1, None, 1)
+    launch_gathering(separation.kernel, 1, n, x_dev, v_dev, x_out, v_dev, separation.args)
     x_ref, v_ref = brute_force_separation(x.astype(np.float64), v.astype(np.float64), sim.model.inv_mass, radius,
                                           s.separation, reference, sim.dt)
     np.testing.assert_allclose(x_out.numpy(), x_ref, atol=2e-6)
@@ -165,8 +166,7 @@ def check_scene_every_frame(name: str, frames: int, device: str, threads: int | 
           f"most intersecting pairs {worst_crossings}")
     assert worst_gap >= 1.0 - CONTACT_TOLERANCE.get(name, DEFAULT_CONTACT_TOLERANCE)
     assert worst_crossings <= KNOWN_INTERSECTIONS.get((name, device), 0)
-    stage = next(s for s in sim.stages if isinstance(s, ParticleCollision))
-    assert stage.overflow.numpy()[0] == 0
+    assert sim.plan.lists.overflow == 0
 
 
 def test_collision_run_is_deterministic_on_cpu():
@@ -213,43 +213,37 @@ def test_kept_neighbour_lists_hold_every_touching_pair():
     still hold every pair that touches (checked against all pairs, after every substep of a busy pile)."""
     scene = wc.load_scene("pile")
     sim = wc.Simulator(scene, device="cpu", graph=False)
-    stage = next(s for s in sim.stages if isinstance(s, ParticleCollision))
     contacts, rules = sim.model.contacts, scene.collision
     rebuilt = kept = 0
     for substep in range(1, 17 * 20 + 1):
-        before = stage.x_built.numpy().copy()
+        before = sim.state.contacts.x_built.numpy().copy()
         sim.substep()
-        rebuilt_now = not np.array_equal(before, stage.x_built.numpy())
+        rebuilt_now = not np.array_equal(before, sim.state.contacts.x_built.numpy())
         rebuilt, kept = rebuilt + rebuilt_now, kept + (not rebuilt_now)
         if substep % 17:
             continue
         x = sim.positions()
         touching = brute_force_pairs(x, contacts.radius, rules.separation, sim.model.cloth_id, contacts.grid_xy,
                                      contacts.exclude_adjacent, rules.self_collision, rules.between_cloths)
-        counts = stage.counts.numpy()
-        lists = stage.neighbors.numpy().reshape(len(x), rules.max_neighbors)
-        listed = {(i, int(j)) for i in range(len(x)) for j in lists[i, :counts[i]]}
+        listed = {(i, int(j)) for i, candidates in enumerate(sim.plan.lists.candidates()) for j in candidates}
         assert touching <= listed
     assert rebuilt > 0 and kept > 0  # both happened (falling at 5 m/s: remade every other substep)
 
 
 @pytest.mark.cuda
-@pytest.mark.parametrize("lanes", [2, 4, 16])
-def test_several_threads_a_particle_make_the_same_neighbour_lists(lanes):
+@pytest.mark.parametrize("threads", [2, 4, 16])
+def test_several_threads_a_particle_make_the_same_neighbour_lists(threads):
     scene = wc.load_scene("pile")
     scene = dataclasses.replace(scene, collision=dataclasses.replace(scene.collision, broad_phase="hash_grid"))
     one = wc.Simulator(scene, device="cuda", threads_per_particle=1)
     one.run(24)  # layers on top of each other: full lists
-    several = wc.Simulator(scene, device="cuda", threads_per_particle=lanes)
+    several = wc.Simulator(scene, device="cuda", threads_per_particle=threads)
     lists = []
     for sim in (one, several):
-        stage = next(s for s in sim.stages if isinstance(s, ParticleCollision))
-        assert stage.gather.lanes == (1 if sim is one else lanes)
-        stage.make_lists(one.state.x)
-        assert stage.overflow.numpy()[0] == 0
-        counts = stage.counts.numpy()
-        table = stage.neighbors.numpy().reshape(len(counts), -1)
-        lists.append([table[i, :c].tolist() for i, c in enumerate(counts)])
+        assert sim.plan.lists.threads == (1 if sim is one else threads)
+        sim.plan.lists.remake_now(one.state.x)
+        assert sim.plan.lists.overflow == 0
+        lists.append([candidates.tolist() for candidates in sim.plan.lists.candidates()])
     assert sum(len(entries) for entries in lists[0]) > len(lists[0])  # more than one candidate a particle
     assert lists[0] == lists[1]
 
@@ -304,14 +298,20 @@ def test_a_joint_pass_moves_by_both_means_but_no_limit_pulls_into_a_contact(pin_
     h = 0.01
     x = wp.array([(0.0, 0.0, 0.0), pin_at, (0.3, 0.0, 0.0)], dtype=wp.vec3)
     inv_mass = wp.array([1.0, 0.0, 0.0], dtype=float)
-    limit_arrays = [wp.array([0, 1, 2, 2], dtype=int), wp.array([1, 0], dtype=int), wp.zeros(2, dtype=float),
-                    wp.full(2, 1.0, dtype=float), wp.zeros(0, dtype=int), wp.zeros(0, dtype=float)]
-    neighbors, counts = wp.array([2, -1, -1, -1, 0, -1], dtype=int), wp.array([1, 0, 1], dtype=int)
-    x_out, v, pushed = wp.zeros(3, dtype=wp.vec3), wp.zeros(3, dtype=wp.vec3), wp.zeros(3, dtype=float)
-    wp.launch(project_limits_and_separation, dim=3,
-              inputs=[x, inv_mass, *limit_arrays, wp.full(3, 0.5, dtype=float), 1.0, h, neighbors, counts, 2,
-                      wp.zeros(0, dtype=int), 1, rigid_colliders(None, "cpu")],
-              outputs=[x_out, v, pushed])
+    limits = StrainLimits()
+    limits.offsets, limits.other = wp.array([0, 1, 2, 2], dtype=int), wp.array([1, 0], dtype=int)
+    limits.min_length, limits.max_length = wp.zeros(2, dtype=float), wp.full(2, 1.0, dtype=float)
+    limits.attachment_pin, limits.attachment_length = wp.zeros(0, dtype=int), wp.zeros(0, dtype=float)
+    contacts = particle_collision.Contacts()
+    contacts.radius, contacts.separation, contacts.max_neighbors = wp.full(3, 0.5, dtype=float), 1.0, 2
+    contacts.neighbors, contacts.counts = wp.array([2, -1, -1, -1, 0, -1], dtype=int), wp.array([1, 0, 1], dtype=int)
+    contacts.resting, contacts.pushed = wp.zeros(0, dtype=int), wp.zeros(3, dtype=float)
+    args = fused.LimitAndSeparationPassArgs()
+    args.limits, args.contacts, args.inv_mass, args.h, args.read_bit = limits, contacts, inv_mass, h, 1
+    args.colliders = no_colliders("cpu")
+    x_out, v = wp.zeros(3, dtype=wp.vec3), wp.zeros(3, dtype=wp.vec3)
+    launch_gathering(fused.limit_and_separation_pass_kernel(1), 1, 3, x, v, x_out, v, args)
+    pushed = contacts.pushed
     np.testing.assert_allclose(x_out.numpy()[0], expected, atol=1e-6)
     np.testing.assert_allclose(v.numpy()[0], np.array(expected) / h, rtol=1e-5, atol=1e-4)
     assert pushed.numpy()[0] == pytest.approx(0.2, abs=1e-6)

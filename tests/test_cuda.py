@@ -84,13 +84,13 @@ def test_cuda_substep_launches_the_same_kernels_as_cpu(monkeypatch):
     assert counts["cpu"] == counts["cuda"]
 
 
-@pytest.mark.parametrize("lanes", [2, 4, 16])
-def test_threads_per_particle_change_only_rounding(lanes):
+@pytest.mark.parametrize("threads", [2, 4, 16])
+def test_threads_per_particle_change_only_rounding(threads):
     """Several threads per particle sum the same terms in another order: against one thread per particle
     on the same GPU, the hanging cloth differs no more than CPU and CUDA may."""
     scene = wc.load_scene("hanging")
-    one, several = (wc.Simulator(scene, device="cuda", threads_per_particle=k) for k in (1, lanes))
-    assert_within_rounding(one, several, f"hanging, {lanes} threads a particle")
+    one, several = (wc.Simulator(scene, device="cuda", threads_per_particle=k) for k in (1, threads))
+    assert_within_rounding(one, several, f"hanging, {threads} threads a particle")
 
 
 @pytest.mark.parametrize("loop", ["device_while", "unrolled"])

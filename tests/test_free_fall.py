@@ -21,7 +21,7 @@ def free_fall_scene(integrator: str, substeps: int) -> wc.Scene:
 def test_free_fall_matches_exact_discrete_and_analytic_solutions(integrator, sign, substeps):
     scene = free_fall_scene(integrator, substeps)
     sim = wc.Simulator(scene, device="cpu")
-    assert sim.stage_names == [f"integrate:{integrator}"]
+    assert sim.plan.pass_names == [f"integrate:{integrator}"]
     x0 = sim.positions().astype(np.float64)
     v0 = np.array([1.0, 4.0, -0.5])
     g = np.array([0.0, -9.81, 0.0])

@@ -328,7 +328,7 @@ def test_a_restored_simulator_makes_the_same_frames(tmp_path, make_scene):
         sim.step()
     restored = wc.Simulator(scene, device="cpu")
     assert_restored_run_continues(sim, restored, tmp_path / "state.npz")
-    assert (restored.frame, restored.time) == (12, 12 * scene.simulation.substeps_per_frame * scene.simulation.step)
+    assert (restored.frame, restored.time) == (12, 12 * scene.simulation.substeps_per_frame * scene.simulation.time_step)
 
 
 def test_restore_refuses_a_checkpoint_of_another_scene(tmp_path):

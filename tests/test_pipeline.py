@@ -1,4 +1,5 @@
-"""A scene pays only for the effects it declares: the kernels one substep launches, counted."""
+"""A scene pays only for the effects it declares: the passes of its plan, and the kernels one substep
+launches, counted."""
 
 import dataclasses
 from collections import Counter
@@ -10,8 +11,9 @@ import warp as wp
 
 import warp_cloth as wc
 from conftest import with_simulation
-from warp_cloth.stages import (LIST_LANES_BY_SIZE, ExplicitIntegration, MoveSpheres, ParticleCollision,
-                               no_contact_start, threads_per_particle)
+from warp_cloth.neighbour_lists import LIST_THREADS_BY_SIZE
+from warp_cloth.passes import ContactStart, explicit_step
+from warp_cloth.plan import threads_per_particle
 
 OFF = wc.SpringKind(enabled=False)
 
@@ -34,13 +36,18 @@ LIMIT_ITERATIONS = 4
 # Fixed pins cost nothing (a pinned particle has inverse mass 0 and nothing moves it); the colliders run
 # inside the strain limit's last pass.
 EXPECTED = {
-    "hanging": {"euler_step": 1, "project_strain_limits": LIMIT_ITERATIONS},
-    "ground": {"euler_step": 1, "project_strain_limits": LIMIT_ITERATIONS},
-    "drape": {"euler_step": 1, "project_strain_limits": LIMIT_ITERATIONS},
-    "sphere_push": {"euler_step": 1, "project_strain_limits": LIMIT_ITERATIONS, "move_spheres": 1,
-                    "advance_clock": 1},
-    "oscillating_pins": {"euler_step": 1, "drive_pins": 1, "project_strain_limits": LIMIT_ITERATIONS,
-                         "advance_clock": 1},
+    "hanging": {"explicit_step": 1, "limit_pass": LIMIT_ITERATIONS},
+    "ground": {"explicit_step": 1, "limit_pass": LIMIT_ITERATIONS},
+    "drape": {"explicit_step": 1, "limit_pass": LIMIT_ITERATIONS},
+    "sphere_push": {"explicit_step": 1, "limit_pass": LIMIT_ITERATIONS, "move_spheres": 1, "advance_clock": 1},
+    "oscillating_pins": {"explicit_step": 1, "drive_pins": 1, "limit_pass": LIMIT_ITERATIONS, "advance_clock": 1},
+}
+EXPECTED_PLANS = {
+    "hanging": ["integrate:explicit", *["limits"] * LIMIT_ITERATIONS],
+    "ground": ["integrate:symplectic", *["limits"] * (LIMIT_ITERATIONS - 1), "limits+colliders"],
+    "sphere_push": ["spheres:move", "integrate:explicit", *["limits"] * (LIMIT_ITERATIONS - 1), "limits+colliders",
+                    "clock"],
+    "oscillating_pins": ["integrate:symplectic", "pins:oscillating", *["limits"] * LIMIT_ITERATIONS, "clock"],
 }
 # With particle collision, limits, separation and colliders are projected together in 8 passes (the
 # larger of the collision's 8 and the limit's 4 iterations): colliders once before the passes (in the
@@ -49,8 +56,9 @@ EXPECTED = {
 # remake the lists only when a particle has moved far enough.
 PASSES = 8
 EXPECTED_WITH_COLLISION = {
-    name: {"euler_step": 1, "insert_points": 1, "gather_neighbors": 1, "separate_particles": PASSES - LIMIT_ITERATIONS,
-           "project_limits_and_separation": LIMIT_ITERATIONS, "resolve_contact_velocities": 1}
+    name: {"explicit_step_and_contact_start": 1, "insert_points": 1, "gather_neighbors": 1,
+           "separation_pass": PASSES - LIMIT_ITERATIONS, "limit_and_separation_pass": LIMIT_ITERATIONS,
+           "contact_velocities_and_end_remake": 1}
     for name in ("fold", "pile")
 }
 
@@ -60,7 +68,9 @@ def test_substep_launches_only_declared_effects(name, launches):
     scene = wc.load_scene(name)
     assert scene.simulation.limit_iterations == LIMIT_ITERATIONS and scene.collision is None
     sim = wc.Simulator(scene, device="cpu")
-    assert not any(isinstance(s, ParticleCollision) for s in sim.stages), "no collision stage, no spatial hash"
+    assert sim.plan.lists is None and sim.state.contacts is None, "no collision, no lists nor spatial hash"
+    if name in EXPECTED_PLANS:
+        assert sim.plan.pass_names == EXPECTED_PLANS[name]
     launches.clear()
     sim.substep()
     assert dict(launches) == EXPECTED[name]
@@ -75,8 +85,8 @@ def test_collision_stage_exists_only_when_declared(name, launches):
     scene = wc.load_scene(name)
     assert scene.collision.iterations == PASSES and scene.simulation.limit_iterations == LIMIT_ITERATIONS
     sim = wc.Simulator(scene, device="cpu", graph=False)  # (it makes the lists to check the start)
-    stage = next(s for s in sim.stages if isinstance(s, ParticleCollision))
-    lists_made = lambda: (int(stage.epoch.numpy()[0]), stage.x_built.numpy().copy())  # noqa: E731
+    contacts = sim.state.contacts
+    lists_made = lambda: (int(contacts.epoch.numpy()[0]), contacts.x_built.numpy().copy())  # noqa: E731
     epoch, built = lists_made()
     assert epoch == 1
     np.testing.assert_array_equal(built, sim.model.positions)
@@ -84,18 +94,30 @@ def test_collision_stage_exists_only_when_declared(name, launches):
     sim.substep()
     assert dict(launches) == EXPECTED_WITH_COLLISION[name]
     epoch, built_after = lists_made()
-    assert epoch == 1 and stage.rebuild.numpy()[0] == 0, "nothing moved far: no remake"
+    assert epoch == 1 and contacts.rebuild.numpy()[0] == 0, "nothing moved far: no remake"
     np.testing.assert_array_equal(built_after, built)
-    stage.x_built.fill_(wp.vec3(1.0e30))  # as if every particle had moved far since
+    contacts.x_built.fill_(wp.vec3(1.0e30))  # as if every particle had moved far since
     launches.clear()
     sim.substep()
     assert dict(launches) == EXPECTED_WITH_COLLISION[name]
     epoch, built_after = lists_made()
-    assert epoch == 2 and stage.rebuild.numpy()[0] == 0
+    assert epoch == 2 and contacts.rebuild.numpy()[0] == 0
     assert np.abs(built_after).max() < 100.0, "lists remade from this substep's positions"
     without = wc.Simulator(dataclasses.replace(scene, collision=None), device="cpu")
     assert without.model.contacts is None
-    assert not any("collision" in name for name in without.stage_names)
+    assert not any("separation" in name or "lists" in name for name in without.plan.pass_names)
+
+
+def test_lists_remade_every_substep_where_the_scene_asks(launches):
+    scene = wc.load_scene("pile")
+    scene = dataclasses.replace(scene, collision=dataclasses.replace(scene.collision, lists="every_substep"))
+    sim = wc.Simulator(scene, device="cpu", graph=False)
+    epochs = [int(sim.state.contacts.epoch.numpy()[0])]
+    for _ in range(3):
+        sim.substep()
+        epochs.append(int(sim.state.contacts.epoch.numpy()[0]))
+    assert epochs == [1, 2, 3, 4]
+    assert "lists:remake" in sim.plan.pass_names
 
 
 def test_sequential_projection_runs_the_limit_and_then_the_separation_in_each_pass_that_has_both(launches):
@@ -104,9 +126,9 @@ def test_sequential_projection_runs_the_limit_and_then_the_separation_in_each_pa
     sim = wc.Simulator(scene, device="cpu", graph=False)
     launches.clear()
     sim.substep()
-    assert dict(launches) == {"euler_step": 1, "insert_points": 1, "gather_neighbors": 1,
-                              "project_strain_limits": LIMIT_ITERATIONS, "separate_particles": PASSES,
-                              "resolve_contact_velocities": 1}
+    assert dict(launches) == {"explicit_step_and_contact_start": 1, "insert_points": 1, "gather_neighbors": 1,
+                              "limit_pass": LIMIT_ITERATIONS, "separation_pass": PASSES,
+                              "contact_velocities_and_end_remake": 1}
 
 
 def test_bare_cloth_launches_one_kernel_and_holds_no_effect_arrays(launches):
@@ -116,16 +138,16 @@ def test_bare_cloth_launches_one_kernel_and_holds_no_effect_arrays(launches):
     assert (model.springs, model.limits, model.pins, model.spheres) == (None, None, None, None)
     launches.clear()
     sim.substep()
-    assert dict(launches) == {"euler_step": 1}
+    assert dict(launches) == {"explicit_step": 1}
 
 
 def test_limit_iterations_and_integrator_change_the_launches(launches):
     scene = with_simulation(wc.load_scene("hanging"), limit_iterations=7, integrator="symplectic")
     sim = wc.Simulator(scene, device="cpu")
-    assert sim.stage_names == ["integrate:symplectic", "limits:7"]
+    assert sim.plan.pass_names == ["integrate:symplectic", *["limits"] * 7]
     launches.clear()
     sim.substep()
-    assert launches["project_strain_limits"] == 7
+    assert launches["limit_pass"] == 7
 
 
 def test_colliders_without_limit_launch_once_for_ground_and_spheres(launches):
@@ -133,16 +155,16 @@ def test_colliders_without_limit_launch_once_for_ground_and_spheres(launches):
     spheres = (wc.Sphere(name="a", center=(0.0, -5.0, 0.0), radius=1.0),
                wc.Sphere(name="b", center=(3.0, -5.0, 0.0), radius=1.0))
     sim = wc.Simulator(wc.Scene(cloths=(cloth,), ground=wc.Ground(), spheres=spheres), device="cpu")
-    assert sim.stage_names == ["integrate:symplectic", "ground+spheres"]
+    assert sim.plan.pass_names == ["integrate:symplectic", "colliders"]
     launches.clear()
     sim.substep()
-    assert dict(launches) == {"euler_step": 1, "collide": 1}
+    assert dict(launches) == {"explicit_step": 1, "collide": 1}
 
 
 def test_threads_per_particle_follow_the_cloth_size_on_a_gpu_only():
     gpu, cpu = SimpleNamespace(is_cuda=True), SimpleNamespace(is_cuda=False)
     assert [threads_per_particle(n * n, gpu) for n in (16, 64, 128, 256, 1024)] == [16, 16, 4, 2, 1]
-    assert [threads_per_particle(n * n, gpu, LIST_LANES_BY_SIZE) for n in (64, 128, 256, 1024)] == [16, 4, 4, 1]
+    assert [threads_per_particle(n * n, gpu, LIST_THREADS_BY_SIZE) for n in (64, 128, 256, 1024)] == [16, 4, 4, 1]
     assert threads_per_particle(64 * 64, cpu) == 1
 
 
@@ -154,14 +176,12 @@ def test_threads_per_particle_other_than_one_is_refused_on_the_cpu(threads):
 
 def unfused(sim: wc.Simulator) -> wc.Simulator:
     """``sim``'s substep as it was before the integration step began the contacts: the spheres moved
-    after the step, and the collision stage's own kernel beginning its contacts."""
-    step = next(s for s in sim.stages if isinstance(s, ExplicitIntegration))
-    collision = next(s for s in sim.stages if isinstance(s, ParticleCollision))
-    step.contact_start = no_contact_start(sim.device)
-    collision.started_by_integration = False
-    movers = [s for s in sim.stages if isinstance(s, MoveSpheres)]
-    rest = [s for s in sim.stages if s is not step and s not in movers]
-    sim.stages = [step, *movers, *rest]
+    after the step, and a pass of its own beginning the contacts."""
+    fused_step = next(p for p in sim.plan.passes if p.name.endswith("+contact_start"))
+    step = explicit_step(sim.device_model, sim.plan.threads, None)
+    movers = [p for p in sim.plan.passes if p.name == "spheres:move"]
+    rest = [p for p in sim.plan.passes if p is not fused_step and p not in movers]
+    sim.plan = dataclasses.replace(sim.plan, passes=(step, *movers, ContactStart(fused_step.args.start), *rest))
     return sim
 
 
@@ -169,12 +189,12 @@ def unfused(sim: wc.Simulator) -> wc.Simulator:
 def test_contacts_begun_in_the_step_give_the_separate_kernels_results_exactly(name, frames, launches):
     scene = wc.load_scene(name)
     fused = wc.Simulator(scene, device="cpu")
-    assert any(stage.endswith("+contacts") for stage in fused.stage_names)
+    assert any(name.endswith("+contact_start") for name in fused.plan.pass_names)
     reference = unfused(wc.Simulator(scene, device="cpu"))
     fused.run(frames)
     launches.clear()
     reference.run(frames)
-    assert launches["begin_contacts"] > 0
+    assert launches["contact_start"] > 0
     np.testing.assert_array_equal(fused.positions(), reference.positions())
     np.testing.assert_array_equal(fused.velocities(), reference.velocities())
 
@@ -183,7 +203,7 @@ def test_driven_pins_keep_the_collision_stage_beginning_its_contacts(launches):
     scene = wc.load_scene("oscillating_pins")
     scene = dataclasses.replace(scene, collision=wc.Collision())
     sim = wc.Simulator(scene, device="cpu", graph=False)
-    assert sim.stage_names[:2] == ["integrate:symplectic", "pins:oscillating"]
+    assert sim.plan.pass_names[:3] == ["integrate:symplectic", "pins:oscillating", "contact_start"]
     launches.clear()
     sim.substep()
-    assert launches["begin_contacts"] == 1
+    assert launches["contact_start"] == 1

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+import warp as wp
 from pxr import Usd, UsdGeom
 
 import hard_cases
@@ -20,6 +21,9 @@ import warp_cloth as wc
 from conftest import run_cli, spring_strains, with_simulation
 from warp_cloth.diagnostics import ContactGaps, TriangleIntersections
 from warp_cloth.errors import UnstableSimulation
+from warp_cloth.kernels import guard
+
+OFF = wc.SpringKind(enabled=False)
 
 # case: (max speed m/s, max strain after the first 12 frames, min closest contact); measured values beside
 BOUNDS = {
@@ -105,6 +109,34 @@ def test_guard_names_frame_and_substep_and_suggests_a_fix():
     assert 1 <= error.frame <= 24 and 1 <= error.substep <= sim.substeps_per_frame
     assert f"frame {error.frame}, substep {error.substep}" in str(error)
     assert "--integrator implicit" in str(error) and "smaller step" in str(error)
+
+
+@pytest.mark.parametrize("device", ["cpu", pytest.param("cuda", marks=pytest.mark.cuda)])
+def test_guard_flags_the_last_substep_of_a_long_frame_in_its_own_slot(device):
+    # A free particle falls from rest: after k substeps of explicit Euler its speed is g k h. With
+    # max_speed between g 9 h and g 10 h, the guard must first flag substep 10 of the first frame, the last
+    # of its 10 flags.
+    substeps, g = 10, 9.81
+    h = 1.0 / (24 * substeps)
+    cloth = wc.Cloth(resolution=(1, 1), limit=None, structural=OFF, shear=OFF, bend=OFF)
+    scene = wc.Scene(cloths=(cloth,), simulation=wc.Simulation(fps=24, substeps=substeps, integrator="explicit",
+                                                                max_speed=g * 9.5 * h))
+    sim = wc.Simulator(scene, device=device)
+    with pytest.raises(UnstableSimulation) as info:
+        sim.step()
+    assert (info.value.frame, info.value.substep) == (1, substeps)
+    with pytest.raises(AttributeError):
+        sim.substeps_per_frame = 2 * substeps  # the guard's flags are sized for the scene's substeps
+
+
+def test_guard_never_writes_past_its_flags():
+    flags = wp.zeros(4, dtype=int, device="cpu")
+    status = flags[:3]  # a frame of three substeps, with an element after it that must stay untouched
+    x = wp.array([[0.0, 0.0, 0.0]], dtype=wp.vec3, device="cpu")
+    v = wp.array([[float("nan"), 0.0, 0.0]], dtype=wp.vec3, device="cpu")
+    for substep in (2, 3, 7):  # the last, and two past the end
+        wp.launch(guard.check_state, dim=1, inputs=[x, v, 1.0, substep], outputs=[status], device="cpu")
+    assert flags.numpy().tolist() == [0, 0, guard.NOT_FINITE, 0]
 
 
 @pytest.mark.parametrize("device, graph", [("cpu", True), ("cpu", False),

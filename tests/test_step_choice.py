@@ -120,7 +120,7 @@ def test_random_cloths_at_their_chosen_step_stay_finite_and_bounded(resolution, 
                                                                          "compression"),
                      limit=wc.Limit(), pins=TWO_CORNERS if pinned else ())
     scene = wc.Scene(cloths=(cloth,), ground=wc.Ground(), simulation=wc.Simulation(frames=24, integrator=integrator))
-    assume(automatic_substeps(24, model_bound(build_model(scene))) <= MAX_TEST_SUBSTEPS)  # a fast test
+    assume(automatic_substeps(24, model_bound(build_model(scene), scene.simulation)) <= MAX_TEST_SUBSTEPS)  # a fast test
     with warnings.catch_warnings():
         warnings.simplefilter("error", wc.UnstableStepWarning)
         sim = wc.Simulator(scene, device="cpu")

@@ -33,7 +33,6 @@ from .errors import SceneError, UnstableSimulation
 from .newton_compare import SPHERE_CENTER, SPHERE_RADIUS, SWING_DEGREES, max_edge_strain, swung_origin
 from .simulator import Simulator, resolve_device
 from .stability import UnstableStepWarning
-from .stages import ParticleCollision
 from .writers import PolyWriter, UsdWriter
 
 # The seed's C++ on this machine kind (docs/seed-baseline.md). It always ran its O(n^2)
@@ -122,9 +121,10 @@ def core_cases(device: str) -> list[Case]:
     return cases
 
 
-def stacked_layers_scene(particles: int, broad_phase: str = "hash_grid", layers: int = 4) -> Scene:
+def stacked_layers_scene(particles: int, broad_phase: str = "hash_grid", layers: int = 4,
+                         lists: str = "when_moved", substeps: int = 1) -> Scene:
     """``layers`` square cloths of ``particles / layers`` particles stacked 0.9 contact distances apart, so
-    that every particle touches the layers next to it: the collision stage's working load."""
+    that every particle touches the layers next to it: particle collision's working load."""
     side = max(2, int(round((particles / layers) ** 0.5)))
     cell = 0.01
     contact = 2.1 * 0.25 * cell * 2 ** 0.5 * 1.1
@@ -132,8 +132,8 @@ def stacked_layers_scene(particles: int, broad_phase: str = "hash_grid", layers:
                          orientation="horizontal", origin=(0.0, 0.9 * contact * k, 0.0), jitter=0.02, seed=k,
                          limit=Limit(0.1, 0.1)) for k in range(layers))
     return Scene(name=f"layers_{particles}", cloths=cloths,
-                 collision=Collision(iterations=4, broad_phase=broad_phase),
-                 simulation=Simulation(fps=24, frames=1, substeps=1, gravity=(0.0, 0.0, 0.0)))
+                 collision=Collision(iterations=4, broad_phase=broad_phase, lists=lists),
+                 simulation=Simulation(fps=24, frames=1, substeps=substeps, gravity=(0.0, 0.0, 0.0)))
 
 
 def hanging_cloth_scene(n: int, integrator: str, substeps: int) -> Scene:
@@ -189,18 +189,16 @@ class CollisionResult:
         return 1e9 * self.seconds_per_substep / self.particles
 
 
-def time_collision_stage(particles: int, broad_phase: str, device: str, repeats: int,
+def time_collision_substep(particles: int, broad_phase: str, device: str, repeats: int,
                          remake_lists: bool = True) -> CollisionResult:
-    """Median time of the collision stage alone (neighbour lists from the spatial hash or brute force, 4
-    passes, velocity pass) per substep, replayed as a captured frame of 10 substeps of only that stage.
-    The layers do not move, so kept lists are never remade: ``remake_lists`` makes them every substep, to
-    time the broad phase."""
-    sim = Simulator(stacked_layers_scene(particles, broad_phase), device=device)
-    stage = next(s for s in sim.stages if isinstance(s, ParticleCollision))
-    stage.remake_every_substep = remake_lists
-    stage.started_by_integration = False  # alone, it begins its own contacts
-    sim.stages = [stage]
-    sim.substeps_per_frame = 10
+    """Median time per substep of stacked layers at rest, whose substep is mostly particle collision (the
+    explicit step, which begins the contacts; the neighbour lists from the spatial hash or brute force; 4
+    projection passes; the velocity pass), replayed as a captured frame of 10 substeps. The layers do not
+    move, so kept lists are never remade: ``remake_lists`` has the scene remake them every substep
+    (``collision.lists``), to time the broad phase."""
+    scene = stacked_layers_scene(particles, broad_phase, lists="every_substep" if remake_lists else "when_moved",
+                                 substeps=10)
+    sim = Simulator(scene, device=device)
     sim.run(1)
     seconds = []
     for _ in range(repeats):
@@ -218,10 +216,10 @@ def collision_scaling(device: str, repeats: int) -> list[CollisionResult]:
     brute_limit = 4096 if device == "cpu" else 65536
     results = []
     for n in sizes:
-        results.append(time_collision_stage(n, "hash_grid", device, repeats))
+        results.append(time_collision_substep(n, "hash_grid", device, repeats))
         if n <= brute_limit:
-            results.append(time_collision_stage(n, "brute_force", device, repeats))
-        results.append(time_collision_stage(n, "hash_grid", device, repeats, remake_lists=False))
+            results.append(time_collision_substep(n, "brute_force", device, repeats))
+        results.append(time_collision_substep(n, "hash_grid", device, repeats, remake_lists=False))
     return results
 
 
@@ -294,8 +292,8 @@ SUITES = {
                               "CPU, 256^2 to 2048^2 on a GPU)"),
     "collision": Suite(collision_cases, "the seed's 25x25 loop with its self collision and the seed's default scene "
                                         "(two 60x60 cloths, a moving sphere), against the seed's C++ times; then the "
-                                        "collision stage alone on stacked layers of 1k to 64k particles (to 4M on a "
-                                        "GPU), hash grid against brute force, in ms per substep"),
+                                        "substep of stacked layers (mostly particle collision) of 1k to 64k "
+                                        "particles (to 4M on a GPU), hash grid against brute force, in ms per substep"),
     "integrators": Suite(integrator_cases, "what stability and accuracy cost: the seed's sweeps with self collision, "
                                            "sizes 5x5 to 25x25 and steps 0.0025 to 0.04165 s at 20x20, explicit and "
                                            "implicit, against the seed's C++ times (on a GPU also a 256^2 cloth at "
@@ -472,7 +470,7 @@ def main(argv: list[str] | None = None) -> int:
                "results": [dict(dataclasses.asdict(r), median_seconds=r.median_seconds,
                                 particle_substeps_per_second=r.particle_substeps_per_second,
                                 ms_per_frame=r.ms_per_frame) for r in results],
-               "collision_stage": [dict(dataclasses.asdict(r), ns_per_particle=r.ns_per_particle) for r in scaling],
+               "collision_substep": [dict(dataclasses.asdict(r), ns_per_particle=r.ns_per_particle) for r in scaling],
                "newton": newton_rows}
     path.write_text(json.dumps(payload, indent=2))
     best = max((r for r in results if r.stable), key=lambda r: r.particle_substeps_per_second)

@@ -1,7 +1,7 @@
 """Checkpoints: what a simulation needs to go on from a frame exactly as if it had never stopped.
 
-A checkpoint is one ``.npz`` file: the positions and velocities, the substep clock, and every device array a
-stage carries from one substep to the next (``carried_arrays``: moving spheres' centres, the collision's
+A checkpoint is one ``.npz`` file: every device array of the state that a substep reads before it writes it
+(``DeviceState.carried``: positions, velocities, the substep clock, the spheres' centres, the collision's
 neighbour lists and hash table), with the frame, the substep count and a fingerprint of the scene. It is
 written under a temporary name and renamed, so a kill leaves the previous one whole.
 """
@@ -19,7 +19,7 @@ import numpy as np
 from .errors import SceneError
 from .output import fsync_path, stem_path
 
-FORMAT = 1
+FORMAT = 2  # 2: the state's arrays by name (1 named them by the stage that held them)
 
 
 def scene_fingerprint(scene) -> str:
@@ -31,7 +31,7 @@ def scene_fingerprint(scene) -> str:
     del fields["simulation"]["frames"]
     for key in ("dir", "usd", "poly"):
         del fields["output"][key]
-    text = f"{__version__}|{scene.simulation.step!r}|{fields!r}"
+    text = f"{__version__}|{scene.simulation.time_step!r}|{fields!r}"
     return hashlib.sha256(text.encode()).hexdigest()
 
 
@@ -47,12 +47,7 @@ def temporary_path(path: Path) -> Path:
 
 
 def _arrays(sim) -> dict:
-    arrays = {"x": sim.state.x, "v": sim.state.v, "clock": sim.state.clock}
-    for k, stage in enumerate(sim.stages):
-        carried = getattr(stage, "carried_arrays", None)
-        for name, array in (carried() if carried else {}).items():
-            arrays[f"stage{k}.{name}"] = array
-    return arrays
+    return sim.state.carried()
 
 
 @dataclasses.dataclass

@@ -57,6 +57,16 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--check", action="store_true",
                      help="print, after every frame, the intersecting triangle pairs and the closest contact")
 
+    plan = commands.add_parser("plan", help="print the passes of a scene's substep, in order",
+                               description="Print the plan of a scene's substep: its passes in the order they "
+                                           "run (fused passes named for what they fuse), as a run would build it.")
+    plan.add_argument("scene", help="built-in scene name (see 'warp-cloth scenes') or path to a .toml file")
+    plan.add_argument("--device", help="cpu, cuda or cuda:N (default: cuda if available, else cpu)")
+    plan_step = plan.add_mutually_exclusive_group()
+    plan_step.add_argument("--substeps", type=int, help="substeps per frame")
+    plan_step.add_argument("--dt", type=float, help="time step in seconds (rounded to a whole number of substeps)")
+    plan.add_argument("--integrator", choices=INTEGRATORS, help="time integrator")
+
     commands.add_parser("bench", help="time whole runs, print a table and write JSON (see 'bench --help')",
                         add_help=False)
     commands.add_parser("study", help="what accuracy costs in time: error against a reference and wall time "
@@ -91,6 +101,21 @@ def _cmd_scenes() -> int:
     width = max(len(n) for n in names)
     for name in names:
         print(f"{name:<{width}}  {load_scene(name).description}")
+    return 0
+
+
+def _cmd_plan(args: argparse.Namespace) -> int:
+    _quiet_warp()
+    from .scene_file import load_scene
+    from .simulator import Simulator
+
+    for key in ("frames", "out", "usd", "no_usd", "poly", "no_poly"):
+        setattr(args, key, None if key in ("frames", "out", "usd", "poly") else False)
+    scene = _with_overrides(load_scene(args.scene), args)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # a step past the bound is for a run to warn of
+        sim = Simulator(scene, device=args.device)
+    print(f"{scene.name} on {sim.device.alias}, {sim.substeps_per_frame} substeps a frame; {sim.plan}")
     return 0
 
 
@@ -174,7 +199,7 @@ def _simulator(scene: Scene, device: str, args: argparse.Namespace):
     from .simulator import Simulator
     from .stability import UnstableStepWarning
 
-    # Building the stages compiles some kernels, prepare() the others: seconds of silence on a first run.
+    # Building the plan compiles some kernels, prepare() the others: seconds of silence on a first run.
     with SlowStepNotice("compiling kernels") if not args.quiet else contextlib.nullcontext():
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", UnstableStepWarning)
@@ -193,10 +218,15 @@ def _simulator(scene: Scene, device: str, args: argparse.Namespace):
     return sim
 
 
-def _cmd_run(args: argparse.Namespace) -> int:
+def _quiet_warp() -> None:
+    """Warp's messages of modules loaded and compiled are not for a user of the command."""
     import warp as wp
 
     wp.config.log_level = wp.LOG_ERROR
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    _quiet_warp()
     from .checkpoint import check_scene, checkpoint_path, load_checkpoint
     from .output import OutputError, check_folder_output
     from .scene_file import load_scene
@@ -333,6 +363,8 @@ def _main(argv: list[str] | None) -> int:
     try:
         if args.command == "scenes":
             return _cmd_scenes()
+        if args.command == "plan":
+            return _cmd_plan(args)
         return _cmd_run(args)
     except SceneError as exc:
         print(f"warp-cloth: error: {exc}", file=sys.stderr)

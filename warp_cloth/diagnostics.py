@@ -8,7 +8,6 @@ import warp as wp
 from warp_cloth.kernels import intersections
 
 from .simulator import Simulator
-from .stages import ParticleCollision
 
 
 class TriangleIntersections:
@@ -38,16 +37,14 @@ class TriangleIntersections:
 
 class ContactGaps:
     """The closest approach of two particles that may collide, as a fraction of their contact distance
-    (1.0 or more: no pair overlaps), from the scene's collision stage."""
+    (1.0 or more: no pair overlaps)."""
 
     def __init__(self, sim: Simulator) -> None:
-        stage = next((s for s in sim.stages if isinstance(s, ParticleCollision)), None)
-        if stage is None:
+        if sim.scene.collision is None:
             raise ValueError("the scene declares no [collision]")
-        self.stage = stage
 
     def __call__(self, sim: Simulator) -> float:
-        return self.stage.closest_contact(sim.state.x)
+        return sim.closest_contact()
 
 
 class CheckReport:

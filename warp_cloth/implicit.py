@@ -1,7 +1,8 @@
-"""The backward Euler stage: Newton steps, each solved by a block-Jacobi preconditioned conjugate
-gradient whose loop runs on the device, so a captured frame never waits for the host: a conditional
-loop (``wp.capture_while``), or a fixed number of iterations that do nothing once converged. The
-kernels are in ``kernels/implicit.py`` (the cloth's system) and ``kernels/cg.py`` (the solver).
+"""The backward Euler pass: Newton steps, each solved by a block-Jacobi preconditioned conjugate gradient
+whose loop runs on the device, so a captured frame never waits for the host: a conditional loop
+(``wp.capture_while``), or a fixed number of iterations that do nothing once converged. The kernels are in
+``kernels/passes.py`` (the cloth's system), ``kernels/implicit.py`` (the step's end, Newton's bookkeeping)
+and ``kernels/cg.py`` (the solver).
 """
 
 from __future__ import annotations
@@ -9,12 +10,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numpy as np
 import warp as wp
 
-from warp_cloth.kernels import cg, implicit, pins
+from warp_cloth.kernels import cg, implicit, motion, passes as fused
 
-from .model import Model
+from .device_model import DeviceModel
+from .scene import ImplicitSolver
 from .state import DeviceState
 
 PARTIALS = 16384  # first level of every dot product's reduction
@@ -34,23 +35,17 @@ class SolveStats:
 class BackwardEuler:
     name = "integrate:implicit"
 
-    def __init__(self, model: Model, inv_mass: wp.array, springs: tuple, h: float, device) -> None:
-        sim = model.scene.simulation
-        self.settings = model.scene.implicit
-        self.h = h
-        self.gravity = wp.vec3(*sim.gravity)
-        self.drag = sim.drag
+    def __init__(self, model: DeviceModel, settings: ImplicitSolver) -> None:
+        self.settings = settings
+        self.h = model.h
         self.n = n = model.particle_count
-        self.device = device
-        self.inv_mass = inv_mass
-        self.mass = wp.array(model.masses, dtype=float, device=device)
-        self.springs = springs  # offsets, other, spring, rest, stiffness, damping, flags
-        self.free_particles = max(1, int(np.count_nonzero(model.inv_mass)))
-        self.pins = None
-        if model.pins is not None:
-            p = model.pins
-            self.pins = tuple(wp.array(a, dtype=t, device=device) for a, t in
-                              ((p.index, int), (p.amplitude, wp.vec3), (p.frequency, float), (p.phase, float)))
+        self.device = device = model.device
+        self.inv_mass = model.inv_mass
+        self.free_particles = model.free_particles
+        self.pins = model.pins
+        self.system = fused.SpringSystemArgs()
+        self.system.springs, self.system.forces = model.springs, model.forces
+        self.system.mass, self.system.inv_mass, self.system.h = model.mass, model.inv_mass, model.h
         vec = lambda: wp.zeros(n, dtype=wp.vec3, device=device)  # noqa: E731
         self.dv, self.r, self.z, self.p, self.ap = vec(), vec(), vec(), vec(), vec()
         self.inverse = wp.zeros(n, dtype=wp.mat33, device=device)
@@ -69,8 +64,7 @@ class BackwardEuler:
         launch = self._launch
         launch(implicit.start_newton, 1, outputs=[self.newton])
         # Baraff & Witkin's step, linearised at the start of the step.
-        launch(implicit.newton_rhs, self.n, inputs=[x0, v0, v0, self.mass, self.inv_mass, self.gravity, self.drag,
-                                                    self.h, 1, *self.springs], outputs=[self.r])
+        launch(fused.newton_rhs, self.n, inputs=[x0, v0, v0, self.system, 1], outputs=[self.r])
         self._solve(x0, v0, state.clock)
         launch(implicit.finish_step, self.n, inputs=[x0, v0, self.dv, self.h, self.newton], outputs=[x1, v1])
         # Further Newton steps on M (v - v0) = h f(x0 + h v, v), at y = x0 + h v = x1, until the residual
@@ -104,13 +98,12 @@ class BackwardEuler:
         s = self.settings
         self.dv.zero_()
         if self.pins is not None:
-            index, amplitude, frequency, phase = self.pins
-            launch(pins.pinned_velocity_change, index.shape[0],
-                   inputs=[index, amplitude, frequency, phase, clock, self.h, v], outputs=[self.dv])
-        system = [y, self.mass, self.inv_mass, self.drag, self.h, *self.springs]
-        launch(implicit.system_times, self.n, inputs=[*system, self.dv, self.always], outputs=[self.ap])
+            p = self.pins
+            launch(motion.pinned_velocity_change, p.index.shape[0],
+                   inputs=[p.index, p.amplitude, p.frequency, p.phase, clock, self.h, v], outputs=[self.dv])
+        launch(fused.system_times, self.n, inputs=[y, self.dv, self.always, self.system], outputs=[self.ap])
         launch(cg.subtract, self.n, inputs=[self.r, self.ap], outputs=[self.r])
-        launch(implicit.block_jacobi_inverse, self.n, inputs=system, outputs=[self.inverse])
+        launch(fused.block_jacobi_inverse, self.n, inputs=[y, self.system], outputs=[self.inverse])
         launch(cg.precondition, self.n, inputs=[self.inverse, self.r, self.always], outputs=[self.z])
         wp.copy(self.p, self.z)
         self._dot(self.r, self.z, self.always)
@@ -120,7 +113,7 @@ class BackwardEuler:
         state = self.cg_active
 
         def iteration() -> None:
-            launch(implicit.system_times, self.n, inputs=[*system, self.p, state], outputs=[self.ap])
+            launch(fused.system_times, self.n, inputs=[y, self.p, state, self.system], outputs=[self.ap])
             self._dot(self.p, self.ap, state)
             launch(cg.step_length, 1, inputs=[self.partial_2, state], outputs=[self.scalars])
             launch(cg.advance, self.n, inputs=[self.p, self.ap, self.scalars, state], outputs=[self.dv, self.r])
@@ -134,12 +127,11 @@ class BackwardEuler:
         else:
             for _ in range(s.cg_max_iterations):
                 iteration()
-        launch(implicit.record_solve, 1, inputs=[self.scalars, self.cg_counts], outputs=[self.stats])
+        launch(cg.record_solve, 1, inputs=[self.scalars, self.cg_counts], outputs=[self.stats])
 
     def _newton_residual(self, y: wp.array, v: wp.array, v0: wp.array) -> None:
         """r = h f(y, v) - M (v - v0), and (in the partial sums) the square of its size per unit mass."""
-        self._launch(implicit.newton_rhs, self.n, inputs=[y, v, v0, self.mass, self.inv_mass, self.gravity,
-                                                          self.drag, self.h, 0, *self.springs], outputs=[self.r])
+        self._launch(fused.newton_rhs, self.n, inputs=[y, v, v0, self.system, 0], outputs=[self.r])
         self._launch(implicit.per_unit_mass, self.n, inputs=[self.r, self.inv_mass], outputs=[self.z])
         self._dot(self.z, self.z, self.always)
 

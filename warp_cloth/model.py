@@ -1,6 +1,9 @@
-"""A scene's cloths packed into one particle buffer (with a cloth id), as host arrays ready to upload.
+"""A scene's cloths packed into one particle buffer (with a cloth id), as host arrays ready to upload
+(warp_cloth/device_model.py uploads them).
 
-Only what the scene declares is built: no pin arrays without pins, no limit lists without limits.
+Only what the scene declares is built: no pin arrays without pins, no limit lists without limits. The
+model holds the scene's geometry and material as arrays; its settings (step, gravity, collision) stay in
+the scene, which the simulator passes along with it.
 """
 
 from __future__ import annotations
@@ -9,11 +12,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from warp_cloth.kernels import springs as spring_kernels
+
 from .cloth_grid import BEND, SHEAR, STRUCTURAL, ClothGrid, build_grid, grid_positions, pinned_indices
 from .errors import SceneError
 from .scene import Scene, SpringKind
 
-FLAG_ELASTIC_TENSION, FLAG_ELASTIC_COMPRESSION, FLAG_DAMPING_TENSION, FLAG_DAMPING_COMPRESSION = 1, 2, 4, 8
+# The spring kernels' regime bits (kernels/springs.py), which the host side sets and reads.
+FLAG_ELASTIC_TENSION = int(spring_kernels.ELASTIC_TENSION)
+FLAG_ELASTIC_COMPRESSION = int(spring_kernels.ELASTIC_COMPRESSION)
+FLAG_DAMPING_TENSION = int(spring_kernels.DAMPING_TENSION)
+FLAG_DAMPING_COMPRESSION = int(spring_kernels.DAMPING_COMPRESSION)
 
 
 def regime_flags(kind: SpringKind) -> int:
@@ -96,7 +105,7 @@ class Spheres:
 
 @dataclass(frozen=True)
 class ParticleContacts:
-    """What the particle collision stage needs: each particle's sphere radius and, only where some cloth's
+    """What particle collision needs: each particle's sphere radius and, only where some cloth's
     strain limit cannot keep its grid neighbours apart, grid coordinates to skip those pairs."""
 
     radius: np.ndarray  # (n,) float32
@@ -110,7 +119,6 @@ class ParticleContacts:
 
 @dataclass(frozen=True)
 class Model:
-    scene: Scene
     grids: tuple[ClothGrid, ...]
     offsets: tuple[int, ...]  # first particle of each cloth, plus the total at the end
     positions: np.ndarray  # (n, 3) float32
@@ -154,7 +162,7 @@ def build_model(scene: Scene) -> Model:
         velocities[pins.index] = pins.amplitude * omega * np.cos(pins.phase)[:, None]
     springs = _springs(scene, grids, offsets, n)
     limits = _limits(springs, n, _attachments(scene, offsets, selections))
-    return Model(scene, grids, tuple(offsets), positions, velocities, masses, inv_mass, cloth_id, springs, limits,
+    return Model(grids, tuple(offsets), positions, velocities, masses, inv_mass, cloth_id, springs, limits,
                  pins, _spheres(scene), _contacts(scene, grids))
 
 

@@ -328,7 +328,10 @@ class Collision:
     strain (see ``Simulation.limit_iterations``) does both in one Jacobi kernel where ``projection`` is
     ``joint`` (each particle moves by its limits' mean correction and its pushes' mean, no limit
     correction pulling into a contact): a launch less a pass, contacts held closer, strain a little less
-    so; ``sequential`` runs the limit, then the separation on what it left (docs/accuracy.md).
+    so; ``sequential`` runs the limit, then the separation on what it left (docs/accuracy.md). Each
+    particle's candidate pairs are listed within 1.5 contact distances and the lists remade ``when_moved``:
+    once some particle has moved far enough to meet a pair left out; ``every_substep`` remakes them every
+    substep (slower, with the same contacts: for measuring the broad phase).
     """
 
     self_collision: bool = field(default=True, metadata={"toml": "self"})
@@ -340,6 +343,7 @@ class Collision:
     max_neighbors: int = 32
     broad_phase: Literal["auto", "hash_grid", "brute_force"] = "auto"
     projection: Literal["joint", "sequential"] = "joint"
+    lists: Literal["when_moved", "every_substep"] = "when_moved"
 
     def __post_init__(self) -> None:
         check_fields(self)
@@ -415,8 +419,8 @@ class Simulation:
             shortest = 0.99 / (self.fps * MAX_SUBSTEPS)
             _require(self.dt >= shortest, "dt", f"a step of at least {shortest:.3g} s (at most {MAX_SUBSTEPS} "
                                                 f"substeps a frame at {self.fps:g} fps)", self.dt)
-        if self.step is not None:  # else chosen by the simulator, within the same substep bound
-            check_float32(self.step, "the step 1 / (fps x substeps)", "fps", self.fps)
+        if self.time_step is not None:  # else chosen by the simulator, within the same substep bound
+            check_float32(self.time_step, "the step 1 / (fps x substeps)", "fps", self.fps)
         _non_negative(self.drag, "drag")
         _positive(self.max_speed, "max_speed")
         _whole_in(self.limit_iterations, 1, MAX_ITERATIONS, "limit_iterations")
@@ -433,8 +437,9 @@ class Simulation:
         return max(1, math.ceil(0.99 / (self.fps * self.dt)))
 
     @property
-    def step(self) -> float | None:
-        """The time step that ``substeps`` or ``dt`` set, in seconds (None: chosen by the simulator)."""
+    def time_step(self) -> float | None:
+        """The time step that ``substeps`` or ``dt`` set, in seconds (None: chosen by the simulator). (Not
+        ``step``: ``Simulator.step()`` advances a frame.)"""
         substeps = self.substeps_per_frame
         return None if substeps is None else 1.0 / (self.fps * substeps)
 

@@ -1,4 +1,4 @@
-"""The simulator: a scene's model on a device, the list of stages of a substep, and the frame loop."""
+"""The simulator: a scene's model on a device, the plan of a substep (warp_cloth/plan.py), and the frame loop."""
 
 from __future__ import annotations
 
@@ -22,10 +22,11 @@ from .errors import SceneError, UnstableSimulation
 from .model import Model, build_model
 from .output import RunOutcome
 from .progress import Progress, SlowStepNotice
+from .device_model import DeviceModel
+from .implicit import SolveStats
+from .plan import Plan, build_plan
 from .scene import Scene
 from .stability import UnstableStepWarning, beyond_bound_message, resolve_step
-from .implicit import BackwardEuler, SolveStats
-from .stages import ParticleCollision, RigidCollision, Stage, build_stages
 from .state import DeviceState
 from .warp_init import init_warp
 
@@ -159,7 +160,8 @@ class Simulator:
     Each frame's launches are captured once as a graph and replayed, on a GPU or the CPU (``graph=False``
     turns that off). Positions and velocities read back as numpy arrays of shape (particles, 3).
     ``threads_per_particle`` sets how many GPU threads gather each particle's springs, limits and contacts
-    (None: chosen by the cloth's size; see kernels/lanes.py); a power of two up to 64, 1 on the CPU.
+    (None: chosen by the cloth's size; see kernels/gathering.py); a power of two up to 64, 1 on the CPU.
+    ``plan`` is the substep's passes in order (``print(sim.plan)`` shows them).
     """
 
     INITIAL_OVERLAP_LIMIT = 0.5  # of the contact distance: closer starting pairs are refused
@@ -176,15 +178,13 @@ class Simulator:
         check_memory(scene, self.device)
         self.model: Model = build_model(scene)
         # The step, chosen here where the scene sets none: from now on the scene is the one with that step.
-        self.model, self.step_choice = resolve_step(self.model)
-        self.scene = self.model.scene
+        self.scene, self.step_choice = resolve_step(scene, self.model)
         check_work(self.scene, self.step_choice.substeps)
         if self.step_choice.beyond_bound:
             warnings.warn(UnstableStepWarning(beyond_bound_message(self.step_choice, scene.simulation)), stacklevel=2)
-        self.state = DeviceState(self.model.positions, self.model.velocities, self.device)
-        self.stages: list[Stage] = build_stages(self.model, self.device, threads_per_particle)
-        self.substeps_per_frame = self.step_choice.substeps
-        self.dt = self.step_choice.step
+        self.device_model = DeviceModel(self.model, self.scene, self.scene.simulation.time_step, self.device)
+        self.state = DeviceState(self.model.positions, self.model.velocities, self.device_model)
+        self.plan: Plan = build_plan(self.device_model, self.state, self.scene.implicit, threads_per_particle)
         self.frame = 0
         self.substep_count = 0
         self.use_graph = graph
@@ -202,11 +202,8 @@ class Simulator:
 
     def _refuse_initial_overlap(self) -> None:
         """Cloths that start deep inside each other (or themselves) would be shot apart: refuse them."""
-        collision = next((s for s in self.stages if isinstance(s, ParticleCollision)), None)
-        if collision is None:
-            return
-        ratio = collision.closest_contact(self.state.x)
-        if ratio < self.INITIAL_OVERLAP_LIMIT:
+        ratio = self.closest_contact()
+        if ratio is not None and ratio < self.INITIAL_OVERLAP_LIMIT:
             raise SceneError("cloth", f"cloths that start apart: two particles that collide start "
                                       f"{ratio:.2f} of their contact distance apart (at least "
                                       f"{self.INITIAL_OVERLAP_LIMIT} needed); move the cloths apart or "
@@ -244,12 +241,17 @@ class Simulator:
                                             "a cell); move the cloth or the collider", has_got=False)
 
     @property
-    def time(self) -> float:
-        return self.substep_count * self.dt
+    def substeps_per_frame(self) -> int:
+        return self.step_choice.substeps
 
     @property
-    def stage_names(self) -> list[str]:
-        return [s.name for s in self.stages]
+    def dt(self) -> float:
+        """The substep's length in seconds."""
+        return self.plan.h
+
+    @property
+    def time(self) -> float:
+        return self.substep_count * self.dt
 
     def positions(self) -> np.ndarray:
         """A copy of the current positions, shape (particles, 3)."""
@@ -271,29 +273,29 @@ class Simulator:
 
     def sphere_centers(self) -> np.ndarray:
         """Sphere centres at the current time, shape (spheres, 3)."""
-        for stage in self.stages:
-            for part in (stage, getattr(stage, "colliders", None)):
-                if isinstance(part, RigidCollision) and part.bundle.center.shape[0] > 0:
-                    return self._host_copy(part.bundle.center)
-        return np.zeros((0, 3), dtype=np.float32)
+        return self._host_copy(self.state.sphere_center)
+
+    def closest_contact(self) -> float | None:
+        """The closest approach of two particles that may collide, as a fraction of their contact distance
+        (1.0 or more: no pair overlaps; None without particle collision). It waits for the device and
+        remakes the candidate lists from the current positions."""
+        return None if self.plan.lists is None else self.plan.lists.closest_contact(self.state.x)
 
     def solver_stats(self) -> "SolveStats | None":
         """For the implicit integrator: the worst CG and Newton figures of the substeps since the last call
         (reading them waits for the device); None for the explicit integrators."""
-        integrator = next((s for s in self.stages if isinstance(s, BackwardEuler)), None)
-        return integrator.read_stats() if integrator is not None else None
+        return self.plan.implicit.read_stats() if self.plan.implicit is not None else None
 
     def substep(self) -> None:
-        """Advance one substep, launching stage by stage (for tests and debugging; frames are faster)."""
-        for stage in self.stages:
-            stage.run(self.state)
+        """Advance one substep, launching pass by pass (for tests and debugging; frames are faster)."""
+        self.plan.run_substep(self.state)
         self.substep_count += 1
 
     def step(self) -> None:
         """Advance one frame.
 
         A frame's launches are captured once for each buffer parity and guard slot and replayed (a CUDA
-        graph on a GPU, a Warp CPU graph on the CPU); ``graph=False`` launches stage by stage instead.
+        graph on a GPU, a Warp CPU graph on the CPU); ``graph=False`` launches pass by pass instead.
         Raises ``UnstableSimulation`` if the blow-up guard flagged any of its substeps.
         """
         self._check_frame(self._launch_frame())
@@ -312,6 +314,11 @@ class Simulator:
         self.substep_count += self.substeps_per_frame
         self.frame += 1
         return self.frame
+
+    def frame_graph(self) -> wp.Graph:
+        """The captured graph of the next frame (captured now if it was not yet), for profiling its replay;
+        ``step()`` is what advances the simulation."""
+        return self._frame_graph(self.frame % 2)[0]
 
     def _frame_graph(self, slot: int) -> tuple[wp.Graph, int]:
         """The graph of a frame that starts at the current buffer parity with guard slot ``slot`` (captured
@@ -461,8 +468,7 @@ class Simulator:
         status = self._guard_status[slot]
         status.zero_()
         for k in range(self.substeps_per_frame):
-            for stage in self.stages:
-                stage.run(self.state)
+            self.plan.run_substep(self.state)
             wp.launch(guard.check_state, dim=self.model.particle_count,
                       inputs=[self.state.x, self.state.v, self.scene.simulation.max_speed, k],
                       outputs=[status], device=self.device)

@@ -169,9 +169,8 @@ def _largest_rate(positions: np.ndarray, pairs: np.ndarray, weight: np.ndarray, 
     return float(np.linalg.eigvalsh(block[free])[:, -1].max())
 
 
-def model_bound(model: Model) -> StabilityBound | None:
-    """The stable bound of the scene's integrator on its model (None for the implicit integrator)."""
-    sim = model.scene.simulation
+def model_bound(model: Model, sim: Simulation) -> StabilityBound | None:
+    """The stable bound of the simulation's integrator on a model (None for the implicit integrator)."""
     if sim.integrator == "implicit":
         return None
     springs = model.springs
@@ -196,14 +195,13 @@ def safety(bound: StabilityBound) -> float:
     return SAFETY if bound.damping_time_min > 0 else SAFETY_UNDAMPED
 
 
-def choose_step(model: Model) -> StepChoice:
-    """The scene's own step if it sets one, else the largest within ``safety(bound)`` times the bound and
-    no coarser than ``AUTOMATIC_MIN_SUBSTEPS`` a frame. A SceneError if that needs more than
+def choose_step(model: Model, sim: Simulation) -> StepChoice:
+    """The simulation's own step if it sets one, else the largest within ``safety(bound)`` times the bound
+    and no coarser than ``AUTOMATIC_MIN_SUBSTEPS`` a frame. A SceneError if that needs more than
     ``AUTOMATIC_MAX_SUBSTEPS`` a frame."""
-    sim = model.scene.simulation
-    bound = model_bound(model)
+    bound = model_bound(model, sim)
     if sim.substeps_per_frame is not None:
-        return StepChoice(sim.substeps_per_frame, sim.step, False, bound)
+        return StepChoice(sim.substeps_per_frame, sim.time_step, False, bound)
     substeps = automatic_substeps(sim.fps, bound)
     if substeps > AUTOMATIC_MAX_SUBSTEPS:
         raise SceneError("simulation.substeps", f"a scene whose stable step needs at most {AUTOMATIC_MAX_SUBSTEPS} "
@@ -213,21 +211,19 @@ def choose_step(model: Model) -> StepChoice:
     return StepChoice(substeps, 1.0 / (sim.fps * substeps), True, bound)
 
 
-def resolve_step(model: Model) -> tuple[Model, StepChoice]:
-    """The model with its scene's step fixed (automatic substeps filled in) and the choice made."""
-    choice = choose_step(model)
+def resolve_step(scene: Scene, model: Model) -> tuple[Scene, StepChoice]:
+    """The scene with its step fixed (automatic substeps filled in), and the choice made."""
+    choice = choose_step(model, scene.simulation)
     if not choice.automatic:
-        return model, choice
-    scene = model.scene
-    resolved = dataclasses.replace(scene, simulation=dataclasses.replace(scene.simulation, substeps=choice.substeps))
-    return dataclasses.replace(model, scene=resolved), choice
+        return scene, choice
+    return dataclasses.replace(scene, simulation=dataclasses.replace(scene.simulation, substeps=choice.substeps)), choice
 
 
 def scene_with_step(scene: Scene) -> Scene:
     """The scene with its step fixed: as it is if it sets one, else with the step a simulator would choose."""
     if scene.simulation.substeps_per_frame is not None:
         return scene
-    return resolve_step(build_model(scene))[0].scene
+    return resolve_step(scene, build_model(scene))[0]
 
 
 def beyond_bound_message(choice: StepChoice, simulation: Simulation) -> str:

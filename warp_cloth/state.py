@@ -1,24 +1,94 @@
-"""The simulation state on the device: positions and velocities, double buffered, and the clock."""
+"""The simulation state on the device: positions and velocities (double buffered), the clock, where the
+colliders are, and what particle collision carries from one substep to the next."""
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 import warp as wp
 
+from warp_cloth.kernels.particle_collision import ListState
+
+from .device_model import DeviceModel
+
+
+@dataclass
+class ContactState:
+    """Particle collision's arrays: each particle's candidate list and where it was made, the spatial
+    hash (its buckets, their stamps' epoch), the remake request, what did not fit, how far this substep's
+    passes pushed each particle, the velocities the contacts start from, and the particles the rigid
+    colliders hold up (``resting``, empty without colliders). ``unsorted`` and ``appended`` are the list
+    remake's scratch."""
+
+    neighbors: wp.array
+    counts: wp.array
+    x_built: wp.array
+    rebuild: wp.array
+    epoch: wp.array
+    overflow: wp.array
+    bucket_size: wp.array
+    bucket_items: wp.array
+    pushed: wp.array
+    resting: wp.array
+    v_start: wp.array
+    unsorted: wp.array
+    appended: wp.array
+
+    CARRIED = ("neighbors", "counts", "x_built", "rebuild", "epoch", "overflow", "bucket_size", "bucket_items",
+               "pushed", "resting")  # what the next substep reads before it writes
+
+    def lists(self) -> ListState:
+        lists = ListState()
+        lists.x_built, lists.rebuild, lists.epoch, lists.overflow = self.x_built, self.rebuild, self.epoch, self.overflow
+        return lists
+
+
+BUCKET_CAPACITY = 16  # particles a spatial-hash bucket holds (overflow is counted, tests keep it 0)
+BRUTE_FORCE_UP_TO = 512  # particles; below, checking all pairs costs less than the hash
+
+
+def uses_hash(broad_phase: str, particles: int) -> bool:
+    return broad_phase == "hash_grid" or (broad_phase == "auto" and particles > BRUTE_FORCE_UP_TO)
+
+
+def hash_table_size(particles: int) -> int:
+    """Buckets of the spatial hash: a power of two of at least twice the particles (and 64)."""
+    table = 64
+    while table < 2 * particles:
+        table *= 2
+    return table
+
 
 class DeviceState:
-    """``x``/``v`` are the current state; ``x_next``/``v_next`` receive a stage's output, after which the
-    stage swaps them. ``parity`` says which buffer of each pair is current: a captured CUDA graph replays
-    fixed buffers, so it is only valid at the parity it was captured at."""
+    """``x``/``v`` are the current state; ``x_next``/``v_next`` receive a pass's output, after which the
+    pass swaps them. ``parity`` says which buffer of each pair is current: a captured graph replays fixed
+    buffers, so it is only valid at the parity it was captured at."""
 
-    def __init__(self, positions: np.ndarray, velocities: np.ndarray, device: wp.context.Device) -> None:
+    def __init__(self, positions: np.ndarray, velocities: np.ndarray, model: DeviceModel) -> None:
+        device = self.device = model.device
         x = wp.array(positions, dtype=wp.vec3, device=device)
         v = wp.array(velocities, dtype=wp.vec3, device=device)
         self._x = (x, wp.empty_like(x))
         self._v = (v, wp.empty_like(v))
         self.clock = wp.zeros(1, dtype=int, device=device)
-        self.device = device
         self.parity = 0
+        start = model.sphere_start if model.sphere_start is not None else np.zeros((0, 3), dtype=np.float32)
+        self.sphere_center = wp.array(start, dtype=wp.vec3, device=device)
+        self.sphere_velocity = wp.zeros(len(start), dtype=wp.vec3, device=device)
+        self.contacts = None if model.contacts is None else self._contact_state(model)
+
+    def _contact_state(self, model: DeviceModel) -> ContactState:
+        n, device = model.particle_count, model.device
+        settings = model.contacts.settings
+        per_list = n * settings.max_neighbors
+        table = hash_table_size(n) if uses_hash(settings.broad_phase, n) else 0
+        zeros = lambda count, dtype=int: wp.zeros(count, dtype=dtype, device=device)  # noqa: E731
+        return ContactState(neighbors=zeros(per_list), counts=zeros(n), x_built=wp.full(n, wp.vec3(1.0e30), dtype=wp.vec3, device=device),
+                            rebuild=zeros(1), epoch=zeros(1), overflow=zeros(1), bucket_size=zeros(table),
+                            bucket_items=zeros(table * BUCKET_CAPACITY), pushed=zeros(n, float),
+                            resting=zeros(n if model.has_colliders else 0), v_start=zeros(n, wp.vec3),
+                            unsorted=zeros(per_list if table else 0), appended=zeros(n if table else 0))
 
     @property
     def x(self) -> wp.array:
@@ -41,3 +111,11 @@ class DeviceState:
 
     def swap_velocities(self) -> None:
         self.parity ^= 2
+
+    def carried(self) -> dict[str, wp.array]:
+        """Every array a substep reads before writing it, by name: what a checkpoint keeps."""
+        arrays = {"x": self.x, "v": self.v, "clock": self.clock, "sphere_center": self.sphere_center,
+                  "sphere_velocity": self.sphere_velocity}
+        if self.contacts is not None:
+            arrays.update({f"contacts.{name}": getattr(self.contacts, name) for name in ContactState.CARRIED})
+        return arrays

@@ -168,12 +168,12 @@ def strain(springs: Springs, x: np.ndarray) -> np.ndarray:
     return lengths / springs.rest.astype(np.float64) - 1.0
 
 
-def strained_springs(model: Model) -> np.ndarray:
+def strained_springs(model: Model, cloths: Sequence[Cloth]) -> np.ndarray:
     """Mask of the springs whose strain is reported: strain-limited ones and structural ones (grid
     neighbours along a row or a column)."""
     springs = model.springs
-    columns = np.concatenate([np.arange(c.particle_count) % (c.resolution[0] + 1) for c in model.scene.cloths])
-    rows = np.concatenate([np.arange(c.particle_count) // (c.resolution[0] + 1) for c in model.scene.cloths])
+    columns = np.concatenate([np.arange(c.particle_count) % (c.resolution[0] + 1) for c in cloths])
+    rows = np.concatenate([np.arange(c.particle_count) // (c.resolution[0] + 1) for c in cloths])
     a, b = springs.pairs[:, 0], springs.pairs[:, 1]
     structural = np.abs(columns[a] - columns[b]) + np.abs(rows[a] - rows[b]) == 1
     return structural | np.isfinite(springs.limit_max)
@@ -267,7 +267,7 @@ def simulate(scene: Scene, device: str, frames: int, reference: Sequence[np.ndar
         warnings.simplefilter("ignore", UnstableStepWarning)
         sim = Simulator(scene, device=device)
     model, gravity, springs = sim.model, scene.simulation.gravity, sim.model.springs
-    mask = strained_springs(model) if springs is not None else None
+    mask = strained_springs(model, scene.cloths) if springs is not None else None
     bounds = strain_bounds(springs, mask) if springs is not None else None
     run = Trajectory(sim.dt, sim.substeps_per_frame, model.particle_count, frames)
     x = sim.positions().astype(np.float64)
@@ -379,7 +379,7 @@ def run_study(scene: Scene | str | Path, integrators: Sequence[str] = INTEGRATOR
     measure it against a reference. Defaults: the scene's step and its half and quarter, the scene's
     resolution, the scene's frames up to 48. Bad input raises ``SceneError`` before anything runs."""
     scene = scene if isinstance(scene, Scene) else load_scene(scene)
-    step = scene_with_step(scene).simulation.step
+    step = scene_with_step(scene).simulation.time_step
     dts = list(dts) if dts else [step, step / 2, step / 4]
     frames = frames if frames is not None else min(scene.simulation.frames, DEFAULT_MAX_FRAMES)
     if frames <= WARMUP_FRAMES:

@@ -1,0 +1,27 @@
+"""External forces: what acts on each particle from outside the cloth, per unit mass.
+
+Both integrators read them through ``external_acceleration`` (the explicit step adds it to the springs'
+f / m, the implicit step's right-hand side adds m times it), and the implicit step's matrix reads their
+velocity derivative through ``external_damping``. A new force is a field of ``ExternalForces``, its term
+in these two functions, and its scene entry (warp_cloth/device_model.py fills the struct).
+"""
+
+import warp as wp
+
+
+@wp.struct
+class ExternalForces:
+    gravity: wp.vec3  # m/s^2
+    drag: float  # 1/s: air drag on the particle's velocity
+
+
+@wp.func
+def external_acceleration(forces: ExternalForces, x: wp.vec3, v: wp.vec3) -> wp.vec3:
+    """The acceleration of a particle at x with velocity v from the external forces."""
+    return forces.gravity - forces.drag * v
+
+
+@wp.func
+def external_damping(forces: ExternalForces) -> float:
+    """-d(acceleration)/dv of the external forces (a multiple of the identity), for the implicit matrix."""
+    return forces.drag

@@ -1,0 +1,160 @@
+"""The model on the device: everything the passes read that does not change during a run, uploaded once
+and owned here. What changes (positions, velocities, the clock, colliders' motion, contact state) is the
+state's (warp_cloth/state.py)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import warp as wp
+
+from warp_cloth.kernels.colliders import RigidColliders
+from warp_cloth.kernels.forces import ExternalForces
+from warp_cloth.kernels.limits import StrainLimits
+from warp_cloth.kernels.particle_collision import PairRules
+from warp_cloth.kernels.springs import Springs
+
+from .model import Model
+from .scene import Collision, Scene
+
+
+def upload(values: np.ndarray, dtype, device) -> wp.array:
+    return wp.array(values, dtype=dtype, device=device)
+
+
+@dataclass(frozen=True)
+class PinMotion:
+    """Pinned particles and their oscillations (zero amplitude for fixed pins)."""
+    index: wp.array
+    anchor: wp.array
+    amplitude: wp.array
+    frequency: wp.array
+    phase: wp.array
+    moving: bool
+
+
+@dataclass(frozen=True)
+class SphereMotion:
+    """The centre each sphere oscillates about, and its oscillation."""
+    center: wp.array
+    amplitude: wp.array
+    frequency: wp.array
+    phase: wp.array
+
+
+@dataclass(frozen=True)
+class ParticleContacts:
+    """Particle collision's settings and per-particle constants."""
+    settings: Collision
+    radius: wp.array
+    rules: PairRules
+    max_radius: float
+    min_radius: float
+
+
+class DeviceModel:
+    """A model and its scene's settings on a device; an effect the scene does not declare is None here and
+    costs no memory. ``h`` is the substep's length in seconds."""
+
+    def __init__(self, model: Model, scene: Scene, h: float, device) -> None:
+        self.device = device
+        self.particle_count = n = model.particle_count
+        self.h = h
+        simulation = scene.simulation
+        self.integrator = simulation.integrator
+        self.inv_mass = upload(model.inv_mass, float, device)
+        self.mass = upload(model.masses, float, device) if simulation.integrator == "implicit" else None
+        self.free_particles = max(1, int(np.count_nonzero(model.inv_mass)))
+        self.forces = ExternalForces()
+        self.forces.gravity = wp.vec3(*simulation.gravity)
+        self.forces.drag = simulation.drag
+        self.springs = self._springs(model, n)
+        self.limits = self._limits(model)
+        self.limit_iterations = simulation.limit_iterations
+        self.pins = None if model.pins is None else PinMotion(
+            upload(model.pins.index, int, device), upload(model.pins.anchor, wp.vec3, device),
+            upload(model.pins.amplitude, wp.vec3, device), upload(model.pins.frequency, float, device),
+            upload(model.pins.phase, float, device), model.pins.moving)
+        spheres = model.spheres
+        self.sphere_count = 0 if spheres is None else len(spheres.center)
+        self.sphere_start = None if spheres is None else spheres.initial_center  # host: the state starts there
+        self.sphere_motion = None if spheres is None or not spheres.moving else SphereMotion(
+            upload(spheres.center, wp.vec3, device), upload(spheres.amplitude, wp.vec3, device),
+            upload(spheres.frequency, float, device), upload(spheres.phase, float, device))
+        self.ground = scene.ground
+        self._sphere_radius = upload(spheres.radius if spheres is not None else np.zeros(0), float, device)
+        self._sphere_friction = upload(spheres.friction if spheres is not None else np.zeros(0), float, device)
+        self.has_colliders = scene.ground is not None or spheres is not None
+        self.contacts = None if model.contacts is None else self._contacts(model, scene.collision)
+
+    def _springs(self, model: Model, n: int) -> Springs:
+        """The spring adjacency and parameters (offsets all zero and the rest empty without springs)."""
+        device, springs = self.device, Springs()
+        if model.springs is None:
+            springs.offsets = wp.zeros(n + 1, dtype=int, device=device)
+            springs.other = springs.spring = springs.flags = wp.zeros(0, dtype=int, device=device)
+            springs.rest = springs.stiffness = springs.damping = wp.zeros(0, dtype=float, device=device)
+            return springs
+        adjacency = model.springs.adjacency
+        springs.offsets = upload(adjacency.offsets, int, device)
+        springs.other = upload(adjacency.other, int, device)
+        springs.spring = upload(adjacency.spring, int, device)
+        springs.rest = upload(model.springs.rest, float, device)
+        springs.stiffness = upload(model.springs.stiffness, float, device)
+        springs.damping = upload(model.springs.damping, float, device)
+        springs.flags = upload(model.springs.flags, int, device)
+        return springs
+
+    def _limits(self, model: Model) -> StrainLimits | None:
+        if model.limits is None:
+            return None
+        device, lim, limits = self.device, model.limits, StrainLimits()
+        limits.offsets = upload(lim.offsets, int, device)
+        limits.other = upload(lim.other, int, device)
+        limits.min_length = upload(lim.min_length, float, device)
+        limits.max_length = upload(lim.max_length, float, device)
+        limits.attachment_pin = upload(lim.attachment_pin, int, device)
+        limits.attachment_length = upload(lim.attachment_length, float, device)
+        return limits
+
+    def _contacts(self, model: Model, settings: Collision) -> ParticleContacts:
+        device, contacts, rules = self.device, model.contacts, PairRules()
+        rules.cloth_id = upload(model.cloth_id, int, device)
+        rules.self_collision = int(settings.self_collision)
+        rules.between_cloths = int(settings.between_cloths)
+        if contacts.exclude_adjacent is None:
+            rules.grid_xy = rules.exclude_adjacent = wp.zeros(0, dtype=int, device=device)
+        else:
+            rules.grid_xy = upload(contacts.grid_xy, int, device)
+            rules.exclude_adjacent = upload(contacts.exclude_adjacent, int, device)
+        rules.search_scale = SEARCH_SCALE
+        return ParticleContacts(settings, upload(contacts.radius, float, device), rules, contacts.max_radius,
+                                float(contacts.radius.min()))
+
+    def colliders(self, center: wp.array, velocity: wp.array) -> RigidColliders:
+        """The scene's rigid colliders as the kernels take them, spheres where ``center`` and ``velocity``
+        (the state's) have them."""
+        colliders = RigidColliders()
+        colliders.ground = int(self.ground is not None)
+        colliders.ground_height = self.ground.height if self.ground is not None else 0.0
+        colliders.ground_friction = self.ground.friction if self.ground is not None else 0.0
+        colliders.center, colliders.velocity = center, velocity
+        colliders.radius, colliders.friction = self._sphere_radius, self._sphere_friction
+        return colliders
+
+    def no_colliders(self) -> RigidColliders:
+        return no_colliders(self.device)
+
+
+def no_colliders(device) -> RigidColliders:
+    """No collider: for the passes that do not end with them."""
+    colliders = RigidColliders()
+    colliders.ground = 0
+    colliders.ground_height = colliders.ground_friction = 0.0
+    colliders.center = colliders.velocity = wp.zeros(0, dtype=wp.vec3, device=device)
+    colliders.radius = colliders.friction = wp.zeros(0, dtype=float, device=device)
+    return colliders
+
+
+SEARCH_SCALE = 1.5  # candidates within 1.5 contact distances, so passes that move particles miss none

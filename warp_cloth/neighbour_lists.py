@@ -1,0 +1,93 @@
+"""Particle collision's candidate lists: remade inside a substep where a particle has moved far enough since
+they were made, or on demand outside one; and the closest contact they show."""
+
+from __future__ import annotations
+
+import numpy as np
+import warp as wp
+
+from warp_cloth.kernels import particle_collision, spatial_hash
+from warp_cloth.kernels.gathering import load_gathering
+from warp_cloth.kernels.passes import HashGrid, gather_neighbors_kernel, launch_gather_neighbors
+
+from .device_model import DeviceModel
+from .passes import contacts_args
+from .state import BUCKET_CAPACITY, DeviceState, hash_table_size, uses_hash
+
+# The remake has more to gather (27 cells) than the other gathering passes: 16 threads a particle are
+# fastest at 64^2, 4 at 256^2, one at 1024^2 (docs/results/list-probe-h200.json).
+LIST_THREADS_BY_SIZE = ((8192, 16), (131072, 4))
+
+
+class NeighbourLists:
+    """The pass that remakes every particle's candidate list where ``rebuild`` is set (by the contacts'
+    start, or at every substep where the scene's ``collision.lists`` is ``every_substep``), from the spatial
+    hash or by checking all pairs; its kernels launch every substep and return at once otherwise.
+
+    A pair left out of a list was farther apart than ``SEARCH_SCALE`` contact distances when it was made,
+    so it cannot touch before some particle has moved ``rebuild_distance``."""
+
+    def __init__(self, model: DeviceModel, state: DeviceState, threads: int) -> None:
+        settings = model.contacts.settings
+        n = model.particle_count
+        self.every_substep = settings.lists == "every_substep"
+        self.name = "lists:remake" + ("" if self.every_substep else "-if-moved")
+        self.contacts = contacts_args(model, state)
+        self.rules = model.contacts.rules
+        self.lists = state.contacts.lists()
+        self.rebuild = state.contacts.rebuild
+        self.state = state.contacts
+        self.n = n
+        self.rebuild_distance = 0.5 * (self.rules.search_scale - 1.0) * settings.separation * model.contacts.min_radius
+        self.use_hash = uses_hash(settings.broad_phase, n)
+        self.threads = threads if self.use_hash else 1
+        self.grid = HashGrid()
+        self.grid.inv_cell = 1.0 / (self.rules.search_scale * settings.separation * model.contacts.max_radius)
+        self.grid.mask = (hash_table_size(n) if self.use_hash else 1) - 1
+        self.grid.capacity = BUCKET_CAPACITY
+        self.grid.bucket_size, self.grid.bucket_items = state.contacts.bucket_size, state.contacts.bucket_items
+        if self.use_hash:
+            load_gathering(gather_neighbors_kernel(self.threads), self.threads, model.device)
+
+    def run(self, state: DeviceState) -> None:
+        if self.every_substep:
+            self.rebuild.fill_(1)
+        self._remake_if_asked(state.x)
+
+    def _remake_if_asked(self, x: wp.array) -> None:
+        if self.use_hash:
+            wp.launch(spatial_hash.insert_points, dim=self.n,
+                      inputs=[x, self.grid.inv_cell, self.grid.mask, self.grid.capacity, self.lists.epoch, self.rebuild],
+                      outputs=[self.grid.bucket_size, self.grid.bucket_items, self.lists.overflow], device=x.device)
+            launch_gather_neighbors(self.threads, x, [self.contacts, self.rules, self.lists, self.grid,
+                                                      self.state.unsorted, self.state.appended])
+        else:
+            wp.launch(particle_collision.gather_neighbors_brute_force, dim=self.n,
+                      inputs=[x, self.contacts, self.rules, self.lists], device=x.device)
+
+    def remake_now(self, x: wp.array) -> None:
+        """Remake every particle's list from positions ``x`` now, outside a substep."""
+        self.rebuild.fill_(1)
+        self._remake_if_asked(x)
+        wp.launch(particle_collision.end_remake_once, dim=1, inputs=[self.lists], device=x.device)
+
+    def closest_contact(self, x: wp.array) -> float:
+        """The closest approach of two particles that may collide, as a fraction of their contact distance
+        (a diagnostic: it waits for the device). It remakes the lists from ``x``, which the simulation may
+        then go on using: they are as valid as any it makes itself."""
+        self.remake_now(x)
+        ratio = wp.full(1, 1.0e30, dtype=float, device=x.device)
+        wp.launch(particle_collision.closest_contact_ratio, dim=self.n, inputs=[x, self.contacts],
+                  outputs=[ratio], device=x.device)
+        return float(ratio.numpy()[0])
+
+    @property
+    def overflow(self) -> int:
+        """Candidates that did not fit in a list or a hash bucket so far (waits for the device)."""
+        return int(self.lists.overflow.numpy()[0])
+
+    def candidates(self) -> list[np.ndarray]:
+        """Each particle's candidate list as last made, in index order (waits for the device)."""
+        counts = self.state.counts.numpy()
+        table = self.state.neighbors.numpy().reshape(len(counts), -1)
+        return [table[i, :count] for i, count in enumerate(counts)]

@@ -1,0 +1,200 @@
+"""The passes a substep is made of: each launches one kernel (the implicit step, its solve) with the
+arguments it built once from the device model and the state. warp_cloth/plan.py puts them in order."""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+import warp as wp
+
+from warp_cloth.kernels import colliders, gathering, motion, passes as fused
+from warp_cloth.kernels.colliders import RigidColliders
+from warp_cloth.kernels.particle_collision import Contacts
+
+from .device_model import DeviceModel
+from .state import DeviceState
+
+
+class Pass(Protocol):
+    name: str  # what it does, fused effects joined by '+'
+
+    def run(self, state: DeviceState) -> None: ...
+
+
+def launch(kernel, dim: int, state: DeviceState, inputs=(), outputs=()) -> None:
+    wp.launch(kernel, dim=dim, inputs=inputs, outputs=outputs, device=state.device)
+
+
+def explicit_step_args(model: DeviceModel) -> fused.ExplicitStepArgs:
+    args = fused.ExplicitStepArgs()
+    args.springs, args.forces, args.inv_mass, args.h = model.springs, model.forces, model.inv_mass, model.h
+    args.semi_implicit = int(model.integrator == "symplectic")
+    return args
+
+
+def contact_start_args(model: DeviceModel, state: DeviceState, bundle: RigidColliders,
+                       rebuild_distance: float) -> fused.ContactStartArgs:
+    args = fused.ContactStartArgs()
+    args.colliders, args.contacts, args.lists = bundle, contacts_args(model, state), state.contacts.lists()
+    args.v_start, args.rebuild_distance = state.contacts.v_start, rebuild_distance
+    args.inv_mass, args.h = model.inv_mass, model.h
+    return args
+
+
+def contacts_args(model: DeviceModel, state: DeviceState) -> Contacts:
+    """Particle collision's constants and state as the kernels take them."""
+    contacts, settings = Contacts(), model.contacts.settings
+    contacts.radius, contacts.separation = model.contacts.radius, settings.separation
+    contacts.neighbors, contacts.counts = state.contacts.neighbors, state.contacts.counts
+    contacts.max_neighbors = settings.max_neighbors
+    contacts.resting, contacts.pushed = state.contacts.resting, state.contacts.pushed
+    return contacts
+
+
+class GatheringPass:
+    """A gathering kernel (kernels/gathering.py) over every particle, from the current positions and
+    velocities to the next positions and, where ``new_velocities``, the next velocities (else it changes
+    the current ones in place)."""
+
+    def __init__(self, name: str, kernel: wp.Kernel, threads: int, args, device, new_positions: bool = True,
+                 new_velocities: bool = False) -> None:
+        self.name, self.kernel, self.threads, self.args = name, kernel, threads, args
+        self.new_positions, self.new_velocities = new_positions, new_velocities
+        gathering.load_gathering(kernel, threads, device)
+
+    def run(self, state: DeviceState) -> None:
+        x_out = state.x_next if self.new_positions else state.x
+        v_out = state.v_next if self.new_velocities else state.v
+        gathering.launch_gathering(self.kernel, self.threads, state.x.shape[0], state.x, state.v, x_out, v_out,
+                                   self.args)
+        if self.new_positions:
+            state.swap_positions()
+        if self.new_velocities:
+            state.swap_velocities()
+
+
+def explicit_step(model: DeviceModel, threads: int, start: fused.ContactStartArgs | None) -> GatheringPass:
+    """Spring and external forces and one explicit or symplectic Euler step; where ``start`` is given, the
+    particle collision's contact start too (the colliders, the velocities the contacts start from, the
+    lists' remake check), which saves a pass over the particles."""
+    name = f"integrate:{model.integrator}"
+    if start is None:
+        return GatheringPass(name, fused.explicit_step_kernel(threads), threads, explicit_step_args(model),
+                             model.device, new_velocities=True)
+    args = fused.ExplicitStepAndContactStartArgs()
+    args.step, args.start = explicit_step_args(model), start
+    return GatheringPass(f"{name}+contact_start", fused.explicit_step_and_contact_start_kernel(threads), threads,
+                         args, model.device, new_velocities=True)
+
+
+class ContactStart:
+    """The contacts' start alone (see ``explicit_step``), where the pass before cannot end with it."""
+
+    name = "contact_start"
+
+    def __init__(self, args: fused.ContactStartArgs) -> None:
+        self.args = args
+
+    def run(self, state: DeviceState) -> None:
+        launch(fused.contact_start, state.x.shape[0], state, inputs=[state.x, state.v, self.args])
+
+
+def projection_pass(name: str, kernel: wp.Kernel, args, model: DeviceModel, threads: int,
+                    bundle: RigidColliders | None, read_bit: int) -> GatheringPass:
+    """A Jacobi pass that moves particles and ends with the rigid colliders in ``bundle`` (None: none),
+    which mark the particles they hold up for the next pass, which reads ``read_bit``."""
+    args.inv_mass, args.h, args.read_bit = model.inv_mass, model.h, read_bit
+    args.colliders = bundle if bundle is not None else model.no_colliders()
+    return GatheringPass(name + ("+colliders" if bundle is not None else ""), kernel, threads, args, model.device)
+
+
+def limit_pass(model: DeviceModel, threads: int, bundle: RigidColliders | None, resting: wp.array | None,
+               read_bit: int) -> GatheringPass:
+    """One Jacobi pass of the strain limits; its colliders mark in ``resting`` (None: no marks)."""
+    args = fused.LimitPassArgs()
+    args.limits = model.limits
+    args.resting = resting if resting is not None else wp.zeros(0, dtype=int, device=model.device)
+    return projection_pass("limits", fused.limit_pass_kernel(threads), args, model, threads, bundle, read_bit)
+
+
+def separation_pass(model: DeviceModel, state: DeviceState, threads: int, bundle: RigidColliders | None,
+                    read_bit: int) -> GatheringPass:
+    """One Jacobi pass pushing overlapping particles apart."""
+    args = fused.SeparationPassArgs()
+    args.contacts = contacts_args(model, state)
+    return projection_pass("separation", fused.separation_pass_kernel(threads), args, model, threads, bundle,
+                           read_bit)
+
+
+def limit_and_separation_pass(model: DeviceModel, state: DeviceState, threads: int, bundle: RigidColliders | None,
+                              read_bit: int) -> GatheringPass:
+    """The limit's and the separation's Jacobi pass in one (see kernels/passes.py)."""
+    args = fused.LimitAndSeparationPassArgs()
+    args.limits, args.contacts = model.limits, contacts_args(model, state)
+    return projection_pass("limits+separation", fused.limit_and_separation_pass_kernel(threads), args, model,
+                           threads, bundle, read_bit)
+
+
+CONTACT_SLACK = 1.01  # pairs within 1% of contact count as touching in the velocity pass
+
+
+def contact_velocities(model: DeviceModel, state: DeviceState, threads: int) -> GatheringPass:
+    """Inelastic contacts with friction, then the end of the substep's list remake (see
+    kernels/particle_collision.py): the last pass that reads the remake's request clears it."""
+    args = fused.ContactVelocitiesArgs()
+    args.contacts, args.lists, args.v_start = contacts_args(model, state), state.contacts.lists(), state.contacts.v_start
+    args.inv_mass, args.contact_slack = model.inv_mass, CONTACT_SLACK
+    args.friction, args.h = model.contacts.settings.friction, model.h
+    return GatheringPass("contact_velocities+end_remake", fused.contact_velocities_kernel(threads), threads, args,
+                         model.device, new_positions=False, new_velocities=True)
+
+
+class Collide:
+    """The rigid colliders alone, where no other pass moves particles after integration."""
+
+    name = "colliders"
+
+    def __init__(self, model: DeviceModel, bundle: RigidColliders) -> None:
+        self.model, self.bundle = model, bundle
+
+    def run(self, state: DeviceState) -> None:
+        launch(colliders.collide, state.x.shape[0], state, inputs=[self.bundle, self.model.h, self.model.inv_mass],
+               outputs=[state.x, state.v])
+
+
+class DrivePins:
+    """Pins moving along their oscillation. Fixed pins need no pass: a pinned particle has inverse mass 0,
+    starts at its anchor at rest, and no pass moves it."""
+
+    name = "pins:oscillating"
+
+    def __init__(self, model: DeviceModel) -> None:
+        self.model = model
+
+    def run(self, state: DeviceState) -> None:
+        p = self.model.pins
+        launch(motion.drive_pins, p.index.shape[0], state,
+               inputs=[p.index, p.anchor, p.amplitude, p.frequency, p.phase, state.clock, self.model.h],
+               outputs=[state.x, state.v])
+
+
+class MoveSpheres:
+    """Puts moving spheres where their motion has them at the end of the substep, with its velocity."""
+
+    name = "spheres:move"
+
+    def __init__(self, model: DeviceModel) -> None:
+        self.model = model
+
+    def run(self, state: DeviceState) -> None:
+        s = self.model.sphere_motion
+        launch(motion.move_spheres, state.sphere_center.shape[0], state,
+               inputs=[state.clock, self.model.h, s.center, s.amplitude, s.frequency, s.phase],
+               outputs=[state.sphere_center, state.sphere_velocity])
+
+
+class AdvanceClock:
+    name = "clock"
+
+    def run(self, state: DeviceState) -> None:
+        launch(motion.advance_clock, 1, state, outputs=[state.clock])

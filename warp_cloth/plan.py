@@ -1,0 +1,132 @@
+"""The plan of a substep: its passes in order, built once from the effects the scene declares. An effect
+the scene does not declare has no pass, so it costs no launch and no memory. ``print(sim.plan)`` shows a
+reader the substep; docs/architecture.md says where each kind of change goes."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from itertools import groupby
+
+from warp_cloth.kernels.colliders import RigidColliders
+
+from .device_model import DeviceModel
+from .implicit import BackwardEuler
+from .neighbour_lists import LIST_THREADS_BY_SIZE, NeighbourLists
+from .passes import (AdvanceClock, Collide, ContactStart, DrivePins, MoveSpheres, Pass, contact_start_args,
+                     contact_velocities, explicit_step, limit_and_separation_pass, limit_pass, separation_pass)
+from .scene import ImplicitSolver
+from .state import DeviceState
+
+# Threads per particle of the gathering passes on a GPU by particle count (up to the first number), from
+# the spring kernel's launch times on an H200 (docs/results/lanes-probe-h200.json): 16 are fastest at
+# 64^2, 4 at 128^2, 2 at 256^2; from 1024^2 on, one thread per particle is.
+THREADS_BY_SIZE = ((8192, 16), (32768, 4), (131072, 2))
+
+
+def threads_per_particle(particles: int, device, table=THREADS_BY_SIZE) -> int:
+    """How many threads gather each particle's springs, limits and contacts (see kernels/gathering.py)."""
+    if not device.is_cuda:
+        return 1
+    return next((threads for most, threads in table if particles <= most), 1)
+
+
+@dataclass(frozen=True)
+class Plan:
+    passes: tuple[Pass, ...]
+    h: float  # the substep's length, seconds
+    threads: int  # threads per particle of the gathering passes
+    implicit: BackwardEuler | None  # the implicit step, for its solver's figures
+    lists: NeighbourLists | None  # particle collision's candidate lists
+
+    def run_substep(self, state: DeviceState) -> None:
+        for step in self.passes:
+            step.run(state)
+
+    @property
+    def pass_names(self) -> list[str]:
+        return [p.name for p in self.passes]
+
+    def __str__(self) -> str:
+        threads = f"{self.threads} thread{'s' if self.threads > 1 else ''} a particle"
+        lines = [f"substep of {self.h * 1000:.4g} ms, {threads} on the gathering passes:"]
+        for number, (name, group) in enumerate(groupby(self.pass_names), start=1):
+            repeats = len(list(group))
+            lines.append(f"  {number:>2}. {name}" + (f" x{repeats}" if repeats > 1 else ""))
+        lines.append("then the blow-up guard (check_state) after each substep")
+        return "\n".join(lines)
+
+
+def build_plan(model: DeviceModel, state: DeviceState, implicit_settings: ImplicitSolver,
+               threads: int | None = None) -> Plan:
+    """The substep, in order: moving spheres to the substep's end (nothing before the colliders reads
+    them); integration; driven pins; then, with particle collision, the contacts' start (in the explicit
+    step where nothing comes between), the candidate lists, the projection passes and the contact
+    velocities; without it, the strain limit's passes or the colliders alone; the clock last, where
+    something moves with it. ``threads``: per particle on the gathering passes (None: by size)."""
+    chosen = threads_per_particle(model.particle_count, model.device) if threads is None else threads
+    rigid = model.colliders(state.sphere_center, state.sphere_velocity) if model.has_colliders else None
+    driven_pins = model.pins is not None and model.pins.moving
+    passes: list[Pass] = []
+    if model.sphere_motion is not None:
+        passes.append(MoveSpheres(model))
+    lists = start = implicit = None
+    if model.contacts is not None:
+        list_threads = threads_per_particle(model.particle_count, model.device, LIST_THREADS_BY_SIZE) \
+            if threads is None else threads
+        lists = NeighbourLists(model, state, list_threads)
+        start = contact_start_args(model, state, rigid or model.no_colliders(), lists.rebuild_distance)
+    if model.integrator == "implicit":
+        implicit = BackwardEuler(model, implicit_settings)
+        passes.append(implicit)
+    start_in_step = start is not None and implicit is None and not driven_pins
+    if implicit is None:
+        passes.append(explicit_step(model, chosen, start if start_in_step else None))
+    if driven_pins:
+        passes.append(DrivePins(model))
+    if start is not None:
+        if not start_in_step:
+            passes.append(ContactStart(start))
+        passes.append(lists)
+        passes.extend(projection_passes(model, state, chosen, rigid))
+        passes.append(contact_velocities(model, state, chosen))
+    elif model.limits is not None:
+        last = model.limit_iterations - 1
+        passes.extend(limit_pass(model, chosen, rigid if k == last else None, None, 1)
+                      for k in range(model.limit_iterations))
+    elif rigid is not None:
+        passes.append(Collide(model, rigid))
+    if driven_pins or model.sphere_motion is not None:
+        passes.append(AdvanceClock())
+    return Plan(tuple(passes), model.h, chosen, implicit, lists)
+
+
+def projection_passes(model: DeviceModel, state: DeviceState, threads: int,
+                      rigid: RigidColliders | None) -> list[Pass]:
+    """Collisions, strain limits and rigid colliders fight over the same particles (a layer pressed onto a
+    sphere by the layers above can only give way sideways), so with particle collision they are projected
+    together: the larger of the limit's and the collision's iteration counts of passes, every one ending
+    with the colliders; the limit and the separation each run in the last of the passes as many times as
+    their own count says, so that the last pass runs all of them. A pass that runs both runs them as one
+    Jacobi pass (``projection = "joint"``), or the limit's pass and then the separation's
+    (``"sequential"``). The particles the colliders hold up (``resting``, marked at the contacts' start
+    and by each pass) do not give way to others in the passes that follow; passes alternate the bit they
+    read and the one they write (see kernels/colliders.py)."""
+    settings = model.contacts.settings
+    limit_iterations = model.limit_iterations if model.limits is not None else 0
+    total = max(settings.iterations, limit_iterations)
+    resting = state.contacts.resting
+    joint = settings.projection == "joint"
+    passes: list[Pass] = []
+    for remaining in range(total, 0, -1):
+        read_bit = 1 if (total - remaining) % 2 == 0 else 2
+        separates = remaining <= settings.iterations
+        limits_too = remaining <= limit_iterations
+        if not separates:
+            passes.append(limit_pass(model, threads, rigid, resting, read_bit))
+        elif limits_too and joint:
+            passes.append(limit_and_separation_pass(model, state, threads, rigid, read_bit))
+        else:
+            if limits_too:
+                passes.append(limit_pass(model, threads, None, None, 1))
+            passes.append(separation_pass(model, state, threads, rigid, read_bit))
+    return passes
