@@ -34,12 +34,10 @@ def limit_correction(xi: wp.vec3, wi: float, xj: wp.vec3, wj: float, min_length:
 
 
 @wp.func
-def limit_corrections(limits: StrainLimits, i: int, first: int, stride: int, x: wp.array(dtype=wp.vec3),
-                      inv_mass: wp.array(dtype=float)) -> wp.vec4:
-    """Sum of free particle i's shares of the corrections of its limited springs offsets[i] + first,
-    + stride, ... (xyz), and how many of them are out of their limits (w)."""
-    xi = x[i]
-    wi = inv_mass[i]
+def limit_corrections(limits: StrainLimits, i: int, first: int, stride: int, xi: wp.vec3, wi: float,
+                      x: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float)) -> wp.vec4:
+    """Sum of free particle i's (at xi, inverse mass wi) shares of the corrections of its limited springs
+    offsets[i] + first, + stride, ... (xyz), and how many of them are out of their limits (w)."""
     total = wp.vec4(0.0)
     for e in range(limits.offsets[i] + first, limits.offsets[i + 1], stride):
         j = limits.other[e]

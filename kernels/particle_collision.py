@@ -88,6 +88,40 @@ def is_candidate(contacts: Contacts, rules: PairRules, i: int, j: int, x: wp.arr
 
 
 @wp.func
+def add_candidate(contacts: Contacts, rules: PairRules, lists: ListState, i: int, j: int, x: wp.array(dtype=wp.vec3),
+                  count: int) -> int:
+    """Appends j to i's list if it is a candidate; returns the list's new length (a full list counts an
+    overflow instead)."""
+    if not is_candidate(contacts, rules, i, j, x):
+        return count
+    if count < contacts.max_neighbors:
+        contacts.neighbors[i * contacts.max_neighbors + count] = j
+        return count + 1
+    wp.atomic_add(lists.overflow, 0, 1)
+    return count
+
+
+@wp.func
+def sort_and_drop_repeats(neighbors: wp.array(dtype=int), start: int, count: int) -> int:
+    """Insertion sort of one particle's list, then repeats dropped; returns the new count. The order, and
+    so the float sums over the list, are then the same on every run and device, whatever order atomics
+    filled the buckets in."""
+    for a in range(1, count):
+        value = neighbors[start + a]
+        b = a - 1
+        while b >= 0 and neighbors[start + b] > value:
+            neighbors[start + b + 1] = neighbors[start + b]
+            b -= 1
+        neighbors[start + b + 1] = value
+    kept = wp.min(count, 1)
+    for a in range(1, count):
+        if neighbors[start + a] != neighbors[start + kept - 1]:
+            neighbors[start + kept] = neighbors[start + a]
+            kept += 1
+    return kept
+
+
+@wp.func
 def end_remake(lists: ListState):
     """After the last reader of ``rebuild`` (by one thread): clear it, and where lists were remade, start the
     hash's next epoch."""
@@ -111,12 +145,7 @@ def gather_neighbors_brute_force(x: wp.array(dtype=wp.vec3), contacts: Contacts,
     i = wp.tid()
     count = int(0)
     for j in range(x.shape[0]):
-        if is_candidate(contacts, rules, i, j, x):
-            if count < contacts.max_neighbors:
-                contacts.neighbors[i * contacts.max_neighbors + count] = j
-                count += 1
-            else:
-                wp.atomic_add(lists.overflow, 0, 1)
+        count = add_candidate(contacts, rules, lists, i, j, x, count)
     contacts.counts[i] = count
     lists.x_built[i] = x[i]
 
@@ -173,12 +202,10 @@ def push_out(contacts: Contacts, i: int, j: int, xi: wp.vec3, wi: float, ri: flo
 
 
 @wp.func
-def pushes(contacts: Contacts, i: int, first: int, stride: int, x: wp.array(dtype=wp.vec3),
+def pushes(contacts: Contacts, i: int, first: int, stride: int, xi: wp.vec3, wi: float, x: wp.array(dtype=wp.vec3),
            inv_mass: wp.array(dtype=float), read_bit: int) -> wp.vec4:
-    """Sum of free particle i's pushes out of its candidates first, first + stride, ... (xyz), and how many
-    overlap it (w)."""
-    xi = x[i]
-    wi = inv_mass[i]
+    """Sum of free particle i's (at xi, inverse mass wi) pushes out of its candidates first, first + stride,
+    ... (xyz), and how many overlap it (w)."""
     ri = contacts.radius[i]
     rests = contacts.resting.shape[0] > 0 and (contacts.resting[i] & read_bit) != 0
     total = wp.vec4(0.0)

@@ -46,6 +46,10 @@ class NeighbourLists:
         self.grid.mask = (hash_table_size(n) if self.use_hash else 1) - 1
         self.grid.capacity = BUCKET_CAPACITY
         self.grid.bucket_size, self.grid.bucket_items = state.contacts.bucket_size, state.contacts.bucket_items
+        # several threads a particle gather each list in two steps: the lists before their sort, and their lengths
+        several = self.use_hash and self.threads > 1
+        self.unsorted = wp.zeros(n * settings.max_neighbors if several else 0, dtype=int, device=model.device)
+        self.appended = wp.zeros(n if several else 0, dtype=int, device=model.device)
         if self.use_hash:
             load_gathering(gather_neighbors_kernel(self.threads), self.threads, model.device)
 
@@ -59,8 +63,8 @@ class NeighbourLists:
             wp.launch(spatial_hash.insert_points, dim=self.n,
                       inputs=[x, self.grid.inv_cell, self.grid.mask, self.grid.capacity, self.lists.epoch, self.rebuild],
                       outputs=[self.grid.bucket_size, self.grid.bucket_items, self.lists.overflow], device=x.device)
-            launch_gather_neighbors(self.threads, x, [self.contacts, self.rules, self.lists, self.grid,
-                                                      self.state.unsorted, self.state.appended])
+            launch_gather_neighbors(self.threads, x, [self.contacts, self.rules, self.lists, self.grid, self.unsorted,
+                                                      self.appended])
         else:
             wp.launch(particle_collision.gather_neighbors_brute_force, dim=self.n,
                       inputs=[x, self.contacts, self.rules, self.lists], device=x.device)

@@ -18,8 +18,7 @@ class ContactState:
     """Particle collision's arrays: each particle's candidate list and where it was made, the spatial
     hash (its buckets, their stamps' epoch), the remake request, what did not fit, how far this substep's
     passes pushed each particle, the velocities the contacts start from, and the particles the rigid
-    colliders hold up (``resting``, empty without colliders). ``unsorted`` and ``appended`` are the list
-    remake's scratch."""
+    colliders hold up (``resting``, empty without colliders)."""
 
     neighbors: wp.array
     counts: wp.array
@@ -32,8 +31,6 @@ class ContactState:
     pushed: wp.array
     resting: wp.array
     v_start: wp.array
-    unsorted: wp.array
-    appended: wp.array
 
     CARRIED = ("neighbors", "counts", "x_built", "rebuild", "epoch", "overflow", "bucket_size", "bucket_items",
                "pushed", "resting")  # what the next substep reads before it writes
@@ -84,11 +81,11 @@ class DeviceState:
         per_list = n * settings.max_neighbors
         table = hash_table_size(n) if uses_hash(settings.broad_phase, n) else 0
         zeros = lambda count, dtype=int: wp.zeros(count, dtype=dtype, device=device)  # noqa: E731
-        return ContactState(neighbors=zeros(per_list), counts=zeros(n), x_built=wp.full(n, wp.vec3(1.0e30), dtype=wp.vec3, device=device),
+        far = wp.full(n, wp.vec3(1.0e30), dtype=wp.vec3, device=device)  # lists never made: remake at once
+        return ContactState(neighbors=zeros(per_list), counts=zeros(n), x_built=far,
                             rebuild=zeros(1), epoch=zeros(1), overflow=zeros(1), bucket_size=zeros(table),
                             bucket_items=zeros(table * BUCKET_CAPACITY), pushed=zeros(n, float),
-                            resting=zeros(n if model.has_colliders else 0), v_start=zeros(n, wp.vec3),
-                            unsorted=zeros(per_list if table else 0), appended=zeros(n if table else 0))
+                            resting=zeros(n if model.has_colliders else 0), v_start=zeros(n, wp.vec3))
 
     @property
     def x(self) -> wp.array:
