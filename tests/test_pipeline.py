@@ -207,3 +207,22 @@ def test_driven_pins_keep_the_collision_stage_beginning_its_contacts(launches):
     launches.clear()
     sim.substep()
     assert launches["contact_start"] == 1
+
+
+def test_search_scale_sets_how_far_candidates_reach():
+    scene = wc.load_scene("pile")
+    lengths = []
+    for scale in (1.5, 3.0):
+        sim = wc.Simulator(dataclasses.replace(scene, collision=dataclasses.replace(scene.collision,
+                                                                                    search_scale=scale)),
+                           device="cpu", graph=False)
+        sim.run(24)  # the layers have landed on each other
+        sim.plan.lists.remake_now(sim.state.x)
+        lengths.append(sum(len(c) for c in sim.plan.lists.candidates()))
+        x, radius, separation = sim.positions(), sim.model.contacts.radius, scene.collision.separation
+        for i, candidates in enumerate(sim.plan.lists.candidates()[:200]):
+            reach = scale * separation * 0.5 * (radius[i] + radius[candidates])
+            assert (np.linalg.norm(x[candidates] - x[i], axis=1) < reach).all()
+    assert lengths[1] > 2 * lengths[0]
+    with pytest.raises(wc.SceneError, match="search_scale"):
+        wc.Collision(search_scale=1.0)

@@ -1,8 +1,8 @@
-"""How well the collision stage holds the cloth, frame by frame, on the scenes with particle collision: the
+"""How well particle collision holds the cloth, frame by frame, on the scenes with particle collision: the
 built-in ones, the stability suite's hard cases and the speed matrix's self-collision cloth. For each:
 the closest contact (fraction of the contact distance, 1.0 = no overlap), the most intersecting triangle
 pairs at once, and the worst strain of a limited spring (stretch > 0, compression < 0), all over every
-frame; and the wall time. Used to compare a change to the collision stage with the code before it:
+frame; and the wall time. Used to compare a change to particle collision's passes with the code before it:
 
     python tools/contact_quality.py OUT.jsonl [--projection sequential] [SCENE ...]   (SCENE: name[:frames])
 

@@ -1,6 +1,8 @@
 """Where a small frame's time goes on a GPU: per frame with run() (no writers), with step(), and as bare
-graph replay; per kernel, the device time of one frame launched stage by stage (CUDA events); and what an
-empty graph node costs. For docs/benchmarks.md's section on 64^2 frames.
+replay of the frame's captured graph (``Simulator.frame_graph()``, guard flags unread); per kernel, the
+device time of one frame launched pass by pass (``Simulator.substep()``, CUDA events); the substep's
+passes (``sim.plan.pass_names``) and threads per particle; and what an empty graph node costs. For
+docs/benchmarks.md's section on 64^2 frames.
 
     python tools/frame_profile.py OUT.json
 """
@@ -32,13 +34,16 @@ def ms_per_frame(advance) -> float:
 
 
 def replay(sim: Simulator, frames: int) -> None:
-    """The current frame's graph replayed (guard flags unread), for the bare GPU time of a frame."""
-    graph, _ = sim._graphs[(sim.state.parity, sim.frame % 2)]
+    """The next frame's graph replayed again and again (guard flags unread, the simulator's frame count
+    unchanged), for the bare GPU time of a frame."""
+    graph = sim.frame_graph()
     for _ in range(frames):
         wp.capture_launch(graph)
 
 
 def kernel_times(sim: Simulator) -> dict:
+    """Launches, and device milliseconds in all, of each kernel in one frame's substeps launched pass by
+    pass (without the blow-up guard's check)."""
     wp.timing_begin(cuda_filter=wp.TIMING_ALL)
     for _ in range(sim.substeps_per_frame):
         sim.substep()
@@ -105,9 +110,10 @@ def main(out_path: str) -> None:
             row = {"step_ms": ms_per_frame(lambda frames: [sim.step() for _ in range(frames)]),
                    "run_ms": ms_per_frame(sim.run),
                    "replay_ms": ms_per_frame(lambda frames: replay(sim, frames)),
-                   "kernels": kernel_times(sim)}
+                   "kernels": kernel_times(sim),
+                   "threads_per_particle": sim.plan.threads, "passes": sim.plan.pass_names}
             results[f"{variant} {n}"] = row
-            print(variant, n, {k: round(v, 3) for k, v in row.items() if k != "kernels"}, flush=True)
+            print(variant, n, {k: round(v, 3) for k, v in row.items() if k.endswith("_ms")}, flush=True)
     results["node_us"] = node_costs()
     print("us per graph node", results["node_us"], flush=True)
     with open(out_path, "w") as out:

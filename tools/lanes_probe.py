@@ -1,13 +1,26 @@
-"""Probe: the product's spring kernel with K threads ("lanes") per particle and P = B / K particles per
-block of B threads (``integration.euler_step_lanes``), against its one-thread kernel, all compiled without
-fast math, and the one-thread kernel with it. A graph of 100 launches of each on the hanging matrix cloth;
-microseconds per launch and the largest position difference from the one-thread kernel. Not used by the
-package. docs/results/lanes-probe-h200.json is its output on the H200 (its first version, with its own
-copies of these kernels, measured the same to within 0.3 us at 64^2).
+"""Probe: the explicit step's kernel (spring forces, gravity and drag, one symplectic Euler step: the
+``explicit_step_kernel`` of kernels/passes.py) by threads per particle. Each form is a gathering kernel
+(kernels/gathering.py) of K threads per particle, ``BLOCK / K`` particles to a block of ``BLOCK`` = 128
+threads, launched with ``launch_gathering`` on the arguments the simulator's own explicit step takes
+(``warp_cloth.passes.explicit_step_args``) on the hanging matrix cloth after 2 frames:
+
+* ``loop``: one thread per particle, built without fast math from the same gather and finish functions;
+* ``K{K}_B128``: K = 2 .. 16 threads per particle, without fast math;
+* ``loop_fast_math``, ``K{K}_B128_fast_math``: the product's kernels (fast math), one and K threads.
+
+A graph of 100 launches of each: microseconds per launch, and the largest position difference from
+``loop``. The measurement behind ``THREADS_BY_SIZE`` in warp_cloth/plan.py; not used by the package. On
+the CPU (a check that it runs) one 8^2 cloth, one thread per particle.
+
+docs/results/lanes-probe-h200.json is the H200 output of this probe's earlier version, from before the
+restructure: the same spring kernel taking its arrays one by one, its one-thread form launched one thread a
+particle, and blocks of 64, 128 and 256 threads (the B of its keys); blocks are now ``BLOCK`` alone, and
+the fast-math rows with several threads are new.
 
     python tools/lanes_probe.py OUT.json [cuda|cpu]
 """
 
+import functools
 import json
 import statistics
 import sys
@@ -15,16 +28,18 @@ import time
 
 import warp as wp
 
-from gather_threads import set_fast_math
 from warp_cloth.bench import matrix_scene
-from warp_cloth.kernels import integration
+from warp_cloth.kernels import passes as fused
+from warp_cloth.kernels.gathering import BLOCK, gathering_kernel, launch_gathering, load_gathering
+from warp_cloth.passes import explicit_step_args
 from warp_cloth.simulator import Simulator
-from warp_cloth.stages import no_contact_start, upload_springs
 
 wp.config.log_level = wp.LOG_ERROR
+THREADS = (2, 4, 8, 16)
 
 
 def per_launch_us(launch, device) -> float:
+    """Median over 5 repeats of 10 replays of a graph of 100 ``launch()``es, per launch."""
     launch()
     wp.synchronize_device(device)
     with wp.ScopedCapture(device=device) as capture:
@@ -41,43 +56,45 @@ def per_launch_us(launch, device) -> float:
     return statistics.median(times)
 
 
+@functools.cache
+def precise_explicit_step(threads: int) -> wp.Kernel:
+    """The product's explicit step kernel for ``threads`` threads per particle, without fast math."""
+    return gathering_kernel("explicit_step_precise", fused.ExplicitStepArgs, fused.gather_spring_forces,
+                            fused.finish_explicit_step, threads, options={"fast_math": False})
+
+
 def main() -> None:
     device = sys.argv[2] if len(sys.argv) > 2 else "cuda"
     sizes = (64, 128, 256, 1024) if device == "cuda" else (8,)
-    shapes = [(K, B) for B in (64, 128, 256) for K in (1, 2, 4, 8, 16)] if device == "cuda" else [(1, 1)]
+    threads_tried = THREADS if device == "cuda" else ()
     results = {}
     for n in sizes:
         sim = Simulator(matrix_scene("hanging", n, "symplectic"), device=device)
         sim.run(2)
-        inv_mass = wp.array(sim.model.inv_mass, dtype=float, device=device)
-        start_inputs, start_outputs = no_contact_start(device)
-        args = [sim.state.x, sim.state.v, inv_mass, wp.vec3(0.0, -9.81, 0.0), 0.0, 1.0 / 240, 1,
-                *upload_springs(sim.model, device), *start_inputs]
-        x_out, v_out = wp.empty_like(sim.state.x), wp.empty_like(sim.state.v)
-        outputs = [x_out, v_out, *start_outputs]
-        particles = sim.model.particle_count
-        row = {}
+        args = explicit_step_args(sim.device_model)
+        x, v = sim.state.x, sim.state.v
+        x_out, v_out = wp.empty_like(x), wp.empty_like(v)
+        particles = sim.device_model.particle_count
 
-        def one_thread() -> None:
-            wp.launch(integration.euler_step, particles, inputs=args, outputs=outputs, device=device)
+        def time_kernel(kernel: wp.Kernel, threads: int) -> float:
+            load_gathering(kernel, threads, sim.device)
+            return per_launch_us(lambda: launch_gathering(kernel, threads, particles, x, v, x_out, v_out, args),
+                                 sim.device)
 
-        set_fast_math(False)
-        row["loop"] = per_launch_us(one_thread, device)
+        row = {"loop": time_kernel(precise_explicit_step(1), 1)}
         reference = x_out.numpy().copy()
-        for K, B in shapes:
-            kernel, blocks = integration.euler_step_lanes(K, B), (particles + B // K - 1) // (B // K)
-            row[f"K{K}_B{B}"] = per_launch_us(
-                lambda: wp.launch_tiled(kernel, dim=[blocks], inputs=args, outputs=outputs, block_dim=B,
-                                        device=device), device)
-            row[f"K{K}_B{B}_max_diff"] = float(abs(x_out.numpy() - reference).max())
-        set_fast_math(True)
-        row["loop_fast_math"] = per_launch_us(one_thread, device)
-        row["loop_fast_math_max_diff"] = float(abs(x_out.numpy() - reference).max())
+        forms = [("loop_fast_math", fused.explicit_step_kernel(1), 1)]
+        for K in threads_tried:
+            forms += [(f"K{K}_B{BLOCK}", precise_explicit_step(K), K),
+                      (f"K{K}_B{BLOCK}_fast_math", fused.explicit_step_kernel(K), K)]
+        for name, kernel, threads in forms:
+            row[name] = time_kernel(kernel, threads)
+            row[f"{name}_max_diff"] = float(abs(x_out.numpy() - reference).max())
         results[n] = row
         print(n, {k: round(v, 2) for k, v in row.items() if not k.endswith("diff")},
               "max diff", max(v for k, v in row.items() if k.endswith("diff")), flush=True)
-    json.dump({"device": str(wp.get_device(device).name), "warp": wp.config.version, "per_launch_us": results},
-              open(sys.argv[1], "w"), indent=1)
+    json.dump({"device": str(wp.get_device(device).name), "warp": wp.config.version, "block": BLOCK,
+               "per_launch_us": results}, open(sys.argv[1], "w"), indent=1)
 
 
 if __name__ == "__main__":

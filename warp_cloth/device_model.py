@@ -128,7 +128,7 @@ class DeviceModel:
         else:
             rules.grid_xy = upload(contacts.grid_xy, int, device)
             rules.exclude_adjacent = upload(contacts.exclude_adjacent, int, device)
-        rules.search_scale = SEARCH_SCALE
+        rules.search_scale = settings.search_scale
         return ParticleContacts(settings, upload(contacts.radius, float, device), rules, contacts.max_radius,
                                 float(contacts.radius.min()))
 
@@ -156,5 +156,3 @@ def no_colliders(device) -> RigidColliders:
     colliders.radius = colliders.friction = wp.zeros(0, dtype=float, device=device)
     return colliders
 
-
-SEARCH_SCALE = 1.5  # candidates within 1.5 contact distances, so passes that move particles miss none

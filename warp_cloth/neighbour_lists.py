@@ -24,7 +24,7 @@ class NeighbourLists:
     start, or at every substep where the scene's ``collision.lists`` is ``every_substep``), from the spatial
     hash or by checking all pairs; its kernels launch every substep and return at once otherwise.
 
-    A pair left out of a list was farther apart than ``SEARCH_SCALE`` contact distances when it was made,
+    A pair left out of a list was farther apart than ``search_scale`` contact distances when it was made,
     so it cannot touch before some particle has moved ``rebuild_distance``."""
 
     def __init__(self, model: DeviceModel, state: DeviceState, threads: int) -> None:

@@ -329,9 +329,11 @@ class Collision:
     ``joint`` (each particle moves by its limits' mean correction and its pushes' mean, no limit
     correction pulling into a contact): a launch less a pass, contacts held closer, strain a little less
     so; ``sequential`` runs the limit, then the separation on what it left (docs/accuracy.md). Each
-    particle's candidate pairs are listed within 1.5 contact distances and the lists remade ``when_moved``:
-    once some particle has moved far enough to meet a pair left out; ``every_substep`` remakes them every
-    substep (slower, with the same contacts: for measuring the broad phase).
+    particle's candidate pairs are listed within ``search_scale`` contact distances and the lists remade
+    ``when_moved``: once some particle has moved half the margin that leaves, so that no pair left out can
+    touch before; ``every_substep`` remakes them every substep (slower, with the same contacts: for
+    measuring the broad phase). A larger ``search_scale`` remakes less often and makes longer lists
+    (tools/skin_probe.py measures the trade).
     """
 
     self_collision: bool = field(default=True, metadata={"toml": "self"})
@@ -344,6 +346,7 @@ class Collision:
     broad_phase: Literal["auto", "hash_grid", "brute_force"] = "auto"
     projection: Literal["joint", "sequential"] = "joint"
     lists: Literal["when_moved", "every_substep"] = "when_moved"
+    search_scale: float = 1.5
 
     def __post_init__(self) -> None:
         check_fields(self)
@@ -356,6 +359,8 @@ class Collision:
         _whole_in(self.iterations, 1, MAX_ITERATIONS, "iterations")
         _non_negative(self.friction, "friction")
         _require(4 <= self.max_neighbors <= 256, "max_neighbors", "a whole number in [4, 256]", self.max_neighbors)
+        _require(1.05 <= self.search_scale <= 4.0, "search_scale", "a number of contact distances in [1.05, 4]",
+                 self.search_scale)
 
 
 @dataclass(frozen=True)
