@@ -14,9 +14,12 @@ import warp_cloth as wc
 from conftest import REPO, run_cli, run_cli_in_process
 
 # Sends the process a real Ctrl-C (SIGINT) the moment something first imports Warp, the slow import a
-# user is most likely to interrupt; then runs the command line as its console script or as -m does.
+# user is most likely to interrupt; then runs the command line as its console script or as -m does. (A
+# process started in the background inherits SIGINT ignored, where Ctrl-C could not reach it: the child
+# restores Python's handler first.)
 CTRL_C_DURING_WARP_IMPORT = """
 import builtins, os, signal, sys
+signal.signal(signal.SIGINT, signal.default_int_handler)  # as in a terminal, even where the tests run in the background
 real_import = builtins.__import__
 def import_with_ctrl_c(name, *args, **kwargs):
     if name == "warp" and not getattr(builtins, "ctrl_c_sent", False):
