@@ -111,7 +111,7 @@ def main() -> None:
                           f"{row['gathering_precise_us']:8.1f} without", flush=True)
                     continue
                 case = Case(f"{variant} {n}^2 symplectic", matrix_scene(variant, n, "symplectic"),
-                            matrix_frames(n, device), fresh=False, grid=n, threads_per_particle=threads)
+                            matrix_frames(n, device), fresh=False, threads_per_particle=threads)
                 result = time_case(case, device, 3)
                 row = dict(dataclasses.asdict(result), config=config, variant=variant, n=n,
                            ms_per_frame=result.ms_per_frame)

@@ -35,7 +35,7 @@ def main() -> None:
         for scale in SCALES:
             scene = matrix_scene("self", n, "symplectic")
             scene = dataclasses.replace(scene, collision=dataclasses.replace(scene.collision, search_scale=scale))
-            case = Case(f"self {n}^2", scene, matrix_frames(n, device), fresh=False, grid=n)
+            case = Case(f"self {n}^2", scene, matrix_frames(n, device), fresh=False)
             result = time_case(case, device, 3)
             probe = Simulator(case.scene, device=device)
             probe.run(48)

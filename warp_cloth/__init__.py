@@ -20,6 +20,7 @@ if TYPE_CHECKING:
     from .scene_file import builtin_scene_names, load_scene, scene_from_dict
     from .simulator import RunSummary, Simulator
     from .stability import UnstableStepWarning
+    from .strain import StrainMonitor, StrainReport
     from .writers import CheckpointWriter, PolyWriter, UsdWriter
 
 # Imported at first use: they load numpy, Warp and USD (seconds on a first run), which the command line
@@ -28,7 +29,7 @@ _IMPORTED_AT_FIRST_USE = {
     "builtin_scene_names": "scene_file", "load_scene": "scene_file", "scene_from_dict": "scene_file",
     "RunSummary": "simulator", "Simulator": "simulator", "PolyWriter": "writers", "UsdWriter": "writers",
     "CheckpointWriter": "writers",
-    "UnstableStepWarning": "stability",
+    "UnstableStepWarning": "stability", "StrainMonitor": "strain", "StrainReport": "strain",
 }
 
 __version__ = "0.1.0"
@@ -36,6 +37,7 @@ __version__ = "0.1.0"
 __all__ = [
     "Box", "CheckpointWriter", "Cloth", "Collision", "Ground", "ImplicitSolver", "Limit", "Oscillation", "Output",
     "Pin", "PolyWriter", "RunSummary", "Scene", "SceneError", "Simulation", "Simulator", "Sphere", "SpringKind",
+    "StrainMonitor", "StrainReport",
     "UnstableSimulation", "UnstableStepWarning", "UsdWriter", "builtin_scene_names", "load_scene", "scene_from_dict",
 ]
 

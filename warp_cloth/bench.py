@@ -30,9 +30,10 @@ from .scene import Cloth, Collision, Ground, Limit, Oscillation, Pin, Scene, Sim
 from .scene_file import load_scene
 from .cli import EXIT_BAD_INPUT
 from .errors import SceneError, UnstableSimulation
-from .newton_compare import SPHERE_CENTER, SPHERE_RADIUS, SWING_DEGREES, max_edge_strain, swung_origin
+from .newton_compare import SPHERE_CENTER, SPHERE_RADIUS, SWING_DEGREES, swung_origin
 from .simulator import Simulator, resolve_device
 from .stability import UnstableStepWarning
+from .strain import StrainMonitor, StrainReport
 from .writers import PolyWriter, UsdWriter
 
 # The seed's C++ on this machine kind (docs/seed-baseline.md). It always ran its O(n^2)
@@ -81,7 +82,6 @@ class Case:
     frames: int
     outputs: bool = False
     fresh: bool = True  # each repeat starts from t = 0 (else frames continue on one warmed simulator)
-    grid: int | None = None  # the matrix's n x n cloths: measure the worst edge strain after the runs
     threads_per_particle: int | None = None  # the Simulator's (None: chosen by size)
 
 
@@ -97,7 +97,8 @@ class Result:
     outputs: bool
     seconds: list[float]
     stable: bool = True
-    max_strain: float | None = None  # worst edge strain after the runs (matrix cloths only)
+    max_strain: float | None = None  # worst edge strain (stretch or compression) over every frame the runs made
+    strain: dict | None = None  # its StrainReport in figures: stretch, compression, percentiles, share past 11%
 
     @property
     def median_seconds(self) -> float:
@@ -274,10 +275,10 @@ def matrix_frames(n: int, device: str) -> int:
 
 def matrix_cases(device: str) -> list[Case]:
     cases = [Case(f"{variant} {n}^2 {integrator}", matrix_scene(variant, n, integrator), matrix_frames(n, device),
-                  fresh=False, grid=n)
+                  fresh=False)
              for variant in MATRIX_VARIANTS for n in matrix_sizes(device) for integrator in ("symplectic", "implicit")]
     return cases + [Case(f"{SPRINGS_ONLY} {n}^2 symplectic", matrix_scene(SPRINGS_ONLY, n, "symplectic"),
-                         matrix_frames(n, device), fresh=False, grid=n) for n in matrix_sizes(device)]
+                         matrix_frames(n, device), fresh=False) for n in matrix_sizes(device)]
 
 
 @dataclass(frozen=True)
@@ -335,10 +336,20 @@ def time_case(case: Case, device: str, repeats: int) -> Result:
                 seconds.append(time.perf_counter() - started)
     except UnstableSimulation:
         return result([], stable=False)
-    timed = result(seconds)
-    if case.grid is None:
-        return timed
-    return dataclasses.replace(timed, max_strain=max_edge_strain(sim.positions(), case.grid))
+    covered = case.frames if case.fresh else 2 + repeats * case.frames
+    report = strain_over(case, device, covered)
+    figures = {"stretch": report.stretch, "compression": report.compression, "frames": report.frames,
+               "p99": report.percentiles[99.0], "p99.9": report.percentiles[99.9], "beyond_11": report.beyond}
+    return dataclasses.replace(result(seconds), max_strain=report.worst, strain=figures)
+
+
+def strain_over(case: Case, device: str, frames: int) -> StrainReport:
+    """Edge strain over every frame of a run of the case as the timed runs made it (those go unmeasured:
+    measuring every frame waits for each), from t = 0."""
+    sim = Simulator(case.scene, device=device, threads_per_particle=case.threads_per_particle)
+    monitor = StrainMonitor()
+    sim.run(frames, writers=[monitor])
+    return monitor.report()
 
 
 def environment(device: str) -> dict:

@@ -268,11 +268,15 @@ def _cmd_run(args: argparse.Namespace) -> int:
     checkpointer = CheckpointWriter(checkpoint_file, outputs) if checkpoint_file is not None else None
     if checkpointer is not None:
         writers.append(checkpointer)
+    from .strain import StrainMonitor
+
+    strain = StrainMonitor()
+    writers.append(strain)
     check = None
     if args.check:
         from .diagnostics import CheckReport
 
-        check = CheckReport(sys.stdout)
+        check = CheckReport(sys.stdout, strain)
         writers.append(check)
     frames = scene.simulation.frames - sim.frame
     try:
@@ -305,7 +309,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     print(f"{scene.name}: {status} ({summary.substeps} substeps of {sim.dt * 1e3:.3g} ms, "
           f"{sim_settings.integrator}) of {summary.particles} particles on {sim.device.alias} in "
           f"{summary.wall_seconds:.2f} s ({summary.particle_substeps_per_second:.3g} particle-substeps/s); "
-          f"wrote {wrote}" + (f"; {check.summary()}" if check else ""))
+          f"wrote {wrote}; {strain.report().describe()}" + (f"; {check.summary()}" if check else ""))
     return EXIT_SIGNAL_BASE + summary.stop_signal if summary.interrupted else 0
 
 

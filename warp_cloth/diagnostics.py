@@ -8,6 +8,7 @@ import warp as wp
 from warp_cloth.kernels import intersections
 
 from .simulator import Simulator
+from .strain import StrainMonitor
 
 
 class TriangleIntersections:
@@ -48,11 +49,14 @@ class ContactGaps:
 
 
 class CheckReport:
-    """A frame writer that prints, after every frame, the intersecting triangle pairs and (with
-    particle collision) the closest contact, and keeps the worst of each for a summary."""
+    """A frame writer that prints, after every frame, the intersecting triangle pairs, (with particle
+    collision) the closest contact, and (given the run's ``StrainMonitor``, a writer before this one) the
+    frame's worst edge stretch and compression; it keeps the worst intersections and contact for a
+    summary."""
 
-    def __init__(self, stream) -> None:
+    def __init__(self, stream, strain: "StrainMonitor | None" = None) -> None:
         self.stream = stream
+        self.strain = strain
         self.worst_intersections = (0, 0)  # (count, frame)
         self.closest_contact: tuple[float, int] | None = None
 
@@ -70,6 +74,9 @@ class CheckReport:
             line += f", closest contact {ratio:.3f} of contact distance"
             if self.closest_contact is None or ratio < self.closest_contact[0]:
                 self.closest_contact = (ratio, frame)
+        if self.strain is not None:
+            stretch, compression = self.strain.frame_strain()
+            line += f", worst edge +{100 * stretch:.1f}% / -{100 * compression:.1f}%"
         print(line, file=self.stream, flush=True)
 
     def finish(self, sim: Simulator, frames_written: int) -> None:

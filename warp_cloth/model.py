@@ -131,6 +131,8 @@ class Model:
     pins: Pins | None
     spheres: Spheres | None
     contacts: ParticleContacts | None
+    edges: np.ndarray  # (e, 2) int32: every cloth's structural and shear edges, springs or not
+    edge_rest: np.ndarray  # (e,) float32: their rest lengths
 
     @property
     def particle_count(self) -> int:
@@ -162,8 +164,17 @@ def build_model(scene: Scene) -> Model:
         velocities[pins.index] = pins.amplitude * omega * np.cos(pins.phase)[:, None]
     springs = _springs(scene, grids, offsets, n)
     limits = _limits(springs, n, _attachments(scene, offsets, selections))
+    edges, edge_rest = _edges(grids, offsets)
     return Model(grids, tuple(offsets), positions, velocities, masses, inv_mass, cloth_id, springs, limits,
-                 pins, _spheres(scene), _contacts(scene, grids))
+                 pins, _spheres(scene), _contacts(scene, grids), edges, edge_rest)
+
+
+def _edges(grids, offsets) -> tuple[np.ndarray, np.ndarray]:
+    """The structural and shear edges of every cloth, whose strain is what the strain limit bounds."""
+    chosen = [np.isin(g.spring_kind, (STRUCTURAL, SHEAR)) for g in grids]
+    edges = np.concatenate([g.springs[c] + offset for g, c, offset in zip(grids, chosen, offsets)])
+    rest = np.concatenate([g.rest_lengths[c] for g, c in zip(grids, chosen)])
+    return edges.astype(np.int32).reshape(-1, 2), rest.astype(np.float32)
 
 
 def _springs(scene: Scene, grids, offsets, n: int) -> Springs | None:

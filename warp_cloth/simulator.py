@@ -51,7 +51,8 @@ class FrameWriter(Protocol):
     ``finish`` ends a run that completed. A writer may also have ``sync(sim)``, called every
     ``Simulator.SYNC_SECONDS`` and before the run ends, to make the frames so far safe on disk, and
     ``abandon(sim, frames_written, outcome)``, called instead of ``finish`` when the run was stopped by a
-    signal or failed (``warp_cloth.output.RunOutcome``); a writer without it gets ``finish``.
+    signal or failed (``warp_cloth.output.RunOutcome``); a writer without it gets ``finish``. A writer with
+    kernels of its own may have ``load_kernels(sim)``, called with the simulator's, before the run's clock starts.
     """
 
     def begin(self, sim: "Simulator") -> None: ...
@@ -403,6 +404,9 @@ class Simulator:
         writers = list(writers)
         with SlowStepNotice("compiling kernels") if progress else contextlib.nullcontext():
             self.prepare()
+            for w in writers:
+                if hasattr(w, "load_kernels"):
+                    w.load_kernels(self)
         bar = Progress(frames, f"{self.scene.name} on {self.device.alias}") if progress else None
         begun: list[FrameWriter] = []
         written = 0
