@@ -72,3 +72,25 @@ def hold_to_pin(limits: StrainLimits, i: int, p: wp.vec3, vel: wp.vec3, h: float
         return p, vel
     correction = d * (max_length / length - 1.0)
     return p + correction, vel + correction / h
+
+
+@wp.func
+def limit_violation(limits: StrainLimits, i: int, x: wp.array(dtype=wp.vec3)) -> float:
+    """How far particle i's limited springs and its attachment lie outside their allowed lengths, the worst
+    of them, as a fraction of the length it should be within (0 where all hold)."""
+    xi = x[i]
+    worst = float(0.0)
+    for e in range(limits.offsets[i], limits.offsets[i + 1]):
+        length = wp.length(xi - x[limits.other[e]])
+        longest = limits.max_length[e]
+        shortest = limits.min_length[e]
+        if length > longest:
+            worst = wp.max(worst, (length - longest) / longest)
+        elif length < shortest:
+            worst = wp.max(worst, (shortest - length) / shortest)
+    if limits.attachment_pin.shape[0] > 0:
+        pin = limits.attachment_pin[i]
+        if pin >= 0:
+            reach = limits.attachment_length[i]
+            worst = wp.max(worst, (wp.length(xi - x[pin]) - reach) / wp.max(reach, 1.0e-12))
+    return worst

@@ -278,6 +278,20 @@ def velocity_changes(contacts: Contacts, i: int, first: int, stride: int, x: wp.
     return total
 
 
+@wp.func
+def deepest_overlap(contacts: Contacts, i: int, x: wp.array(dtype=wp.vec3)) -> float:
+    """How far particle i's closest candidate lies inside their contact distance, as a fraction of it (0
+    where none does)."""
+    xi = x[i]
+    ri = contacts.radius[i]
+    worst = float(0.0)
+    for k in range(contacts.counts[i]):
+        j = contacts.neighbors[i * contacts.max_neighbors + k]
+        target = contact_distance(ri, contacts.radius[j], contacts.separation)
+        worst = wp.max(worst, (target - wp.length(xi - x[j])) / target)
+    return worst
+
+
 @wp.kernel
 def closest_contact_ratio(x: wp.array(dtype=wp.vec3), contacts: Contacts, ratio: wp.array(dtype=float)):
     """Diagnostic: the smallest distance / contact distance over the pairs of freshly made lists."""

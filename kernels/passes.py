@@ -15,9 +15,9 @@ from .colliders import RigidColliders, collide_and_mark, collide_particle
 from .forces import ExternalForces, external_acceleration, external_damping
 from .gathering import BLOCK, FAST_MATH, gathering_kernel, sum_over_threads, thread_layout
 from .integration import explicit_step
-from .limits import StrainLimits, hold_to_pin, limit_corrections, mean_of
-from .particle_collision import (Contacts, ListState, PairRules, add_candidate, begin_contact, end_remake, is_candidate,
-                                 mean_push, pushes, sort_and_drop_repeats, velocity_changes)
+from .limits import StrainLimits, hold_to_pin, limit_corrections, limit_violation, mean_of
+from .particle_collision import (Contacts, ListState, PairRules, add_candidate, begin_contact, deepest_overlap,
+                                 end_remake, is_candidate, mean_push, pushes, sort_and_drop_repeats, velocity_changes)
 from .spatial_hash import cell_of, count_in, first_visit, neighbour_bucket, stamp_of
 from .springs import Springs, add_system_diagonal, add_system_times, spring_forces, stiffness_times_motion
 
@@ -276,6 +276,35 @@ def separation_pass_kernel(threads: int) -> wp.Kernel:
 def limit_and_separation_pass_kernel(threads: int) -> wp.Kernel:
     return gathering_kernel("limit_and_separation_pass", LimitAndSeparationPassArgs, gather_limits_and_pushes,
                             finish_limit_and_separation_pass, threads)
+
+
+# --- the check of a converged projection: how far limits and contacts are from holding ---------------------
+
+@wp.struct
+class ResidualArgs:
+    limits: StrainLimits
+    check_limits: int  # 0: the scene limits no strain (the limits' arrays are empty)
+    limit_tolerance: float  # of an allowed length
+    contacts: Contacts
+    check_contacts: int  # 0: no particle collision
+    contact_tolerance: float  # of a contact distance
+    inv_mass: wp.array(dtype=float)
+
+
+@wp.kernel
+def projection_residual(x: wp.array(dtype=wp.vec3), args: ResidualArgs, residual: wp.array(dtype=float)):
+    """residual[0] becomes the worst of each free particle's limit violation and contact overlap, each in
+    its own tolerances (1: at the tolerance), where some exceed theirs (where none does it is left as is)."""
+    i = wp.tid()
+    if args.inv_mass[i] == 0.0:
+        return
+    worst = float(0.0)
+    if args.check_limits != 0:
+        worst = limit_violation(args.limits, i, x) / args.limit_tolerance
+    if args.check_contacts != 0:
+        worst = wp.max(worst, deepest_overlap(args.contacts, i, x) / args.contact_tolerance)
+    if worst > 1.0:
+        wp.atomic_max(residual, 0, worst)
 
 
 # --- contact velocities, and the end of the substep's list remake -------------------------------------------

@@ -1,5 +1,6 @@
 """Pins follow their formula; colliders keep particles out; friction decelerates at mu g."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -79,3 +80,20 @@ def test_ground_friction_stops_a_sliding_cloth_after_v0_squared_over_2_mu_g(mu):
     # stopping distance differs from the analytic one by O(v0 h).
     np.testing.assert_allclose(travelled, expected, atol=v0 * sim.dt)
     assert np.abs(sim.velocities()).max() < 1e-6
+
+
+def test_pins_that_pull_the_cloth_past_its_limit_are_refused(tmp_path):
+    # two corners of an 8 m cloth swinging 1.5 m in opposite phase along the edge between them: 11 m apart
+    # at the extremes, where a 10% limit allows 8.8 m
+    scene = wc.load_scene("oscillating_pins")
+    cloth = scene.cloths[0]
+    along = tuple(dataclasses.replace(pin, motion=dataclasses.replace(pin.motion, axis=(1.0, 0.0, 0.0)))
+                  for pin in cloth.pins)
+    pulled = dataclasses.replace(scene, cloths=(dataclasses.replace(cloth, pins=along),))
+    with pytest.raises(wc.SceneError, match=r"cloth\[0\]\.pins.*move 11 m apart.*across 8 m of cloth \(at most 8\.8 m\)"):
+        wc.Simulator(pulled, device="cpu")
+    shorter = dataclasses.replace(pulled, simulation=dataclasses.replace(scene.simulation, frames=12))
+    wc.Simulator(shorter, device="cpu")  # over half a second they stay within reach
+    loose = dataclasses.replace(pulled, cloths=(dataclasses.replace(pulled.cloths[0], limit=None),))
+    wc.Simulator(loose, device="cpu")  # without a limit nothing bounds the stretch
+    wc.Simulator(scene, device="cpu")  # the built-in scene swings them across the cloth: 8.54 m at most

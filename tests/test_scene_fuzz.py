@@ -45,6 +45,9 @@ OUT_OF_RANGE: dict[tuple[str, str], list[Any]] = {
     ("Simulation", "substeps"): [0, 10**8],
     ("Simulation", "dt"): [0.0, -0.01, 1e-9, 1.0],
     ("Simulation", "limit_iterations"): [0, 10**9],
+    ("Simulation", "limit_tolerance"): [0.0, -0.01, 0.5],
+    ("Simulation", "limit_max_passes"): [1, 10**6],
+    ("Simulation", "limit_chebyshev_rho"): [-0.5, 1.0, 2.0],
     ("Simulation", "max_speed"): [0.0, -1.0],
     ("Simulation", "drag"): [-1.0],
     ("Cloth", "name"): BAD_NAMES,
@@ -76,6 +79,8 @@ OUT_OF_RANGE: dict[tuple[str, str], list[Any]] = {
     ("Collision", "friction"): [-1.0],
     ("Collision", "max_neighbors"): [3, 300],
     ("Collision", "radius"): [0.0, -1.0],
+    ("Collision", "search_scale"): [1.0, 5.0],
+    ("Collision", "tolerance"): [0.0, 0.6],
 }
 WRONG_FLOAT = [NAN, INF, -INF, 1e39, -1e39, "1.0", True, [1.0], {"x": 1.0}]
 WRONG_INT = [2.5, "3", True, 2**31, -(2**31) - 1, [1]]

@@ -40,6 +40,9 @@ def _parser() -> argparse.ArgumentParser:
     step.add_argument("--substeps", type=int, help="substeps per frame")
     step.add_argument("--dt", type=float, help="time step in seconds (rounded to a whole number of substeps)")
     run.add_argument("--integrator", choices=INTEGRATORS, help="time integrator")
+    run.add_argument("--limit-solve", choices=("fixed", "converged"), dest="limit_solve",
+                     help="strain limits in the scene's limit_iterations passes a substep, or until within "
+                          "limit_tolerance (at most limit_max_passes)")
     run.add_argument("--out", help="output folder (default: the scene's, 'out')")
     usd = run.add_mutually_exclusive_group()
     usd.add_argument("--usd", metavar="PATH", help="USD file to write (default: OUT/SCENE.usdc)")
@@ -75,7 +78,8 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def _with_overrides(scene: Scene, args: argparse.Namespace) -> Scene:
-    sim_changes = {k: getattr(args, k) for k in ("frames", "integrator") if getattr(args, k) is not None}
+    sim_changes = {k: getattr(args, k, None) for k in ("frames", "integrator", "limit_solve")
+                   if getattr(args, k, None) is not None}
     if args.substeps is not None:
         sim_changes.update(substeps=args.substeps, dt=None)
     if args.dt is not None:
@@ -102,6 +106,17 @@ def _cmd_scenes() -> int:
     for name in names:
         print(f"{name:<{width}}  {load_scene(name).description}")
     return 0
+
+
+def _limit_solve(sim) -> str:
+    """What a converged limit solve took over the run, for the summary line ('' for a fixed one)."""
+    if sim.plan.projection is None:
+        return ""
+    stats = sim.solver_stats()
+    cap = sim.scene.simulation.limit_max_passes
+    ended = ("every solve ended within tolerance" if stats.limit_residual <= 1.0 else
+             f"some reached the cap of {cap} passes at {stats.limit_residual:.3g} tolerances")
+    return f"; limit solve up to {stats.limit_passes} passes a substep, {ended}"
 
 
 def _cmd_plan(args: argparse.Namespace) -> int:
@@ -309,7 +324,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     print(f"{scene.name}: {status} ({summary.substeps} substeps of {sim.dt * 1e3:.3g} ms, "
           f"{sim_settings.integrator}) of {summary.particles} particles on {sim.device.alias} in "
           f"{summary.wall_seconds:.2f} s ({summary.particle_substeps_per_second:.3g} particle-substeps/s); "
-          f"wrote {wrote}; {strain.report().describe()}" + (f"; {check.summary()}" if check else ""))
+          f"wrote {wrote}; {strain.report().describe()}{_limit_solve(sim)}" + (f"; {check.summary()}" if check else ""))
     return EXIT_SIGNAL_BASE + summary.stop_signal if summary.interrupted else 0
 
 

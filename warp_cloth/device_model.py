@@ -12,7 +12,7 @@ import warp as wp
 from warp_cloth.kernels.colliders import RigidColliders
 from warp_cloth.kernels.forces import ExternalForces
 from warp_cloth.kernels.limits import StrainLimits
-from warp_cloth.kernels.particle_collision import PairRules
+from warp_cloth.kernels.particle_collision import Contacts, PairRules
 from warp_cloth.kernels.springs import Springs
 
 from .model import Model
@@ -72,6 +72,10 @@ class DeviceModel:
         self.springs = self._springs(model, n)
         self.limits = self._limits(model)
         self.limit_iterations = simulation.limit_iterations
+        self.limit_solve = simulation.limit_solve
+        self.limit_tolerance = simulation.limit_tolerance
+        self.limit_max_passes = simulation.limit_max_passes
+        self.limit_chebyshev_rho = simulation.limit_chebyshev_rho
         self.pins = None if model.pins is None else PinMotion(
             upload(model.pins.index, int, device), upload(model.pins.anchor, wp.vec3, device),
             upload(model.pins.amplitude, wp.vec3, device), upload(model.pins.frequency, float, device),
@@ -131,6 +135,24 @@ class DeviceModel:
         rules.search_scale = settings.search_scale
         return ParticleContacts(settings, upload(contacts.radius, float, device), rules, contacts.max_radius,
                                 float(contacts.radius.min()))
+
+    def no_limits(self) -> StrainLimits:
+        """No limited spring: for checks of scenes without strain limits."""
+        limits, empty_int, empty_float = StrainLimits(), wp.zeros(0, dtype=int, device=self.device), \
+            wp.zeros(0, dtype=float, device=self.device)
+        limits.offsets = wp.zeros(self.particle_count + 1, dtype=int, device=self.device)
+        limits.other = limits.attachment_pin = empty_int
+        limits.min_length = limits.max_length = limits.attachment_length = empty_float
+        return limits
+
+    def no_contacts(self) -> Contacts:
+        """No particle collision: for checks of scenes without it (never read)."""
+        contacts, empty_int, empty_float = Contacts(), wp.zeros(0, dtype=int, device=self.device), \
+            wp.zeros(0, dtype=float, device=self.device)
+        contacts.radius = contacts.pushed = empty_float
+        contacts.neighbors = contacts.counts = contacts.resting = empty_int
+        contacts.separation, contacts.max_neighbors = 1.0, 1
+        return contacts
 
     def colliders(self, center: wp.array, velocity: wp.array) -> RigidColliders:
         """The scene's rigid colliders as the kernels take them, spheres where ``center`` and ``velocity``

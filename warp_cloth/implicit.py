@@ -24,12 +24,15 @@ PARTIALS_2 = 128  # second level, summed by one thread
 
 @dataclass(frozen=True)
 class SolveStats:
-    """The worst over the substeps since the last reading."""
+    """The worst over the substeps since the last reading: of the implicit step's solve (None with the
+    explicit integrators) and of a converged limit solve (None with ``limit_solve = "fixed"``)."""
 
-    cg_iterations: int
-    cg_relative_residual: float  # sqrt(r.z / r0.z0) of the preconditioned residual
-    newton_iterations: int
-    newton_residual: float | None  # RMS over free particles of |M (v - v0) - h f| / m, in m/s
+    cg_iterations: int | None = None
+    cg_relative_residual: float | None = None  # sqrt(r.z / r0.z0) of the preconditioned residual
+    newton_iterations: int | None = None
+    newton_residual: float | None = None  # RMS over free particles of |M (v - v0) - h f| / m, in m/s
+    limit_passes: int | None = None  # projection passes a substep
+    limit_residual: float | None = None  # where a solve ended, in its tolerances (at most 1: within them)
 
 
 class BackwardEuler:

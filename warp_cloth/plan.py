@@ -11,6 +11,7 @@ from warp_cloth.kernels.colliders import RigidColliders
 
 from .device_model import DeviceModel
 from .implicit import BackwardEuler
+from .limit_solve import ConvergedProjection
 from .neighbour_lists import LIST_THREADS_BY_SIZE, NeighbourLists
 from .passes import (AdvanceClock, Collide, ContactStart, DrivePins, MoveSpheres, Pass, contact_start_args,
                      contact_velocities, explicit_step, limit_and_separation_pass, limit_pass, separation_pass)
@@ -37,6 +38,7 @@ class Plan:
     threads: int  # threads per particle of the gathering passes
     implicit: BackwardEuler | None  # the implicit step, for its solver's figures
     lists: NeighbourLists | None  # particle collision's candidate lists
+    projection: ConvergedProjection | None  # the converged limit solve, for its figures
 
     def run_substep(self, state: DeviceState) -> None:
         for step in self.passes:
@@ -66,10 +68,11 @@ def build_plan(model: DeviceModel, state: DeviceState, implicit_settings: Implic
     chosen = threads_per_particle(model.particle_count, model.device) if threads is None else threads
     rigid = model.colliders(state.sphere_center, state.sphere_velocity) if model.has_colliders else None
     driven_pins = model.pins is not None and model.pins.moving
+    converged = model.limit_solve == "converged"
     passes: list[Pass] = []
     if model.sphere_motion is not None:
         passes.append(MoveSpheres(model))
-    lists = start = implicit = None
+    lists = start = implicit = projection = None
     if model.contacts is not None:
         list_threads = threads_per_particle(model.particle_count, model.device, LIST_THREADS_BY_SIZE) \
             if threads is None else threads
@@ -87,8 +90,15 @@ def build_plan(model: DeviceModel, state: DeviceState, implicit_settings: Implic
         if not start_in_step:
             passes.append(ContactStart(start))
         passes.append(lists)
-        passes.extend(projection_passes(model, state, chosen, rigid))
+        if converged:
+            projection = ConvergedProjection(model, state, projection_pair(model, state, chosen, rigid))
+            passes.append(projection)
+        else:
+            passes.extend(projection_passes(model, state, chosen, rigid))
         passes.append(contact_velocities(model, state, chosen))
+    elif model.limits is not None and converged:
+        projection = ConvergedProjection(model, state, [limit_pass(model, chosen, rigid, None, 1)] * 2)
+        passes.append(projection)
     elif model.limits is not None:
         last = model.limit_iterations - 1
         passes.extend(limit_pass(model, chosen, rigid if k == last else None, None, 1)
@@ -97,7 +107,20 @@ def build_plan(model: DeviceModel, state: DeviceState, implicit_settings: Implic
         passes.append(Collide(model, rigid))
     if driven_pins or model.sphere_motion is not None:
         passes.append(AdvanceClock())
-    return Plan(tuple(passes), model.h, chosen, implicit, lists)
+    return Plan(tuple(passes), model.h, chosen, implicit, lists, projection)
+
+
+def projection_pair(model: DeviceModel, state: DeviceState, threads: int,
+                    rigid: RigidColliders | None) -> list[Pass]:
+    """Two projection passes of particle collision (with the strain limits where the scene has them), for a
+    converged solve to repeat: each ends with the colliders, the first reading the resting marks' first
+    bit, the second the other (see ``projection_passes``)."""
+    if model.limits is None:
+        return [separation_pass(model, state, threads, rigid, bit) for bit in (1, 2)]
+    if model.contacts.settings.projection == "joint":
+        return [limit_and_separation_pass(model, state, threads, rigid, bit) for bit in (1, 2)]
+    return [p for bit in (1, 2)
+            for p in (limit_pass(model, threads, None, None, 1), separation_pass(model, state, threads, rigid, bit))]
 
 
 def projection_passes(model: DeviceModel, state: DeviceState, threads: int,

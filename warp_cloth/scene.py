@@ -333,7 +333,9 @@ class Collision:
     ``when_moved``: once some particle has moved half the margin that leaves, so that no pair left out can
     touch before; ``every_substep`` remakes them every substep (slower, with the same contacts: for
     measuring the broad phase). A larger ``search_scale`` remakes less often and makes longer lists
-    (tools/skin_probe.py measures the trade).
+    (tools/skin_probe.py measures the trade). With ``simulation.limit_solve = "converged"`` the passes go on
+    (``iterations`` is not used) until no candidate pair is more than ``tolerance`` of its contact distance
+    inside it, and the strain limits hold to theirs.
     """
 
     self_collision: bool = field(default=True, metadata={"toml": "self"})
@@ -347,6 +349,7 @@ class Collision:
     projection: Literal["joint", "sequential"] = "joint"
     lists: Literal["when_moved", "every_substep"] = "when_moved"
     search_scale: float = 1.5
+    tolerance: float = 0.05
 
     def __post_init__(self) -> None:
         check_fields(self)
@@ -359,6 +362,8 @@ class Collision:
         _whole_in(self.iterations, 1, MAX_ITERATIONS, "iterations")
         _non_negative(self.friction, "friction")
         _require(4 <= self.max_neighbors <= 256, "max_neighbors", "a whole number in [4, 256]", self.max_neighbors)
+        _require(0.0 < self.tolerance <= 0.5, "tolerance", "a fraction of the contact distance in (0, 0.5]",
+                 self.tolerance)
         _require(1.05 <= self.search_scale <= 4.0, "search_scale", "a number of contact distances in [1.05, 4]",
                  self.search_scale)
 
@@ -397,7 +402,16 @@ class Simulation:
     so that frames fall on exact times: for ``dt`` that is the largest such step at most 1% over ``dt``
     (so the seed's 0.0052, 0.0104, 0.0208 and 0.04165 s at 24 fps become 1/8, 1/4, 1/2 and 1 frame).
     ``drag`` is a linear air drag rate in 1/s (acceleration ``-drag * v``). A run stops as unstable when
-    a particle's state is not finite or faster than ``max_speed`` (m/s)."""
+    a particle's state is not finite or faster than ``max_speed`` (m/s).
+
+    The strain limits (with particle collision, together with the contacts; with the rigid colliders in
+    every pass) are projected in Jacobi passes: ``limit_solve = "fixed"`` runs ``limit_iterations`` of them
+    a substep, however far that leaves the cloth from its limits (the run's summary says how far);
+    ``"converged"`` runs them in pairs until no limited spring is more than ``limit_tolerance`` of its
+    allowed length outside it (and no pair of particles more than ``collision.tolerance`` of their
+    contact distance inside it), at most ``limit_max_passes`` a substep (``Simulator.solver_stats()``
+    says how many it took); ``limit_chebyshev_rho`` > 0 accelerates each pair of passes by Chebyshev's
+    semi-iterative method with that spectral radius (docs/strain-solve.md)."""
 
     fps: float = 24.0
     frames: int = 240
@@ -407,6 +421,10 @@ class Simulation:
     gravity: Vec3 = (0.0, -9.81, 0.0)
     drag: float = 0.0
     limit_iterations: int = 4
+    limit_solve: Literal["fixed", "converged"] = "fixed"
+    limit_tolerance: float = 0.005
+    limit_max_passes: int = 200
+    limit_chebyshev_rho: float = 0.0
     max_speed: float = 1000.0
 
     def __post_init__(self) -> None:
@@ -429,6 +447,11 @@ class Simulation:
         _non_negative(self.drag, "drag")
         _positive(self.max_speed, "max_speed")
         _whole_in(self.limit_iterations, 1, MAX_ITERATIONS, "limit_iterations")
+        _require(0.0 < self.limit_tolerance <= 0.1, "limit_tolerance", "a fraction of an allowed length in (0, 0.1]",
+                 self.limit_tolerance)
+        _whole_in(self.limit_max_passes, 2, MAX_ITERATIONS, "limit_max_passes")
+        _require(0.0 <= self.limit_chebyshev_rho < 1.0, "limit_chebyshev_rho",
+                 "0 (no acceleration) or a spectral radius in (0, 1)", self.limit_chebyshev_rho)
 
     @property
     def substeps_per_frame(self) -> int | None:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import os
 import signal
 import threading
@@ -24,6 +25,7 @@ from .output import RunOutcome
 from .progress import Progress, SlowStepNotice
 from .device_model import DeviceModel
 from .implicit import SolveStats
+from .pin_reach import check_pins_within_reach
 from .plan import Plan, build_plan
 from .scene import Scene
 from .stability import UnstableStepWarning, beyond_bound_message, resolve_step
@@ -111,8 +113,12 @@ def check_work(scene: Scene, substeps: int) -> None:
     the collision's iterations, whichever is more; the implicit solve's Newton x CG iterations at most)."""
     sim = scene.simulation
     factors = {"simulation.dt" if sim.dt is not None else "simulation.substeps": substeps}
-    iterations = {"simulation.limit_iterations": sim.limit_iterations if any(c.limit for c in scene.cloths) else 0,
-                  "collision.iterations": scene.collision.iterations if scene.collision is not None else 0}
+    limited = any(c.limit for c in scene.cloths)
+    converged = sim.limit_solve == "converged" and (limited or scene.collision is not None)
+    iterations = {"simulation.limit_iterations": sim.limit_iterations if limited and not converged else 0,
+                  "simulation.limit_max_passes": sim.limit_max_passes if converged else 0,
+                  "collision.iterations": scene.collision.iterations if scene.collision is not None and not converged
+                  else 0}
     if sim.integrator == "implicit":
         iterations["implicit.cg_max_iterations"] = scene.implicit.newton_iterations * scene.implicit.cg_max_iterations
     passes = 1 + max(iterations.values())
@@ -200,6 +206,7 @@ class Simulator:
             self._frame_done = [wp.Event(self.device), wp.Event(self.device)]
         self._refuse_initial_overlap()
         self._refuse_start_inside_colliders()
+        check_pins_within_reach(self.scene, self.model)
 
     def _refuse_initial_overlap(self) -> None:
         """Cloths that start deep inside each other (or themselves) would be shot apart: refuse them."""
@@ -283,9 +290,14 @@ class Simulator:
         return None if self.plan.lists is None else self.plan.lists.closest_contact(self.state.x)
 
     def solver_stats(self) -> "SolveStats | None":
-        """For the implicit integrator: the worst CG and Newton figures of the substeps since the last call
-        (reading them waits for the device); None for the explicit integrators."""
-        return self.plan.implicit.read_stats() if self.plan.implicit is not None else None
+        """The worst figures of the substeps since the last call (reading them waits for the device): the
+        implicit integrator's CG and Newton iterations and residuals, and a converged limit solve's passes
+        and residual; None where the scene has neither."""
+        stats = self.plan.implicit.read_stats() if self.plan.implicit is not None else None
+        if self.plan.projection is not None:
+            passes, residual = self.plan.projection.read_stats()
+            stats = dataclasses.replace(stats or SolveStats(), limit_passes=passes, limit_residual=residual)
+        return stats
 
     def substep(self) -> None:
         """Advance one substep, launching pass by pass (for tests and debugging; frames are faster)."""

@@ -1,0 +1,81 @@
+"""The bookkeeping of an iterative solve whose loop runs on the device (``wp.capture_while`` over ``active``):
+it goes on while the residual its passes leave is above the tolerance and the passes taken are below the
+cap, and keeps the worst figures since the host last read them.
+
+``counts`` = [passes this substep, cap]; ``residual`` = [the worst violation the last check found];
+``stats`` = [most passes a substep, largest residual a solve ended with] since they were last read."""
+
+import warp as wp
+
+
+@wp.kernel
+def start_solve(max_passes: int, active: wp.array(dtype=int), counts: wp.array(dtype=int),
+                residual: wp.array(dtype=float)):
+    active[0] = 1
+    counts[0] = 0
+    counts[1] = max_passes
+    residual[0] = 0.0
+
+
+@wp.kernel
+def continue_solve(tolerance: float, passes: int, active: wp.array(dtype=int), counts: wp.array(dtype=int),
+                   residual: wp.array(dtype=float), stats: wp.array(dtype=float)):
+    """After ``passes`` more passes and a check: stop within the tolerance or at the cap, recording how it
+    ended; else clear the residual for the next check."""
+    counts[0] = counts[0] + passes
+    if residual[0] <= tolerance or counts[0] >= counts[1]:
+        active[0] = 0
+        stats[0] = wp.max(stats[0], float(counts[0]))
+        stats[1] = wp.max(stats[1], residual[0])
+    else:
+        residual[0] = 0.0
+
+
+@wp.kernel
+def chebyshev_step(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float),
+                   omega: wp.array(dtype=float), gamma: float, x_start: wp.array(dtype=wp.vec3),
+                   v_start: wp.array(dtype=wp.vec3), x_before: wp.array(dtype=wp.vec3),
+                   v_before: wp.array(dtype=wp.vec3)):
+    """Chebyshev's semi-iterative acceleration of an iteration that took ``x_start`` to ``x`` (Wang 2015):
+    x' = omega (gamma (x - x_start) + x_start - x_before) + x_before, the velocities likewise (so that a
+    velocity that followed its position's corrections still does); then the iterates shift. ``omega`` =
+    [this iteration's weight, the spectral radius squared, iterations so far]."""
+    i = wp.tid()
+    if inv_mass[i] == 0.0:
+        return
+    w = omega[0]
+    xs = x_start[i]
+    vs = v_start[i]
+    xb = x_before[i]
+    vb = v_before[i]
+    if omega[2] < 1.5:
+        xb = xs  # the first iteration has no iterate before it: plain
+        vb = vs
+    xn = w * (gamma * (x[i] - xs) + xs - xb) + xb
+    vn = w * (gamma * (v[i] - vs) + vs - vb) + vb
+    x[i] = xn
+    v[i] = vn
+    x_before[i] = xs
+    v_before[i] = vs
+    x_start[i] = xn
+    v_start[i] = vn
+
+
+@wp.kernel
+def next_chebyshev_weight(omega: wp.array(dtype=float)):
+    """omega = [weight, rho^2, iterations]: 1, then 2 / (2 - rho^2), then 4 / (4 - rho^2 omega)."""
+    k = omega[2] + 1.0
+    omega[2] = k
+    if k < 1.5:
+        omega[0] = 1.0
+    elif k < 2.5:
+        omega[0] = 2.0 / (2.0 - omega[1])
+    else:
+        omega[0] = 4.0 / (4.0 - omega[1] * omega[0])
+
+
+@wp.kernel
+def start_chebyshev(rho_squared: float, omega: wp.array(dtype=float)):
+    omega[0] = 1.0
+    omega[1] = rho_squared
+    omega[2] = 0.0

@@ -1,0 +1,80 @@
+"""The converged projection: Jacobi passes of the strain limits (with particle collision, limits and
+separation together), every pass ending with the rigid colliders, run in pairs inside a device-side loop
+until the limits and contacts hold to their tolerances or the cap on passes is reached; each pair
+optionally accelerated by Chebyshev's semi-iterative method (``limit_chebyshev_rho``, the pair's
+spectral radius as estimated for it; docs/strain-solve.md measures both)."""
+
+from __future__ import annotations
+
+import warp as wp
+
+from warp_cloth.kernels import passes as fused
+from warp_cloth.kernels import solve_loop
+
+from .device_model import DeviceModel
+from .passes import Pass, contacts_args
+from .state import DeviceState
+
+
+class ConvergedProjection:
+    """Runs ``body`` (passes that leave the positions' buffer parity as they found it) until the check
+    after it finds every limit and contact within tolerance, or ``limit_max_passes`` passes have run."""
+
+    def __init__(self, model: DeviceModel, state: DeviceState, body: list[Pass]) -> None:
+        assert len(body) % 2 == 0, "a loop's body must leave the positions where it found them"
+        self.body = body
+        self.name = f"until within tolerance, {len(body)} at a time: " + ", ".join(p.name for p in body)
+        self.max_passes = model.limit_max_passes
+        device = model.device
+        args = fused.ResidualArgs()
+        args.check_limits = int(model.limits is not None)
+        args.limits = model.limits if model.limits is not None else model.no_limits()
+        args.limit_tolerance = model.limit_tolerance
+        args.check_contacts = int(model.contacts is not None)
+        args.contacts = contacts_args(model, state) if model.contacts is not None else model.no_contacts()
+        args.contact_tolerance = model.contacts.settings.tolerance if model.contacts is not None else 1.0
+        args.inv_mass = model.inv_mass
+        self.args = args
+        self.active = wp.zeros(1, dtype=int, device=device)
+        self.counts = wp.zeros(2, dtype=int, device=device)
+        self.residual = wp.zeros(1, dtype=float, device=device)
+        self.stats = wp.zeros(2, dtype=float, device=device)  # see kernels/solve_loop.py
+        self.rho = model.limit_chebyshev_rho or None
+        if self.rho is not None:
+            n = model.particle_count
+            self.omega = wp.zeros(3, dtype=float, device=device)
+            self.iterates = [wp.zeros(n, dtype=wp.vec3, device=device) for _ in range(4)]
+
+    def run(self, state: DeviceState) -> None:
+        device = state.device
+        wp.launch(solve_loop.start_solve, dim=1, inputs=[self.max_passes],
+                  outputs=[self.active, self.counts, self.residual], device=device)
+
+        if self.rho is not None:
+            wp.launch(solve_loop.start_chebyshev, dim=1, inputs=[self.rho * self.rho], outputs=[self.omega],
+                      device=device)
+            wp.copy(self.iterates[0], state.x)
+            wp.copy(self.iterates[1], state.v)
+
+        def iteration() -> None:
+            if self.rho is not None:
+                wp.launch(solve_loop.next_chebyshev_weight, dim=1, outputs=[self.omega], device=device)
+            for step in self.body:
+                step.run(state)
+            if self.rho is not None:
+                wp.launch(solve_loop.chebyshev_step, dim=state.x.shape[0],
+                          inputs=[state.x, state.v, self.args.inv_mass, self.omega, 1.0, *self.iterates],
+                          device=device)
+            wp.launch(fused.projection_residual, dim=state.x.shape[0], inputs=[state.x, self.args],
+                      outputs=[self.residual], device=device)
+            wp.launch(solve_loop.continue_solve, dim=1, inputs=[1.0, len(self.body)],
+                      outputs=[self.active, self.counts, self.residual, self.stats], device=device)
+
+        wp.capture_while(self.active, iteration)
+
+    def read_stats(self) -> tuple[int, float]:
+        """The most passes a substep took and the largest residual a solve ended with (in tolerances: 1 or
+        less within them) since the last reading (waits for the device)."""
+        passes, residual = self.stats.numpy()
+        self.stats.zero_()
+        return int(passes), float(residual)
