@@ -3,7 +3,6 @@ the device until every limited spring is within tolerance, capped, and reported.
 
 import dataclasses
 
-import numpy as np
 import pytest
 
 import warp_cloth as wc
