@@ -25,6 +25,7 @@ class ConvergedProjection:
         self.body = body
         self.name = f"until within tolerance, {len(body)} at a time: " + ", ".join(p.name for p in body)
         self.max_passes = model.limit_max_passes
+        self.h = model.h
         device = model.device
         args = fused.ResidualArgs()
         args.check_limits = int(model.limits is not None)
@@ -42,7 +43,7 @@ class ConvergedProjection:
         self.rho = model.limit_chebyshev_rho or None
         if self.rho is not None:
             n = model.particle_count
-            self.omega = wp.zeros(3, dtype=float, device=device)
+            self.omega = wp.zeros(4, dtype=float, device=device)
             self.iterates = [wp.zeros(n, dtype=wp.vec3, device=device) for _ in range(4)]
 
     def run(self, state: DeviceState) -> None:
@@ -63,10 +64,13 @@ class ConvergedProjection:
                 step.run(state)
             if self.rho is not None:
                 wp.launch(solve_loop.chebyshev_step, dim=state.x.shape[0],
-                          inputs=[state.x, state.v, self.args.inv_mass, self.omega, 1.0, *self.iterates],
+                          inputs=[state.x, state.v, self.args.inv_mass, self.omega, 1.0, self.h, *self.iterates],
                           device=device)
             wp.launch(fused.projection_residual, dim=state.x.shape[0], inputs=[state.x, self.args],
                       outputs=[self.residual], device=device)
+            if self.rho is not None:
+                wp.launch(solve_loop.restart_chebyshev_if_worse, dim=1, inputs=[self.residual], outputs=[self.omega],
+                          device=device)
             wp.launch(solve_loop.continue_solve, dim=1, inputs=[1.0, len(self.body)],
                       outputs=[self.active, self.counts, self.residual, self.stats], device=device)
 

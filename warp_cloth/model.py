@@ -163,7 +163,7 @@ def build_model(scene: Scene) -> Model:
         positions[pins.index] = pins.anchor + pins.amplitude * np.sin(pins.phase)[:, None]
         velocities[pins.index] = pins.amplitude * omega * np.cos(pins.phase)[:, None]
     springs = _springs(scene, grids, offsets, n)
-    limits = _limits(springs, n, _attachments(scene, offsets, selections))
+    limits = _limits(springs, n, _attachments(scene, offsets, selections), _long_range(scene, grids, offsets))
     edges, edge_rest = _edges(grids, offsets)
     return Model(grids, tuple(offsets), positions, velocities, masses, inv_mass, cloth_id, springs, limits,
                  pins, _spheres(scene), _contacts(scene, grids), edges, edge_rest)
@@ -202,16 +202,47 @@ def _springs(scene: Scene, grids, offsets, n: int) -> Springs | None:
                    Adjacency.of(pairs, n))
 
 
-def _limits(springs: Springs | None, n: int, attachments: tuple[np.ndarray, np.ndarray]) -> StrainLimits | None:
+def _limits(springs: Springs | None, n: int, attachments: tuple[np.ndarray, np.ndarray],
+            long_range: tuple[np.ndarray, np.ndarray]) -> StrainLimits | None:
+    """The limited springs and the long-range limits (longest lengths only) as incidence lists."""
     if springs is None:
         return None
     limited = np.isfinite(springs.limit_max)
     if not limited.any():
         return None
-    adjacency = Adjacency.of(springs.pairs[limited], n)
-    chosen = np.nonzero(limited)[0][adjacency.spring]
-    return StrainLimits(adjacency.offsets, adjacency.other, springs.limit_min[chosen], springs.limit_max[chosen],
-                        *attachments)
+    far_pairs, far_max = long_range
+    pairs = np.concatenate([springs.pairs[limited], far_pairs])
+    lo = np.concatenate([springs.limit_min[limited], np.zeros(len(far_pairs), dtype=np.float32)])
+    hi = np.concatenate([springs.limit_max[limited], far_max])
+    adjacency = Adjacency.of(pairs, n)
+    return StrainLimits(adjacency.offsets, adjacency.other, lo[adjacency.spring], hi[adjacency.spring], *attachments)
+
+
+def _long_range(scene: Scene, grids, offsets) -> tuple[np.ndarray, np.ndarray]:
+    """Pairs 2, 4, 8, ... cells apart along the rows and columns of the cloths whose limit asks for
+    ``long_range``, with (1 + stretch) times the rest length of the path of structural springs between them
+    as their longest length."""
+    pairs, longest = [np.zeros((0, 2), dtype=np.int64)], [np.zeros(0, dtype=np.float32)]
+    for c, (cloth, grid) in enumerate(zip(scene.cloths, grids)):
+        if cloth.limit is None or not cloth.limit.long_range:
+            continue
+        nx, ny = cloth.resolution
+        rest = grid.positions.reshape(ny + 1, nx + 1, 3)
+        for axis, cells in ((1, nx), (0, ny)):  # along a row (x), then along a column (y)
+            steps = np.linalg.norm(np.diff(rest, axis=axis), axis=2)  # each structural spring's rest length
+            path = np.concatenate([np.zeros_like(steps.take([0], axis=axis)), np.cumsum(steps, axis=axis)],
+                                  axis=axis)
+            index = np.arange((nx + 1) * (ny + 1)).reshape(ny + 1, nx + 1)
+            span = 2
+            while span <= cells:
+                start = index.take(np.arange(cells + 1 - span), axis=axis)
+                end = index.take(np.arange(span, cells + 1), axis=axis)
+                length = path.take(np.arange(span, cells + 1), axis=axis) - path.take(np.arange(cells + 1 - span),
+                                                                                      axis=axis)
+                pairs.append(np.stack([start.ravel(), end.ravel()], axis=1) + offsets[c])
+                longest.append(((1.0 + cloth.limit.stretch) * length.ravel()).astype(np.float32))
+                span *= 2
+    return np.concatenate(pairs), np.concatenate(longest)
 
 
 def _attachments(scene: Scene, offsets: list[int],

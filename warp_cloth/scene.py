@@ -136,11 +136,17 @@ class Limit:
     its resolution, where springs alone pass a pull on one row per pass. They are off by default: they
     fight a kinematic collider that pushes the cloth out of their reach (the fast_sphere hard case reached
     36 to 60 m/s and up to 23 crossing triangle pairs with them, 23 to 30 m/s and none without).
+
+    With ``long_range``, each particle is also held within (1 + stretch) times the rest length of the
+    path along its row and its column to the particles 2, 4, 8, ... cells away: limits that the springs'
+    own limits imply (a path of springs each within its limit is), so they never ask for what the cloth
+    cannot give, but that carry a correction across 2^k cells in one pass (docs/strain-solve.md).
     """
 
     stretch: float = 0.10
     compression: float = 0.10
     attachments: bool = False
+    long_range: bool = False
 
     def __post_init__(self) -> None:
         check_fields(self)

@@ -1,0 +1,74 @@
+"""What the converged limit solve takes on the CPU: the most projection passes a substep and the worst edge
+strain over every frame, for the methods of docs/strain-solve.md (plain Jacobi, Chebyshev-accelerated
+Jacobi with restarts, and that with long-range limits), on the hanging cloth at one implicit step a frame
+from 10^2 to 80^2 and on the speed matrix's sphere and self-collision cloths at 64^2.
+
+    python tools/strain_solve_probe.py OUT.json [--device cpu]
+
+docs/results/strain-solve-cpu.json is its output on this project's CPU."""
+
+import argparse
+import dataclasses
+import json
+import time
+
+import warp as wp
+
+import warp_cloth as wc
+from warp_cloth.bench import environment, matrix_scene
+
+METHODS = {"fixed": ("fixed", 0.0, False), "jacobi": ("converged", 0.0, False),
+           "chebyshev": ("converged", 0.99, False), "chebyshev+long_range": ("converged", 0.99, True)}
+
+
+def configured(scene: wc.Scene, method: str, max_passes: int) -> wc.Scene:
+    solve, rho, long_range = METHODS[method]
+    cloths = tuple(dataclasses.replace(c, limit=dataclasses.replace(c.limit, long_range=long_range)) for c in scene.cloths)
+    return dataclasses.replace(scene, cloths=cloths, simulation=dataclasses.replace(
+        scene.simulation, limit_solve=solve, limit_chebyshev_rho=rho, limit_max_passes=max_passes))
+
+
+def hanging(n: int) -> wc.Scene:
+    scene = wc.load_scene("hanging")
+    cloth = scene.cloths[0]
+    cloth = dataclasses.replace(cloth, resolution=(n, n), mass=cloth.mass * 100 / (n * n))
+    return dataclasses.replace(scene, name=f"hanging_{n}", cloths=(cloth,), simulation=dataclasses.replace(
+        scene.simulation, integrator="implicit", dt=0.04165, substeps=None))
+
+
+def measure(scene: wc.Scene, frames: int, device: str) -> dict:
+    sim = wc.Simulator(scene, device=device)
+    monitor = wc.StrainMonitor()
+    started = time.perf_counter()
+    try:
+        sim.run(frames, writers=[monitor])
+        stable = True
+    except wc.UnstableSimulation:
+        stable = False
+    seconds = time.perf_counter() - started
+    stats, report = sim.solver_stats(), monitor.report()
+    return {"seconds": round(seconds, 2), "stable": stable, "stretch": report.stretch, "compression": report.compression,
+            "passes": stats.limit_passes if stats and stats.limit_passes is not None else None,
+            "residual": stats.limit_residual if stats and stats.limit_residual is not None else None,
+            "closest_contact": sim.closest_contact()}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("out")
+    parser.add_argument("--device", default="cpu")
+    args = parser.parse_args()
+    wp.config.log_level = wp.LOG_ERROR
+    cases = [(hanging(n), 24, m) for n in (10, 20, 40, 80) for m in METHODS if not (n == 80 and m == "jacobi")]
+    cases += [(matrix_scene(v, 64, "symplectic"), 60, m) for v in ("sphere", "self") for m in METHODS]
+    rows = []
+    for scene, frames, method in cases:
+        row = {"scene": scene.name, "frames": frames, "method": method,
+               **measure(configured(scene, method, 1000), frames, args.device)}
+        rows.append(row)
+        print(row, flush=True)
+    json.dump({"environment": environment(args.device), "rows": rows}, open(args.out, "w"), indent=1)
+
+
+if __name__ == "__main__":
+    main()
