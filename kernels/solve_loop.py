@@ -33,33 +33,26 @@ def continue_solve(tolerance: float, passes: int, active: wp.array(dtype=int), c
 
 @wp.kernel
 def chebyshev_step(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float),
-                   omega: wp.array(dtype=float), gamma: float, h: float, x_start: wp.array(dtype=wp.vec3),
-                   v_start: wp.array(dtype=wp.vec3), x_before: wp.array(dtype=wp.vec3),
-                   v_before: wp.array(dtype=wp.vec3)):
+                   omega: wp.array(dtype=float), h: float, x_start: wp.array(dtype=wp.vec3),
+                   x_before: wp.array(dtype=wp.vec3)):
     """Chebyshev's semi-iterative acceleration of an iteration that took ``x_start`` to ``x`` (Wang 2015):
-    x' = omega (gamma (x - x_start) + x_start - x_before) + x_before, the velocities likewise (so that a
-    velocity that followed its position's corrections still does); then the iterates shift. ``omega`` =
-    [this iteration's weight, the spectral radius squared, iterations so far]."""
+    x' = omega (x - x_before) + x_before, the velocity changed by that extrapolation over h, as for every
+    projection here (extrapolating the velocities themselves blew the matrix's sphere cloth up); then the
+    iterates shift. ``omega`` = [this iteration's weight, the spectral radius squared, iterations so far,
+    the last residual]."""
     i = wp.tid()
     if inv_mass[i] == 0.0:
         return
-    w = omega[0]
     xs = x_start[i]
-    vs = v_start[i]
     xb = x_before[i]
-    vb = v_before[i]
     if omega[2] < 1.5:
         xb = xs  # the first iteration has no iterate before it: plain
-        vb = vs
     xi = x[i]
-    xn = w * (gamma * (xi - xs) + xs - xb) + xb
-    vn = v[i] + (xn - xi) / h
+    xn = omega[0] * (xi - xb) + xb
     x[i] = xn
-    v[i] = vn
+    v[i] = v[i] + (xn - xi) / h
     x_before[i] = xs
-    v_before[i] = vs
     x_start[i] = xn
-    v_start[i] = vn
 
 
 @wp.kernel

@@ -44,7 +44,7 @@ class ConvergedProjection:
         if self.rho is not None:
             n = model.particle_count
             self.omega = wp.zeros(4, dtype=float, device=device)
-            self.iterates = [wp.zeros(n, dtype=wp.vec3, device=device) for _ in range(4)]
+            self.iterates = [wp.zeros(n, dtype=wp.vec3, device=device) for _ in range(2)]  # start, before
 
     def run(self, state: DeviceState) -> None:
         device = state.device
@@ -55,7 +55,6 @@ class ConvergedProjection:
             wp.launch(solve_loop.start_chebyshev, dim=1, inputs=[self.rho * self.rho], outputs=[self.omega],
                       device=device)
             wp.copy(self.iterates[0], state.x)
-            wp.copy(self.iterates[1], state.v)
 
         def iteration() -> None:
             if self.rho is not None:
@@ -64,7 +63,7 @@ class ConvergedProjection:
                 step.run(state)
             if self.rho is not None:
                 wp.launch(solve_loop.chebyshev_step, dim=state.x.shape[0],
-                          inputs=[state.x, state.v, self.args.inv_mass, self.omega, 1.0, self.h, *self.iterates],
+                          inputs=[state.x, state.v, self.args.inv_mass, self.omega, self.h, *self.iterates],
                           device=device)
             wp.launch(fused.projection_residual, dim=state.x.shape[0], inputs=[state.x, self.args],
                       outputs=[self.residual], device=device)
