@@ -1,7 +1,7 @@
 """What the converged limit solve takes on the CPU: the most projection passes a substep and the worst edge
 strain over every frame, for the methods of docs/strain-solve.md (plain Jacobi, Chebyshev-accelerated
 Jacobi with restarts, and that with long-range limits), on the hanging cloth at one implicit step a frame
-from 10^2 to 80^2 and on the speed matrix's sphere and self-collision cloths at 64^2.
+from 10^2 to 160^2 and on the speed matrix's sphere and self-collision cloths at 64^2.
 
     python tools/strain_solve_probe.py OUT.json [--device cpu]
 
@@ -60,6 +60,7 @@ def main() -> None:
     args = parser.parse_args()
     wp.config.log_level = wp.LOG_ERROR
     cases = [(hanging(n), 24, m) for n in (10, 20, 40, 80) for m in METHODS if not (n == 80 and m == "jacobi")]
+    cases += [(hanging(160), 24, "fixed"), (hanging(160), 24, "chebyshev+long_range")]
     cases += [(matrix_scene(v, 64, "symplectic"), 60, m) for v in ("sphere", "self") for m in METHODS]
     rows = []
     for scene, frames, method in cases:

@@ -218,31 +218,43 @@ def _limits(springs: Springs | None, n: int, attachments: tuple[np.ndarray, np.n
     return StrainLimits(adjacency.offsets, adjacency.other, lo[adjacency.spring], hi[adjacency.spring], *attachments)
 
 
+LONG_RANGE_DIRECTIONS = ((1, 0), (0, 1), (1, 1), (1, -1))  # along rows, columns and both diagonals
+
+
 def _long_range(scene: Scene, grids, offsets) -> tuple[np.ndarray, np.ndarray]:
-    """Pairs 2, 4, 8, ... cells apart along the rows and columns of the cloths whose limit asks for
-    ``long_range``, with (1 + stretch) times the rest length of the path of structural springs between them
-    as their longest length."""
+    """Pairs 2, 4, 8, ... cells apart along the rows, columns and diagonals of the cloths whose limit asks
+    for ``long_range``, with (1 + stretch) times the rest length of the path of structural or shear springs
+    between them as their longest length."""
     pairs, longest = [np.zeros((0, 2), dtype=np.int64)], [np.zeros(0, dtype=np.float32)]
     for c, (cloth, grid) in enumerate(zip(scene.cloths, grids)):
         if cloth.limit is None or not cloth.limit.long_range:
             continue
         nx, ny = cloth.resolution
         rest = grid.positions.reshape(ny + 1, nx + 1, 3)
-        for axis, cells in ((1, nx), (0, ny)):  # along a row (x), then along a column (y)
-            steps = np.linalg.norm(np.diff(rest, axis=axis), axis=2)  # each structural spring's rest length
-            path = np.concatenate([np.zeros_like(steps.take([0], axis=axis)), np.cumsum(steps, axis=axis)],
-                                  axis=axis)
-            index = np.arange((nx + 1) * (ny + 1)).reshape(ny + 1, nx + 1)
-            span = 2
-            while span <= cells:
-                start = index.take(np.arange(cells + 1 - span), axis=axis)
-                end = index.take(np.arange(span, cells + 1), axis=axis)
-                length = path.take(np.arange(span, cells + 1), axis=axis) - path.take(np.arange(cells + 1 - span),
-                                                                                      axis=axis)
-                pairs.append(np.stack([start.ravel(), end.ravel()], axis=1) + offsets[c])
-                longest.append(((1.0 + cloth.limit.stretch) * length.ravel()).astype(np.float32))
+        gy, gx = np.mgrid[0:ny + 1, 0:nx + 1]
+        for dx, dy in LONG_RANGE_DIRECTIONS:
+            # path[span][y, x]: rest length of the path from (x, y) span steps on (nan past the edge)
+            path = _shifted(rest, dx, dy) - rest
+            path = np.linalg.norm(path, axis=2)
+            span = 1
+            while 2 * span <= max(nx, ny):
+                path = path + _shifted(path[..., None], span * dx, span * dy)[..., 0]
                 span *= 2
+                inside = np.isfinite(path)
+                start = (gy * (nx + 1) + gx)[inside]
+                end = ((gy + span * dy) * (nx + 1) + gx + span * dx)[inside]
+                pairs.append(np.stack([start, end], axis=1) + offsets[c])
+                longest.append(((1.0 + cloth.limit.stretch) * path[inside]).astype(np.float32))
     return np.concatenate(pairs), np.concatenate(longest)
+
+
+def _shifted(values: np.ndarray, dx: int, dy: int) -> np.ndarray:
+    """values[y + dy, x + dx] at [y, x] (nan where that lies past the grid's edge)."""
+    out = np.full(values.shape, np.nan)
+    ny, nx = values.shape[:2]
+    ys, xs = slice(max(0, -dy), min(ny, ny - dy)), slice(max(0, -dx), min(nx, nx - dx))
+    out[ys, xs] = values[max(0, dy):min(ny, ny + dy), max(0, dx):min(nx, nx + dx)]
+    return out
 
 
 def _attachments(scene: Scene, offsets: list[int],

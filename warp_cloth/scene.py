@@ -138,9 +138,9 @@ class Limit:
     36 to 60 m/s and up to 23 crossing triangle pairs with them, 23 to 30 m/s and none without).
 
     With ``long_range``, each particle is also held within (1 + stretch) times the rest length of the
-    path along its row and its column to the particles 2, 4, 8, ... cells away: limits that the springs'
-    own limits imply (a path of springs each within its limit is), so they never ask for what the cloth
-    cannot give, but that carry a correction across 2^k cells in one pass (docs/strain-solve.md).
+    path along its row, its column and its diagonals to the particles 2, 4, 8, ... cells away: limits that
+    the springs' own limits imply (a path of springs each within its limit is), so they never ask for what
+    the cloth cannot give, but that carry a correction across 2^k cells in one pass (docs/strain-solve.md).
     """
 
     stretch: float = 0.10
