@@ -3,9 +3,11 @@ strain over every frame, for the methods of docs/strain-solve.md (plain Jacobi, 
 Jacobi with restarts, and that with long-range limits), on the hanging cloth at one implicit step a frame
 from 10^2 to 160^2 and on the speed matrix's sphere and self-collision cloths at 64^2.
 
-    python tools/strain_solve_probe.py OUT.json [--device cpu]
+    python tools/strain_solve_probe.py OUT.json [--device cpu] [--rho-sweep]
 
-docs/results/strain-solve-cpu.json is its output on this project's CPU."""
+docs/results/strain-solve-cpu.json is its output on this project's CPU; with --rho-sweep it runs instead
+Chebyshev with long-range limits at spectral radii 0.95, 0.97 and 0.99 on the 80-row hanging cloth and on
+seed_default (60 frames, at most 400 passes): docs/results/strain-solve-rho-cpu.json."""
 
 import argparse
 import dataclasses
@@ -21,8 +23,9 @@ METHODS = {"fixed": ("fixed", 0.0, False), "jacobi": ("converged", 0.0, False),
            "chebyshev": ("converged", 0.99, False), "chebyshev+long_range": ("converged", 0.99, True)}
 
 
-def configured(scene: wc.Scene, method: str, max_passes: int) -> wc.Scene:
-    solve, rho, long_range = METHODS[method]
+def configured(scene: wc.Scene, method: str, max_passes: int, rho: float | None = None) -> wc.Scene:
+    solve, default_rho, long_range = METHODS[method]
+    rho = default_rho if rho is None else rho
     cloths = tuple(dataclasses.replace(c, limit=dataclasses.replace(c.limit, long_range=long_range)) for c in scene.cloths)
     return dataclasses.replace(scene, cloths=cloths, simulation=dataclasses.replace(
         scene.simulation, limit_solve=solve, limit_chebyshev_rho=rho, limit_max_passes=max_passes))
@@ -57,15 +60,22 @@ def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("out")
     parser.add_argument("--device", default="cpu")
+    parser.add_argument("--rho-sweep", action="store_true")
     args = parser.parse_args()
     wp.config.log_level = wp.LOG_ERROR
-    cases = [(hanging(n), 24, m) for n in (10, 20, 40, 80) for m in METHODS if not (n == 80 and m == "jacobi")]
-    cases += [(hanging(160), 24, "fixed"), (hanging(160), 24, "chebyshev+long_range")]
-    cases += [(matrix_scene(v, 64, "symplectic"), 60, m) for v in ("sphere", "self") for m in METHODS]
+    if args.rho_sweep:
+        cases = [(scene, frames, "chebyshev+long_range", rho, cap) for scene, frames, cap in
+                 ((hanging(80), 24, 1000), (wc.load_scene("seed_default"), 60, 400)) for rho in (0.95, 0.97, 0.99)]
+    else:
+        cases = [(hanging(n), 24, m, None, 1000) for n in (10, 20, 40, 80) for m in METHODS
+                 if not (n == 80 and m == "jacobi")]
+        cases += [(hanging(160), 24, "fixed", None, 1000), (hanging(160), 24, "chebyshev+long_range", None, 1000)]
+        cases += [(matrix_scene(v, 64, "symplectic"), 60, m, None, 1000) for v in ("sphere", "self") for m in METHODS]
     rows = []
-    for scene, frames, method in cases:
+    for scene, frames, method, rho, cap in cases:
         row = {"scene": scene.name, "frames": frames, "method": method,
-               **measure(configured(scene, method, 1000), frames, args.device)}
+               "rho": METHODS[method][1] if rho is None else rho,
+               **measure(configured(scene, method, cap, rho), frames, args.device)}
         rows.append(row)
         print(row, flush=True)
     json.dump({"environment": environment(args.device), "rows": rows}, open(args.out, "w"), indent=1)
