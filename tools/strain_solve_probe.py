@@ -3,14 +3,18 @@ strain over every frame, for the methods of docs/strain-solve.md (plain Jacobi, 
 Jacobi with restarts, and that with long-range limits), on the hanging cloth at one implicit step a frame
 from 10^2 to 160^2 and on the speed matrix's sphere and self-collision cloths at 64^2.
 
-    python tools/strain_solve_probe.py OUT.json [--device cpu] [--rho-sweep]
+    python tools/strain_solve_probe.py OUT.json [--device cpu] [--rho-sweep | --contacts]
 
 docs/results/strain-solve-cpu.json is its output on this project's CPU; with --rho-sweep it runs instead
 Chebyshev with long-range limits at spectral radii 0.95, 0.97 and 0.99 on the 80-row hanging cloth and on
-seed_default (60 frames, at most 400 passes): docs/results/strain-solve-rho-cpu.json."""
+seed_default (60 frames, at most 400 passes): docs/results/strain-solve-rho-cpu.json; with --contacts, the
+fixed passes against Chebyshev (0.95) with long-range limits on the built-in scenes with particle
+collision, 72 frames, with the crossing triangle pairs and the closest contact of every frame:
+docs/results/strain-solve-contacts-cpu.json."""
 
 import argparse
 import dataclasses
+import io
 import json
 import time
 
@@ -18,6 +22,7 @@ import warp as wp
 
 import warp_cloth as wc
 from warp_cloth.bench import environment, matrix_scene
+from warp_cloth.diagnostics import CheckReport
 
 METHODS = {"fixed": ("fixed", 0.0, False), "jacobi": ("converged", 0.0, False),
            "chebyshev": ("converged", 0.99, False), "chebyshev+long_range": ("converged", 0.99, True)}
@@ -56,13 +61,37 @@ def measure(scene: wc.Scene, frames: int, device: str) -> dict:
             "closest_contact": sim.closest_contact()}
 
 
+def contacts(scene: wc.Scene, frames: int, device: str) -> dict:
+    """The worst strain, crossing triangle pairs and closest contact over every frame."""
+    sim = wc.Simulator(scene, device=device)
+    monitor = wc.StrainMonitor()
+    check = CheckReport(io.StringIO(), monitor)
+    sim.run(frames, writers=[monitor, check])
+    stats, report = sim.solver_stats(), monitor.report()
+    return {"stretch": report.stretch, "compression": report.compression,
+            "passes": stats.limit_passes if stats and stats.limit_passes is not None else None,
+            "crossings": check.worst_intersections[0], "closest_contact": check.closest_contact[0]}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("out")
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--rho-sweep", action="store_true")
+    parser.add_argument("--contacts", action="store_true")
     args = parser.parse_args()
     wp.config.log_level = wp.LOG_ERROR
+    if args.contacts:
+        rows = []
+        for name in ("seed_default", "pile", "fold"):
+            for method, rho in (("fixed", None), ("chebyshev+long_range", 0.95)):
+                scene = configured(wc.load_scene(name), method, 400, rho)
+                row = {"scene": name, "frames": 72, "method": method, "rho": rho,
+                       **contacts(scene, 72, args.device)}
+                rows.append(row)
+                print(row, flush=True)
+        json.dump({"environment": environment(args.device), "rows": rows}, open(args.out, "w"), indent=1)
+        return
     if args.rho_sweep:
         cases = [(scene, frames, "chebyshev+long_range", rho, cap) for scene, frames, cap in
                  ((hanging(80), 24, 1000), (wc.load_scene("seed_default"), 60, 400)) for rho in (0.95, 0.97, 0.99)]
