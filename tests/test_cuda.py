@@ -1,5 +1,5 @@
 """The same scenes on a CUDA GPU: every built-in runs and respects its colliders, CPU and CUDA agree on a
-scene without collisions, and graph replay gives exactly what launching stage by stage gives."""
+scene without collisions, and graph replay gives exactly what launching pass by pass gives."""
 
 import dataclasses
 from collections import Counter
