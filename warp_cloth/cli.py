@@ -77,7 +77,8 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _with_overrides(scene: Scene, args: argparse.Namespace) -> Scene:
+def _with_step_overrides(scene: Scene, args: argparse.Namespace) -> Scene:
+    """The scene with the command line's frames, step, integrator and limit solve."""
     sim_changes = {k: getattr(args, k, None) for k in ("frames", "integrator", "limit_solve")
                    if getattr(args, k, None) is not None}
     if args.substeps is not None:
@@ -85,9 +86,14 @@ def _with_overrides(scene: Scene, args: argparse.Namespace) -> Scene:
     if args.dt is not None:
         sim_changes.update(dt=args.dt, substeps=None)
     try:
-        simulation = dataclasses.replace(scene.simulation, **sim_changes)
+        return dataclasses.replace(scene, simulation=dataclasses.replace(scene.simulation, **sim_changes))
     except SceneError as exc:
         raise SceneError(f"--{exc.key}", exc.expected, exc.got, source="command line") from None
+
+
+def _with_overrides(scene: Scene, args: argparse.Namespace) -> Scene:
+    """``_with_step_overrides`` and the command line's outputs."""
+    scene = _with_step_overrides(scene, args)
     output = scene.output
     if args.out is not None:
         output = dataclasses.replace(output, dir=args.out)
@@ -95,7 +101,7 @@ def _with_overrides(scene: Scene, args: argparse.Namespace) -> Scene:
         output = dataclasses.replace(output, usd=not args.no_usd)
     if args.no_poly or args.poly:
         output = dataclasses.replace(output, poly=not args.no_poly)
-    return dataclasses.replace(scene, simulation=simulation, output=output)
+    return dataclasses.replace(scene, output=output)
 
 
 def _cmd_scenes() -> int:
@@ -124,9 +130,7 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     from .scene_file import load_scene
     from .simulator import Simulator
 
-    for key in ("frames", "out", "usd", "no_usd", "poly", "no_poly"):
-        setattr(args, key, None if key in ("frames", "out", "usd", "poly") else False)
-    scene = _with_overrides(load_scene(args.scene), args)
+    scene = _with_step_overrides(load_scene(args.scene), args)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # a step past the bound is for a run to warn of
         sim = Simulator(scene, device=args.device)

@@ -91,6 +91,8 @@ class DeviceModel:
         self._sphere_friction = upload(spheres.friction if spheres is not None else np.zeros(0), float, device)
         self.has_colliders = scene.ground is not None or spheres is not None
         self.contacts = None if model.contacts is None else self._contacts(model, scene.collision)
+        self.no_marks = wp.zeros(0, dtype=int, device=device)  # for passes whose colliders mark no one
+        self._no_colliders = no_colliders(device)
 
     def _springs(self, model: Model, n: int) -> Springs:
         """The spring adjacency and parameters (offsets all zero and the rest empty without springs)."""
@@ -166,7 +168,7 @@ class DeviceModel:
         return colliders
 
     def no_colliders(self) -> RigidColliders:
-        return no_colliders(self.device)
+        return self._no_colliders
 
 
 def no_colliders(device) -> RigidColliders:

@@ -113,7 +113,7 @@ def limit_pass(model: DeviceModel, threads: int, bundle: RigidColliders | None, 
     """One Jacobi pass of the strain limits; its colliders mark in ``resting`` (None: no marks)."""
     args = fused.LimitPassArgs()
     args.limits = model.limits
-    args.resting = resting if resting is not None else wp.zeros(0, dtype=int, device=model.device)
+    args.resting = resting if resting is not None else model.no_marks
     return projection_pass("limits", fused.limit_pass_kernel(threads), args, model, threads, bundle, read_bit)
 
 
