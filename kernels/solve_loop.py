@@ -3,7 +3,8 @@ it goes on while the residual its passes leave is above the tolerance and the pa
 cap, and keeps the worst figures since the host last read them.
 
 ``counts`` = [passes this substep, cap]; ``residual`` = [the worst violation the last check found];
-``stats`` = [most passes a substep, largest residual a solve ended with] since they were last read."""
+``stats`` = [most passes a substep, largest residual a solve ended with, passes in all, solves] since they
+were last read."""
 
 import warp as wp
 
@@ -27,6 +28,8 @@ def continue_solve(tolerance: float, passes: int, active: wp.array(dtype=int), c
         active[0] = 0
         stats[0] = wp.max(stats[0], float(counts[0]))
         stats[1] = wp.max(stats[1], residual[0])
+        stats[2] = stats[2] + float(counts[0])
+        stats[3] = stats[3] + 1.0
     else:
         residual[0] = 0.0
 

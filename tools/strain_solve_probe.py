@@ -3,19 +3,22 @@ strain over every frame, for the methods of docs/strain-solve.md (plain Jacobi, 
 Jacobi with restarts, and that with long-range limits), on the hanging cloth at one implicit step a frame
 from 10^2 to 160^2 and on the speed matrix's sphere and self-collision cloths at 64^2.
 
-    python tools/strain_solve_probe.py OUT.json [--device cpu] [--rho-sweep | --contacts]
+    python tools/strain_solve_probe.py OUT.json [--device cpu] [--rho-sweep | --contacts | --matrix N ...]
 
 docs/results/strain-solve-cpu.json is its output on this project's CPU; with --rho-sweep it runs instead
 Chebyshev with long-range limits at spectral radii 0.95, 0.97 and 0.99 on the 80-row hanging cloth and on
 seed_default (60 frames, at most 400 passes): docs/results/strain-solve-rho-cpu.json; with --contacts, the
 fixed passes against Chebyshev (0.95) with long-range limits on the built-in scenes with particle
 collision, 72 frames, with the crossing triangle pairs and the closest contact of every frame:
-docs/results/strain-solve-contacts-cpu.json."""
+docs/results/strain-solve-contacts-cpu.json. With --matrix N ... (on a GPU) it times the speed matrix's sphere
+and self-collision cloths (symplectic) at those sizes over 48 frames after 2 (the swing onto the sphere and
+the drape), each method in turn, and measures their strain over a second run of 50 frames."""
 
 import argparse
 import dataclasses
 import io
 import json
+import statistics
 import time
 
 import warp as wp
@@ -30,7 +33,7 @@ METHODS = {"fixed": ("fixed", 0.0, False), "jacobi": ("converged", 0.0, False),
 
 def configured(scene: wc.Scene, method: str, max_passes: int, rho: float | None = None) -> wc.Scene:
     solve, default_rho, long_range = METHODS[method]
-    rho = default_rho if rho is None else rho
+    rho = default_rho if rho is None or not default_rho else rho  # plain Jacobi stays plain
     cloths = tuple(dataclasses.replace(c, limit=dataclasses.replace(c.limit, long_range=long_range)) for c in scene.cloths)
     return dataclasses.replace(scene, cloths=cloths, simulation=dataclasses.replace(
         scene.simulation, limit_solve=solve, limit_chebyshev_rho=rho, limit_max_passes=max_passes))
@@ -61,6 +64,32 @@ def measure(scene: wc.Scene, frames: int, device: str) -> dict:
             "closest_contact": sim.closest_contact()}
 
 
+def timed(scene: wc.Scene, frames: int, device: str, repeats: int) -> dict:
+    """Milliseconds a frame (median of ``repeats`` runs of ``frames`` after 2), the passes the solve took
+    over them, then the strain over every frame of a fresh run of 2 + ``frames`` frames."""
+    sim = wc.Simulator(scene, device=device)
+    try:
+        sim.run(2)
+        sim.solver_stats()
+        seconds = []
+        for _ in range(repeats):
+            wp.synchronize_device(sim.device)
+            started = time.perf_counter()
+            sim.run(frames)
+            wp.synchronize_device(sim.device)
+            seconds.append(time.perf_counter() - started)
+    except wc.UnstableSimulation:
+        return {"stable": False}
+    stats = sim.solver_stats()
+    row = {"stable": True, "ms_per_frame": round(1e3 * statistics.median(seconds) / frames, 4),
+           "passes": stats.limit_passes if stats else None,
+           "mean_passes": round(stats.limit_mean_passes, 2) if stats else None,
+           "residual": stats.limit_residual if stats else None}
+    strain = measure(scene, 2 + frames, device)
+    return {**row, "stretch": strain["stretch"], "compression": strain["compression"],
+            "strain_run_stable": strain["stable"], "closest_contact": strain["closest_contact"]}
+
+
 def contacts(scene: wc.Scene, frames: int, device: str) -> dict:
     """The worst strain, crossing triangle pairs and closest contact over every frame."""
     sim = wc.Simulator(scene, device=device)
@@ -79,8 +108,24 @@ def main() -> None:
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--rho-sweep", action="store_true")
     parser.add_argument("--contacts", action="store_true")
+    parser.add_argument("--matrix", type=int, nargs="+")
+    parser.add_argument("--methods", nargs="+", default=["fixed", "jacobi", "chebyshev", "chebyshev+long_range"])
+    parser.add_argument("--rho", type=float, default=None)
+    parser.add_argument("--cap", type=int, default=400)
     args = parser.parse_args()
     wp.config.log_level = wp.LOG_ERROR
+    if args.matrix:
+        rows = []
+        for n in args.matrix:
+            for variant in ("sphere", "self"):
+                for method in args.methods:
+                    scene = configured(matrix_scene(variant, n, "symplectic"), method, args.cap, args.rho)
+                    row = {"scene": scene.name, "method": method, "rho": scene.simulation.limit_chebyshev_rho,
+                           "cap": args.cap, **timed(scene, 48, args.device, 3 if n <= 256 else 1)}
+                    rows.append(row)
+                    print(row, flush=True)
+                    json.dump({"environment": environment(args.device), "rows": rows}, open(args.out, "w"), indent=1)
+        return
     if args.contacts:
         rows = []
         for name in ("seed_default", "pile", "fold"):

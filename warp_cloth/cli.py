@@ -122,7 +122,8 @@ def _limit_solve(sim) -> str:
     cap = sim.scene.simulation.limit_max_passes
     ended = ("every solve ended within tolerance" if stats.limit_residual <= 1.0 else
              f"some reached the cap of {cap} passes at {stats.limit_residual:.3g} tolerances")
-    return f"; limit solve up to {stats.limit_passes} passes a substep, {ended}"
+    return (f"; limit solve {stats.limit_mean_passes:.1f} passes a substep on average, {stats.limit_passes} at most, "
+            f"{ended}")
 
 
 def _cmd_plan(args: argparse.Namespace) -> int:

@@ -31,7 +31,8 @@ class SolveStats:
     cg_relative_residual: float | None = None  # sqrt(r.z / r0.z0) of the preconditioned residual
     newton_iterations: int | None = None
     newton_residual: float | None = None  # RMS over free particles of |M (v - v0) - h f| / m, in m/s
-    limit_passes: int | None = None  # projection passes a substep
+    limit_passes: int | None = None  # the most projection passes a substep
+    limit_mean_passes: float | None = None  # projection passes a substep, on average
     limit_residual: float | None = None  # where a solve ended, in its tolerances (at most 1: within them)
 
 

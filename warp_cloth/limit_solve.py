@@ -39,7 +39,7 @@ class ConvergedProjection:
         self.active = wp.zeros(1, dtype=int, device=device)
         self.counts = wp.zeros(2, dtype=int, device=device)
         self.residual = wp.zeros(1, dtype=float, device=device)
-        self.stats = wp.zeros(2, dtype=float, device=device)  # see kernels/solve_loop.py
+        self.stats = wp.zeros(4, dtype=float, device=device)  # see kernels/solve_loop.py
         self.rho = model.limit_chebyshev_rho or None
         if self.rho is not None:
             n = model.particle_count
@@ -75,9 +75,9 @@ class ConvergedProjection:
 
         wp.capture_while(self.active, iteration)
 
-    def read_stats(self) -> tuple[int, float]:
-        """The most passes a substep took and the largest residual a solve ended with (in tolerances: 1 or
-        less within them) since the last reading (waits for the device)."""
-        passes, residual = self.stats.numpy()
+    def read_stats(self) -> tuple[int, float, float]:
+        """The most passes a substep took, the largest residual a solve ended with (in tolerances: 1 or less
+        within them) and the mean passes a substep, since the last reading (waits for the device)."""
+        most, residual, total, solves = self.stats.numpy()
         self.stats.zero_()
-        return int(passes), float(residual)
+        return int(most), float(residual), float(total / solves) if solves else 0.0

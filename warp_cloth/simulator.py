@@ -295,8 +295,9 @@ class Simulator:
         and residual; None where the scene has neither."""
         stats = self.plan.implicit.read_stats() if self.plan.implicit is not None else None
         if self.plan.projection is not None:
-            passes, residual = self.plan.projection.read_stats()
-            stats = dataclasses.replace(stats or SolveStats(), limit_passes=passes, limit_residual=residual)
+            most, residual, mean = self.plan.projection.read_stats()
+            stats = dataclasses.replace(stats or SolveStats(), limit_passes=most, limit_residual=residual,
+                                        limit_mean_passes=mean)
         return stats
 
     def substep(self) -> None:
