@@ -146,14 +146,14 @@ def test_strain_monitor_measures_on_cuda_what_it_measures_on_the_cpu():
     assert cuda.frames == cpu.frames == 25 and cuda.edges == cpu.edges
 
 
-@pytest.mark.parametrize("rho, long_range", [(0.0, False), (0.99, True)])
-def test_converged_limit_solve_runs_in_the_captured_graph_and_holds_the_limit(rho, long_range):
+@pytest.mark.parametrize("rho, long_range, multilevel", [(0.0, False, False), (0.99, True, False), (0.0, False, True)])
+def test_converged_limit_solve_runs_in_the_captured_graph_and_holds_the_limit(rho, long_range, multilevel):
     scene = wc.load_scene("hanging")
     cloth = scene.cloths[0]
     cloth = dataclasses.replace(cloth, limit=dataclasses.replace(cloth.limit, long_range=long_range))
     scene = dataclasses.replace(scene, cloths=(cloth,), simulation=dataclasses.replace(
         scene.simulation, integrator="implicit", dt=0.04165, substeps=None, limit_solve="converged",
-        limit_max_passes=1000, limit_chebyshev_rho=rho))
+        limit_max_passes=1000, limit_chebyshev_rho=rho, limit_multilevel=multilevel))
     sim = wc.Simulator(scene, device="cuda")
     monitor = wc.StrainMonitor()
     sim.run(24, writers=[monitor])

@@ -27,16 +27,18 @@ import warp_cloth as wc
 from warp_cloth.bench import environment, matrix_scene
 from warp_cloth.diagnostics import CheckReport
 
-METHODS = {"fixed": ("fixed", 0.0, False), "jacobi": ("converged", 0.0, False),
-           "chebyshev": ("converged", 0.99, False), "chebyshev+long_range": ("converged", 0.99, True)}
+METHODS = {"fixed": ("fixed", 0.0, False, False), "jacobi": ("converged", 0.0, False, False),
+           "chebyshev": ("converged", 0.99, False, False), "chebyshev+long_range": ("converged", 0.99, True, False),
+           "multilevel": ("converged", 0.0, False, True), "chebyshev+multilevel": ("converged", 0.99, False, True)}
 
 
 def configured(scene: wc.Scene, method: str, max_passes: int, rho: float | None = None) -> wc.Scene:
-    solve, default_rho, long_range = METHODS[method]
+    solve, default_rho, long_range, multilevel = METHODS[method]
     rho = default_rho if rho is None or not default_rho else rho  # plain Jacobi stays plain
     cloths = tuple(dataclasses.replace(c, limit=dataclasses.replace(c.limit, long_range=long_range)) for c in scene.cloths)
     return dataclasses.replace(scene, cloths=cloths, simulation=dataclasses.replace(
-        scene.simulation, limit_solve=solve, limit_chebyshev_rho=rho, limit_max_passes=max_passes))
+        scene.simulation, limit_solve=solve, limit_chebyshev_rho=rho, limit_max_passes=max_passes,
+        limit_multilevel=multilevel))
 
 
 def hanging(n: int) -> wc.Scene:
@@ -60,6 +62,7 @@ def measure(scene: wc.Scene, frames: int, device: str) -> dict:
     stats, report = sim.solver_stats(), monitor.report()
     return {"seconds": round(seconds, 2), "stable": stable, "stretch": report.stretch, "compression": report.compression,
             "passes": stats.limit_passes if stats and stats.limit_passes is not None else None,
+            "mean_passes": round(stats.limit_mean_passes, 2) if stats and stats.limit_passes is not None else None,
             "residual": stats.limit_residual if stats and stats.limit_residual is not None else None,
             "closest_contact": sim.closest_contact()}
 

@@ -14,6 +14,7 @@ import numpy as np
 
 from warp_cloth.kernels import springs as spring_kernels
 
+from .hierarchy import Hierarchy, build_hierarchy
 from .cloth_grid import BEND, SHEAR, STRUCTURAL, ClothGrid, build_grid, grid_positions, pinned_indices
 from .errors import SceneError
 from .scene import Scene, SpringKind
@@ -133,6 +134,7 @@ class Model:
     contacts: ParticleContacts | None
     edges: np.ndarray  # (e, 2) int32: every cloth's structural and shear edges, springs or not
     edge_rest: np.ndarray  # (e,) float32: their rest lengths
+    hierarchy: Hierarchy | None = None  # coarser levels of the strain limits, for the multilevel solve
 
     @property
     def particle_count(self) -> int:
@@ -165,8 +167,33 @@ def build_model(scene: Scene) -> Model:
     springs = _springs(scene, grids, offsets, n)
     limits = _limits(springs, n, _attachments(scene, offsets, selections), _long_range(scene, grids, offsets))
     edges, edge_rest = _edges(grids, offsets)
+    hierarchy = _hierarchy(springs, masses, inv_mass, scene, offsets) if scene.simulation.limit_multilevel else None
     return Model(grids, tuple(offsets), positions, velocities, masses, inv_mass, cloth_id, springs, limits,
-                 pins, _spheres(scene), _contacts(scene, grids), edges, edge_rest)
+                 pins, _spheres(scene), _contacts(scene, grids), edges, edge_rest, hierarchy)
+
+
+def _hierarchy(springs: Springs | None, masses: np.ndarray, inv_mass: np.ndarray, scene: Scene,
+               offsets: list[int]) -> Hierarchy | None:
+    """The coarser levels of the limited springs' graph, every 2nd, 4th, ... row and column of each grid
+    preferred (and along an edge of pins, every 2nd, 4th, ... pin)."""
+    if springs is None or not np.isfinite(springs.limit_max).any():
+        return None
+    limited = np.isfinite(springs.limit_max)
+    lattice = np.zeros(len(masses))
+    for c, cloth in enumerate(scene.cloths):
+        columns = cloth.resolution[0] + 1
+        index = np.arange(cloth.particle_count)
+        halvings = _halvings(index % columns), _halvings(index // columns)
+        pinned = inv_mass[offsets[c]:offsets[c + 1]] == 0.0
+        lattice[offsets[c]:offsets[c + 1]] = np.where(pinned, np.maximum(*halvings), np.minimum(*halvings))
+    return build_hierarchy(springs.pairs[limited], springs.limit_min[limited], springs.limit_max[limited], masses,
+                           inv_mass, lattice)
+
+
+def _halvings(k: np.ndarray) -> np.ndarray:
+    """How many times k can be halved and stay whole (30 for 0)."""
+    k = k.astype(np.int64)
+    return np.where(k == 0, 30, np.log2((k & -k).clip(1)).astype(np.int64))
 
 
 def _edges(grids, offsets) -> tuple[np.ndarray, np.ndarray]:

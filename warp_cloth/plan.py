@@ -91,13 +91,13 @@ def build_plan(model: DeviceModel, state: DeviceState, implicit_settings: Implic
             passes.append(ContactStart(start))
         passes.append(lists)
         if converged:
-            projection = ConvergedProjection(model, state, projection_pair(model, state, chosen, rigid))
+            projection = ConvergedProjection(model, state, projection_pair(model, state, chosen, rigid), rigid)
             passes.append(projection)
         else:
             passes.extend(projection_passes(model, state, chosen, rigid))
         passes.append(contact_velocities(model, state, chosen))
     elif model.limits is not None and converged:
-        projection = ConvergedProjection(model, state, [limit_pass(model, chosen, rigid, None, 1)] * 2)
+        projection = ConvergedProjection(model, state, [limit_pass(model, chosen, rigid, None, 1)] * 2, rigid)
         passes.append(projection)
     elif model.limits is not None:
         last = model.limit_iterations - 1

@@ -417,7 +417,9 @@ class Simulation:
     allowed length outside it (and no pair of particles more than ``collision.tolerance`` of their
     contact distance inside it), at most ``limit_max_passes`` a substep (``Simulator.solver_stats()``
     says how many it took); ``limit_chebyshev_rho`` > 0 accelerates each pair of passes by Chebyshev's
-    semi-iterative method with that spectral radius (docs/strain-solve.md)."""
+    semi-iterative method with that spectral radius; ``limit_multilevel`` begins each pair with passes
+    over coarser and coarser levels of the limits, coarsest first, each finer level following its coarse
+    neighbours' moves (warp_cloth/hierarchy.py, docs/strain-solve.md)."""
 
     fps: float = 24.0
     frames: int = 240
@@ -431,6 +433,7 @@ class Simulation:
     limit_tolerance: float = 0.005
     limit_max_passes: int = 200
     limit_chebyshev_rho: float = 0.0
+    limit_multilevel: bool = False
     max_speed: float = 1000.0
 
     def __post_init__(self) -> None:
@@ -458,6 +461,11 @@ class Simulation:
         _whole_in(self.limit_max_passes, 2, MAX_ITERATIONS, "limit_max_passes")
         _require(0.0 <= self.limit_chebyshev_rho < 1.0, "limit_chebyshev_rho",
                  "0 (no acceleration) or a spectral radius in (0, 1)", self.limit_chebyshev_rho)
+        _require(not self.limit_multilevel or self.limit_solve == "converged", "limit_multilevel",
+                 'false, or true with limit_solve = "converged"', self.limit_multilevel)
+        _require(not (self.limit_multilevel and self.limit_chebyshev_rho), "limit_chebyshev_rho",
+                 "0 with limit_multilevel (the two together diverged on the speed matrix's sphere cloth, "
+                 "docs/strain-solve.md)", self.limit_chebyshev_rho)
 
     @property
     def substeps_per_frame(self) -> int | None:
