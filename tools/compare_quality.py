@@ -19,7 +19,7 @@ import time
 
 import warp as wp
 
-from warp_cloth.bench import environment, matrix_scene
+from warp_cloth.bench import environment, matrix_scene, seconds_of_runs
 from warp_cloth.newton_compare import max_edge_strain, time_newton
 from warp_cloth.simulator import Simulator
 
@@ -32,14 +32,7 @@ def time_ours(variant: str, n: int, device: str, frames: int, projection: str = 
         scene = dataclasses.replace(scene, collision=dataclasses.replace(scene.collision, projection=projection))
     sim = Simulator(scene, device=device)
     sim.run(2)
-    seconds = []
-    for _ in range(REPEATS):
-        wp.synchronize_device(sim.device)
-        started = time.perf_counter()
-        sim.run(frames)
-        wp.synchronize_device(sim.device)
-        seconds.append(time.perf_counter() - started)
-    median = statistics.median(seconds)
+    median = statistics.median(seconds_of_runs(sim, frames, REPEATS))
     return {"solver": "ours" if projection == "joint" else f"ours_{projection}", "variant": variant, "n": n,
             "substeps": sim.substeps_per_frame, "frames": frames,
             "ms_per_frame": 1e3 * median / frames,

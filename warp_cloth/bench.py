@@ -343,6 +343,19 @@ def time_case(case: Case, device: str, repeats: int) -> Result:
     return dataclasses.replace(result(seconds), max_strain=report.worst, strain=figures)
 
 
+def seconds_of_runs(sim: Simulator, frames: int, repeats: int) -> list[float]:
+    """Wall seconds of ``repeats`` runs of ``frames`` frames each, one after the other, the device idle at
+    both ends of each."""
+    seconds = []
+    for _ in range(repeats):
+        wp.synchronize_device(sim.device)
+        started = time.perf_counter()
+        sim.run(frames)
+        wp.synchronize_device(sim.device)
+        seconds.append(time.perf_counter() - started)
+    return seconds
+
+
 def strain_over(case: Case, device: str, frames: int) -> StrainReport:
     """Edge strain over every frame of a run of the case as the timed runs made it (those go unmeasured:
     measuring every frame waits for each), from t = 0."""
