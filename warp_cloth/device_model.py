@@ -62,6 +62,14 @@ class LevelLinks:
 
 
 @dataclass(frozen=True)
+class LevelLimits:
+    """Per node its coarse limits (CSR): the node at the other end and the limit's index."""
+    offsets: wp.array
+    other: wp.array
+    limit: wp.array
+
+
+@dataclass(frozen=True)
 class DeviceHierarchy:
     """The coarse levels of the strain limits (warp_cloth/hierarchy.py) on the device."""
     first: tuple[int, ...]  # where each level's nodes start, and the end
@@ -72,7 +80,7 @@ class DeviceHierarchy:
     edge_longest: wp.array
     edge_shortest: wp.array
     edge_path: wp.array  # vec3i
-    limits: LevelLinks  # per node: its limits' other nodes (``parent``) and the limits (``weight``, int)
+    limits: LevelLimits
     parents: LevelLinks  # of the nodes of every level but the coarsest
     particle_parents: LevelLinks  # of the particles, in the first level
 
@@ -153,8 +161,8 @@ class DeviceModel:
         device, levels = self.device, model.hierarchy
         links = lambda csr: LevelLinks(upload(csr.offsets, int, device), upload(csr.index, int, device),  # noqa: E731
                                        upload(csr.value, float, device))
-        limits = LevelLinks(upload(levels.limits.offsets, int, device), upload(levels.limits.index, int, device),
-                            upload(levels.limits.value, int, device))
+        limits = LevelLimits(upload(levels.limits.offsets, int, device), upload(levels.limits.index, int, device),
+                             upload(levels.limits.value, int, device))
         return DeviceHierarchy(levels.first, upload(levels.particle, int, device), upload(levels.inv_mass, float, device),
                                levels.edge_first, upload(levels.edge_ends, wp.vec2i, device),
                                upload(levels.edge_longest, float, device), upload(levels.edge_shortest, float, device),

@@ -54,7 +54,7 @@ class Cascade:
             first, size = h.first[k - 1], h.first[k] - h.first[k - 1]
             for _ in range(LEVEL_PASSES // 2):
                 for x, x_out in ((self.current, self.spare), (self.spare, self.current)):
-                    launch(fused.level_pass, size, [first, h.limits.offsets, h.limits.parent, h.limits.weight,
+                    launch(fused.level_pass, size, [first, h.limits.offsets, h.limits.other, h.limits.limit,
                                                     self.target, h.inv_mass, self.colliders, self.h, x], [x_out])
             if k > 1:
                 finer = h.first[k - 2]
