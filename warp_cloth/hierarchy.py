@@ -17,6 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .adjacency import Adjacency
+
 COARSEST_NODES = 64  # stop coarsening below this many nodes
 LEAST_REDUCTION = 0.85  # or when a level keeps more than this fraction of the one below
 
@@ -220,13 +222,8 @@ def _scramble(i: np.ndarray) -> np.ndarray:
 
 def _csr(rows: int, pairs: np.ndarray, values: np.ndarray, shift: int) -> Csr:
     """Both directions of each pair as rows' entries (with the pair's value), indices shifted by ``shift``."""
-    owner = np.concatenate([pairs[:, 0], pairs[:, 1]])
-    other = np.concatenate([pairs[:, 1], pairs[:, 0]])
-    value = np.concatenate([values, values])
-    order = np.lexsort((other, owner))
-    offsets = np.zeros(rows + 1, dtype=np.int32)
-    np.cumsum(np.bincount(owner, minlength=rows), out=offsets[1:])
-    return Csr(offsets, (other[order] + shift).astype(np.int32), value[order])
+    adjacency = Adjacency.of(pairs, rows)
+    return Csr(adjacency.offsets, (adjacency.other + shift).astype(np.int32), values[adjacency.spring])
 
 
 def _shift(csr: Csr, shift: int) -> Csr:

@@ -14,9 +14,10 @@ import numpy as np
 
 from warp_cloth.kernels import springs as spring_kernels
 
-from .hierarchy import Hierarchy, build_hierarchy
+from .adjacency import Adjacency
 from .cloth_grid import BEND, SHEAR, STRUCTURAL, ClothGrid, build_grid, grid_positions, pinned_indices
 from .errors import SceneError
+from .hierarchy import Hierarchy, build_hierarchy
 from .scene import Scene, SpringKind
 
 # The spring kernels' regime bits (kernels/springs.py), which the host side sets and reads.
@@ -33,27 +34,6 @@ def regime_flags(kind: SpringKind) -> int:
     damping = {"tension": FLAG_DAMPING_TENSION, "compression": FLAG_DAMPING_COMPRESSION,
                "both": FLAG_DAMPING_TENSION | FLAG_DAMPING_COMPRESSION}[kind.damping_acts]
     return elastic | damping
-
-
-@dataclass(frozen=True)
-class Adjacency:
-    """Per-particle incidence lists (CSR): particle i's entries are ``offsets[i]:offsets[i+1]``."""
-
-    offsets: np.ndarray  # (n + 1,) int32
-    other: np.ndarray  # (2 s,) int32: the particle at the other end
-    spring: np.ndarray  # (2 s,) int32: the spring's index
-
-    @staticmethod
-    def of(pairs: np.ndarray, particle_count: int) -> "Adjacency":
-        s = len(pairs)
-        owner = np.concatenate([pairs[:, 0], pairs[:, 1]])
-        other = np.concatenate([pairs[:, 1], pairs[:, 0]])
-        spring = np.concatenate([np.arange(s), np.arange(s)])
-        order = np.lexsort((other, owner))
-        counts = np.bincount(owner, minlength=particle_count)
-        offsets = np.zeros(particle_count + 1, dtype=np.int32)
-        np.cumsum(counts, out=offsets[1:])
-        return Adjacency(offsets, other[order].astype(np.int32), spring[order].astype(np.int32))
 
 
 @dataclass(frozen=True)
