@@ -11,8 +11,9 @@ seed_default (60 frames, at most 400 passes): docs/results/strain-solve-rho-cpu.
 fixed passes against Chebyshev (0.95) with long-range limits on the built-in scenes with particle
 collision, 72 frames, with the crossing triangle pairs and the closest contact of every frame:
 docs/results/strain-solve-contacts-cpu.json. With --matrix N ... (on a GPU) it times the speed matrix's sphere
-and self-collision cloths (symplectic) at those sizes over 48 frames after 2 (the swing onto the sphere and
-the drape), each method in turn, and measures their strain over a second run of 50 frames."""
+and self-collision cloths (symplectic; with --integrator implicit, springs 50 times stiffer) at those sizes
+over 48 frames after 2 (the swing onto the sphere and the drape), each method in turn, and measures their
+strain over a second run of 50 frames."""
 
 import argparse
 import dataclasses
@@ -78,10 +79,11 @@ def timed(scene: wc.Scene, frames: int, device: str, repeats: int) -> dict:
     except wc.UnstableSimulation:
         return {"stable": False}
     stats = sim.solver_stats()
+    converged = stats is not None and stats.limit_passes is not None
     row = {"stable": True, "ms_per_frame": round(1e3 * statistics.median(seconds) / frames, 4),
-           "passes": stats.limit_passes if stats else None,
-           "mean_passes": round(stats.limit_mean_passes, 2) if stats else None,
-           "residual": stats.limit_residual if stats else None}
+           "passes": stats.limit_passes if converged else None,
+           "mean_passes": round(stats.limit_mean_passes, 2) if converged else None,
+           "residual": stats.limit_residual if converged else None}
     strain = measure(scene, 2 + frames, device)
     return {**row, "stretch": strain["stretch"], "compression": strain["compression"],
             "strain_run_stable": strain["stable"], "closest_contact": strain["closest_contact"]}
@@ -109,6 +111,7 @@ def main() -> None:
     parser.add_argument("--methods", nargs="+", default=["fixed", "jacobi", "chebyshev", "chebyshev+long_range"])
     parser.add_argument("--rho", type=float, default=None)
     parser.add_argument("--cap", type=int, default=400)
+    parser.add_argument("--integrator", default="symplectic", choices=["symplectic", "implicit"])
     args = parser.parse_args()
     wp.config.log_level = wp.LOG_ERROR
     if args.matrix:
@@ -116,7 +119,7 @@ def main() -> None:
         for n in args.matrix:
             for variant in ("sphere", "self"):
                 for method in args.methods:
-                    scene = configured(matrix_scene(variant, n, "symplectic"), method, args.cap, args.rho)
+                    scene = configured(matrix_scene(variant, n, args.integrator), method, args.cap, args.rho)
                     row = {"scene": scene.name, "method": method, "rho": scene.simulation.limit_chebyshev_rho,
                            "cap": args.cap, **timed(scene, 48, args.device, 3 if n <= 256 else 1)}
                     rows.append(row)
