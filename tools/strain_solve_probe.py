@@ -1,19 +1,21 @@
-"""What the converged limit solve takes on the CPU: the most projection passes a substep and the worst edge
-strain over every frame, for the methods of docs/strain-solve.md (plain Jacobi, Chebyshev-accelerated
-Jacobi with restarts, that with long-range limits, and the multilevel solve), on the hanging cloth at one implicit step a frame
-from 10^2 to 160^2 and on the speed matrix's sphere and self-collision cloths at 64^2.
+"""What the converged limit solve takes: the passes a substep (mean and most) and the worst edge strain
+over every frame, for the methods of docs/strain-solve.md (plain Jacobi, Chebyshev-accelerated Jacobi
+with restarts, that with long-range limits, and the multilevel solve), on the hanging cloth at one implicit
+step a frame from 10^2 to 160^2 and on the speed matrix's sphere and self-collision cloths at 64^2.
 
     python tools/strain_solve_probe.py OUT.json [--device cpu] [--rho-sweep | --contacts | --matrix N ...]
+                                                [--methods M ...]
 
-docs/results/strain-solve-cpu.json is its output on this project's CPU; with --rho-sweep it runs instead
+docs/results/strain-solve-cpu.json is its output on this project's CPU. With --rho-sweep it runs instead
 Chebyshev with long-range limits at spectral radii 0.95, 0.97 and 0.99 on the 80-row hanging cloth and on
-seed_default (60 frames, at most 400 passes): docs/results/strain-solve-rho-cpu.json; with --contacts, the
-fixed passes against Chebyshev (0.95) with long-range limits on the built-in scenes with particle
-collision, 72 frames, with the crossing triangle pairs and the closest contact of every frame:
-docs/results/strain-solve-contacts-cpu.json. With --matrix N ... (on a GPU) it times the speed matrix's sphere
-and self-collision cloths (symplectic; with --integrator implicit, springs 50 times stiffer) at those sizes
-over 48 frames after 2 (the swing onto the sphere and the drape), each method in turn, and measures their
-strain over a second run of 50 frames."""
+seed_default (60 frames, at most 400 passes): docs/results/strain-solve-rho-cpu.json. With --contacts, the
+fixed passes against Chebyshev (0.95) with long-range limits (or --methods) on the built-in scenes with
+particle collision, 72 frames, with the crossing triangle pairs and the closest contact of every frame:
+docs/results/strain-solve-contacts-cpu.json, and with --methods fixed jacobi multilevel
+docs/results/strain-solve-contacts-multilevel-cpu.json. With --matrix N ... (on a GPU) it times the speed
+matrix's sphere and self-collision cloths (symplectic; with --integrator implicit, springs 50 times
+stiffer) at those sizes over 48 frames after 2 (the swing onto the sphere and the drape), each method in
+turn, and measures their strain over a second run of 50 frames."""
 
 import argparse
 import dataclasses
@@ -98,6 +100,8 @@ def contacts(scene: wc.Scene, frames: int, device: str) -> dict:
     stats, report = sim.solver_stats(), monitor.report()
     return {"stretch": report.stretch, "compression": report.compression,
             "passes": stats.limit_passes if stats and stats.limit_passes is not None else None,
+            "mean_passes": round(stats.limit_mean_passes, 2) if stats and stats.limit_passes is not None else None,
+            "residual": stats.limit_residual if stats and stats.limit_passes is not None else None,
             "crossings": check.worst_intersections[0], "closest_contact": check.closest_contact[0]}
 
 
@@ -108,7 +112,7 @@ def main() -> None:
     parser.add_argument("--rho-sweep", action="store_true")
     parser.add_argument("--contacts", action="store_true")
     parser.add_argument("--matrix", type=int, nargs="+")
-    parser.add_argument("--methods", nargs="+", default=["fixed", "jacobi", "chebyshev", "chebyshev+long_range"])
+    parser.add_argument("--methods", nargs="+", choices=list(METHODS))
     parser.add_argument("--rho", type=float, default=None)
     parser.add_argument("--cap", type=int, default=400)
     parser.add_argument("--integrator", default="symplectic", choices=["symplectic", "implicit"])
@@ -118,7 +122,7 @@ def main() -> None:
         rows = []
         for n in args.matrix:
             for variant in ("sphere", "self"):
-                for method in args.methods:
+                for method in args.methods or ["fixed", "jacobi", "chebyshev", "chebyshev+long_range"]:
                     scene = configured(matrix_scene(variant, n, args.integrator), method, args.cap, args.rho)
                     row = {"scene": scene.name, "method": method, "rho": scene.simulation.limit_chebyshev_rho,
                            "cap": args.cap, **timed(scene, 48, args.device, 3 if n <= 256 else 1)}
@@ -129,7 +133,9 @@ def main() -> None:
     if args.contacts:
         rows = []
         for name in ("seed_default", "pile", "fold"):
-            for method, rho in (("fixed", None), ("chebyshev+long_range", 0.95)):
+            chosen = [(m, None) for m in args.methods] if args.methods else [("fixed", None),
+                                                                              ("chebyshev+long_range", 0.95)]
+            for method, rho in chosen:
                 scene = configured(wc.load_scene(name), method, 400, rho)
                 row = {"scene": name, "frames": 72, "method": method, "rho": rho,
                        **contacts(scene, 72, args.device)}
