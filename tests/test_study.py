@@ -2,6 +2,7 @@
 cloth, its instability reports, its files and its input errors."""
 
 import csv
+import dataclasses
 import json
 import math
 
@@ -9,7 +10,8 @@ import numpy as np
 import pytest
 
 import warp_cloth as wc
-from warp_cloth.study import StudyRun, main, pareto_front, plots_available, run_study, with_resolution
+from warp_cloth.study import (StudyRun, Trajectory, converged_frames, main, pareto_front, plots_available, run_study,
+                              with_resolution)
 
 G = 9.81
 FPS = 24
@@ -28,7 +30,7 @@ def test_free_fall_errors_drift_and_orders_are_the_exact_ones():
     # the energy changes by m g^2 h t / 2: a drift of g h T / (2 y0) with the cloth starting at height y0 = 1.
     frames, substeps = 12, (4, 8, 16)
     study = run_study(free_fall_scene(), ("explicit", "symplectic", "implicit"), [1 / (FPS * s) for s in substeps],
-                      frames=frames, device="cpu", progress=False)
+                      frames=frames, device="cpu", reference_refinement=16, progress=False)
     h_ref = 1 / (FPS * 16 * substeps[-1])
     assert study.references[0].dt == pytest.approx(h_ref)
     times = np.arange(1, frames + 1) / FPS
@@ -140,8 +142,58 @@ def test_bad_input_is_one_line_and_exit_code_2(args, capsys, tmp_path):
 def test_a_reference_past_the_substep_bound_is_refused_naming_the_option(capsys, tmp_path):
     # 0.0001 s is 413 substeps a frame at 24 fps (dt may be 1% over); its reference, 16x finer and checked
     # at half that step, would need 13216 substeps a frame.
-    assert main(["hanging", "--dt", "0.0001", "--out", str(tmp_path / "x")]) == 2
+    assert main(["hanging", "--dt", "0.0001", "--reference-refinement", "16", "--out", str(tmp_path / "x")]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("warp-cloth study: error: command line: --reference-refinement: expected a reference of "
                           "at most 10000 substeps a frame") and "13216 asked" in err
     assert not (tmp_path / "x").exists()
+
+
+def test_a_study_step_too_small_for_any_reference_is_refused_naming_the_option(capsys, tmp_path):
+    # 0.00001 s is over 4000 substeps a frame: the coarsest reference tried, 2x finer and checked at half
+    # its step, would need over 16000.
+    assert main(["hanging", "--dt", "0.00001", "--out", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == ("warp-cloth study: error: command line: --dt: expected a smallest step of at least 1.67e-05 s "
+                   "(the reference is 4 times finer, at most 10000 substeps a frame), got 1e-05")
+    assert not (tmp_path / "x").exists()
+
+
+def converged_hanging() -> wc.Scene:
+    scene = wc.load_scene("hanging")
+    return dataclasses.replace(scene, simulation=dataclasses.replace(
+        scene.simulation, limit_solve="converged", limit_tolerance=1e-4, limit_max_passes=20))
+
+
+def test_the_reference_step_is_where_rounding_starts_to_outgrow_truncation():
+    # Halving the step halves a first-order reference's truncation error, but positions are float32: on the
+    # seed's cloth, below about 0.15 ms the rounding of the many small steps grows faster than that shrinks.
+    # The study tries the smallest study step / 2, 4, 8, 16 (stopping where the difference from half the step
+    # grows) and takes 8, whose check is then 2.5x closer than that of 16, the old fixed refinement.
+    study = run_study(converged_hanging(), ["symplectic"], [0.0025, 0.00125], frames=12, device="cpu",
+                      progress=False)
+    assert study.reference_refinements == [8]
+    fixed = run_study(converged_hanging(), ["symplectic"], [0.0025, 0.00125], frames=12, device="cpu",
+                      reference_refinement=16, progress=False)
+    assert study.references[0].difference_rms < fixed.references[0].difference_rms / 2
+    for chosen, given in zip(study.runs, fixed.runs):  # the runs themselves do not depend on the reference
+        assert chosen.dt == given.dt and chosen.substeps == given.substeps
+
+
+def _trajectory(frame_errors) -> Trajectory:
+    run = Trajectory(dt=0.001, substeps=1, particles=1, frames=len(frame_errors))
+    run.frame_squared_errors = list(frame_errors)
+    return run
+
+
+def test_converged_frames_are_the_most_first_frames_over_which_every_run_is_resolved():
+    check = _trajectory([1.0, 1.0, 1.0, 100.0])
+    # over frames 1..3 both runs' summed squared errors are >= 10^2 times the check's; over 1..4 the second
+    # run's (100 + 100 + 100 + 100) is not 100 times (1 + 1 + 1 + 100)
+    runs = [_trajectory([200.0, 100.0, 100.0, 1e6]), _trajectory([100.0, 100.0, 100.0, 100.0])]
+    assert converged_frames(check, runs) == 3
+    unstable = _trajectory([0.0])
+    unstable.unstable_frame = 1
+    assert converged_frames(check, runs + [unstable]) == 3  # unstable runs have no error to resolve
+    assert converged_frames(check, [_trajectory([50.0] * 4)]) == 0
+    assert converged_frames(_trajectory([0.0] * 4), [_trajectory([1.0] * 4)]) == 4

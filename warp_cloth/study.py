@@ -8,11 +8,17 @@ output I/O), RMS and max position error against the reference, max strain, energ
 went unstable. Writes
 ``study.csv``, ``study.json`` and, with matplotlib (the ``plots`` extra), three PNG plots.
 
-The reference is the same scene and resolution run with symplectic Euler at the smallest study step / 16
-(``--reference-refinement``). It is run again at half that step; a run's error is resolved when it is at
-least 10 times the difference between the two references, and the reference is converged when every stable
-run's error is resolved. Positions are float32, so refining further is not always better: past some step
-the rounding error of many small steps outgrows the truncation error, which the check then shows.
+The reference is the same scene and resolution run with symplectic Euler at a step much smaller than the
+study's, checked against the same run at half that step; a run's error is resolved when it is at least 10
+times the difference between the two, and the reference is converged when every stable run's error is
+resolved. Positions are float32, so refining further is not always better: past some step the rounding
+error of many small steps outgrows the truncation error (on the seed's hanging cloth, below about 0.15 ms
+the difference between a step and its half grows as the step shrinks). So the study chooses the reference
+step: it halves the smallest study step 2, 4, 8, ... 32 times while the difference between each step and
+the next keeps shrinking, and takes the step of the smallest difference (``--reference-refinement N``
+fixes the step at the smallest study step / N instead). Where a scene's motion amplifies small
+differences (a fold that can fall either way), no step converges over every frame; the check then says
+over how many first frames it does.
 """
 
 from __future__ import annotations
@@ -45,7 +51,7 @@ from .stability import UnstableStepWarning, scene_with_step
 
 EXIT_BAD_INPUT = 2
 REFERENCE_INTEGRATOR = "symplectic"
-REFERENCE_REFINEMENT = 16  # the reference step is the smallest study step divided by this
+REFERENCE_REFINEMENTS = (2, 4, 8, 16, 32)  # the reference steps tried: the smallest study step over these
 # A first-order reference's own error is about twice its difference from the half-step run, so requiring a
 # measured error of 10 such differences keeps the reference's share of it under about a fifth.
 RESOLVED_FACTOR = 10.0
@@ -73,6 +79,7 @@ DEFINITIONS = {
                       f"{BLOWUP_LIMIT_FACTOR:g} times past its strain limit (past 1 where it has none); such runs "
                       "get no numbers",
     "resolved": f"error_rms >= {RESOLVED_FACTOR:g} x the RMS difference between the reference and its half step",
+    "converged_frames": "the most frames 1..K over which every stable run's error_rms would be resolved",
     "order": "least-squares slope of log error_rms against log dt over stable resolved runs, one intercept per "
              "resolution",
 }
@@ -112,6 +119,7 @@ class ReferenceCheck:
     difference_max: float
     energy_drift: float
     converged: bool
+    converged_frames: int  # the first frames over which it is converged (all of them where ``converged``)
 
 
 @dataclass(frozen=True)
@@ -120,7 +128,7 @@ class Study:
     device: str
     frames: int
     fps: float
-    reference_refinement: int
+    reference_refinements: list[int]  # the one chosen (or given) for each resolution
     runs: list[StudyRun]
     references: list[ReferenceCheck]
     orders: dict[str, float | None]
@@ -231,8 +239,7 @@ class Trajectory:
     unstable_frame: int | None = None
     unstable_reason: str | None = None
     positions: list[np.ndarray] = dataclasses.field(default_factory=list)
-    squared_error: float = 0.0
-    error_count: int = 0
+    frame_squared_errors: list[float] = dataclasses.field(default_factory=list)  # frames 1..N
     error_max: float = 0.0
 
     @property
@@ -241,7 +248,7 @@ class Trajectory:
 
     @property
     def error_rms(self) -> float:
-        return math.sqrt(self.squared_error / self.error_count)
+        return math.sqrt(sum(self.frame_squared_errors) / (len(self.frame_squared_errors) * self.particles))
 
     @property
     def energy_drift(self) -> float:
@@ -254,8 +261,7 @@ class Trajectory:
             self.max_strain = max(self.max_strain or 0.0, float(np.abs(strains).max()))
         if reference is not None:
             distance = np.linalg.norm(x - reference, axis=1)
-            self.squared_error += float(np.sum(distance * distance))
-            self.error_count += len(distance)
+            self.frame_squared_errors.append(float(np.sum(distance * distance)))
             self.error_max = max(self.error_max, float(distance.max()))
 
 
@@ -332,18 +338,44 @@ def _plan(scene: Scene, integrators: Sequence[str], dts: Sequence[float], resolu
     return planned
 
 
-def _check_reference(scene: Scene, device: str, frames: int, substeps: int,
-                     tick: Callable[[int], None]) -> tuple[Trajectory, Trajectory]:
-    """The reference (kept frame by frame) and the same at half its step, compared with it."""
-    reference = simulate(with_step(scene, REFERENCE_INTEGRATOR, frames, substeps=substeps), device, frames,
-                         keep_positions=True, tick=tick)
-    if reference.unstable_frame is not None:
+def _reference_run(scene: Scene, device: str, frames: int, substeps: int, tick: Callable[[int], None],
+                   compared_with: Trajectory | None = None) -> Trajectory:
+    """A candidate reference (kept frame by frame), compared with the one at twice its step where given."""
+    run = simulate(with_step(scene, REFERENCE_INTEGRATOR, frames, substeps=substeps), device, frames,
+                   None if compared_with is None else compared_with.positions, keep_positions=True, tick=tick)
+    if run.unstable_frame is not None:
         raise SceneError("reference", f"a scene that stays stable with {REFERENCE_INTEGRATOR} Euler at dt "
-                         f"{reference.dt:.3g} s (at frame {reference.unstable_frame}: {reference.unstable_reason})",
+                         f"{run.dt:.3g} s (at frame {run.unstable_frame}: {run.unstable_reason})",
                          has_got=False, source=scene.name)
-    half = simulate(with_step(scene, REFERENCE_INTEGRATOR, frames, substeps=2 * substeps), device, frames,
-                    reference=reference.positions, tick=tick)
-    return reference, half
+    return run
+
+
+def _check_reference(scene: Scene, device: str, frames: int, study_substeps: int, refinements: Sequence[int],
+                     tick: Callable[[int], None]) -> tuple[int, Trajectory, Trajectory]:
+    """The reference's refinement, the reference and the same at half its step, compared with it: of
+    ``refinements`` (each twice the one before) the one whose difference from half its step is the
+    smallest, trying finer ones only while that difference shrinks."""
+    best = None
+    coarser = _reference_run(scene, device, frames, refinements[0] * study_substeps, tick)
+    for k, refinement in enumerate(refinements):
+        half = _reference_run(scene, device, frames, 2 * refinement * study_substeps, tick, compared_with=coarser)
+        if best is not None and half.error_rms >= best[2].error_rms:
+            tick(frames * (len(refinements) - k - 1))
+            break
+        best = (refinement, coarser, half)
+        coarser = half
+    return best
+
+
+def converged_frames(reference_check: Trajectory, runs: Sequence[Trajectory]) -> int:
+    """The most first frames 1..K over which every stable run's error is at least RESOLVED_FACTOR times the
+    reference's difference from its half step (RMS over those frames)."""
+    check = np.cumsum(reference_check.frame_squared_errors)
+    stable = [np.cumsum(r.frame_squared_errors) for r in runs if r.unstable_frame is None]
+    resolved = np.ones(len(check), dtype=bool)
+    for errors in stable:
+        resolved &= errors >= RESOLVED_FACTOR ** 2 * check
+    return int(np.flatnonzero(resolved)[-1]) + 1 if resolved.any() else 0
 
 
 def _study_run(planned: _Planned, run: Trajectory, resolved_above: float) -> StudyRun:
@@ -374,10 +406,11 @@ def convergence_order(runs: Sequence[StudyRun]) -> float | None:
 
 def run_study(scene: Scene | str | Path, integrators: Sequence[str] = INTEGRATORS, dts: Sequence[float] | None = None,
               resolutions: Sequence[int] | None = None, frames: int | None = None, device: str | None = None,
-              reference_refinement: int = REFERENCE_REFINEMENT, progress: bool = True) -> Study:
+              reference_refinement: int | None = None, progress: bool = True) -> Study:
     """Run every (integrator, dt, resolution) of a scene (a ``Scene``, a built-in name or a TOML path) and
     measure it against a reference. Defaults: the scene's step and its half and quarter, the scene's
-    resolution, the scene's frames up to 48. Bad input raises ``SceneError`` before anything runs."""
+    resolution, the scene's frames up to 48, the reference's step chosen (see above) unless
+    ``reference_refinement`` fixes it. Bad input raises ``SceneError`` before anything runs."""
     scene = scene if isinstance(scene, Scene) else load_scene(scene)
     step = scene_with_step(scene).simulation.time_step
     dts = list(dts) if dts else [step, step / 2, step / 4]
@@ -385,7 +418,7 @@ def run_study(scene: Scene | str | Path, integrators: Sequence[str] = INTEGRATOR
     if frames <= WARMUP_FRAMES:
         raise SceneError("--frames", f"a whole number > {WARMUP_FRAMES} (the first {WARMUP_FRAMES} are not timed)",
                          frames, "command line")
-    if reference_refinement < 1:
+    if reference_refinement is not None and reference_refinement < 1:
         raise SceneError("--reference-refinement", "a whole number >= 1", reference_refinement, "command line")
     resolutions_or_own: list[int | None] = list(resolutions) if resolutions else [None]
     planned = _plan(scene, integrators, dts, resolutions_or_own, frames)
@@ -393,32 +426,43 @@ def run_study(scene: Scene | str | Path, integrators: Sequence[str] = INTEGRATOR
         dev = resolve_device(device).alias
     except SceneError as exc:
         raise _option_error("--device", exc) from None
-    ref_substeps = reference_refinement * max(p.scene.simulation.substeps_per_frame for p in planned)
-    if 2 * ref_substeps > MAX_SUBSTEPS:  # the reference is checked against one at half its step
-        raise SceneError("--reference-refinement", f"a reference of at most {MAX_SUBSTEPS} substeps a frame at half "
-                                                   f"its step (the smallest study step / N), {2 * ref_substeps} "
-                                                   "asked: a smaller N or larger --dt", reference_refinement,
-                         "command line")
-    bar = Progress(frames * (len(planned) + 2 * len(resolutions_or_own)), f"study {scene.name} on {dev}") \
-        if progress else None
+    study_substeps = max(p.scene.simulation.substeps_per_frame for p in planned)
+    if reference_refinement is not None:
+        refinements = [reference_refinement]
+        if 2 * reference_refinement * study_substeps > MAX_SUBSTEPS:  # checked against one at half its step
+            raise SceneError("--reference-refinement", f"a reference of at most {MAX_SUBSTEPS} substeps a frame at "
+                             f"half its step (the smallest study step / N), {2 * reference_refinement * study_substeps}"
+                             " asked: a smaller N or larger --dt", reference_refinement, "command line")
+    else:
+        refinements = [r for r in REFERENCE_REFINEMENTS if 2 * r * study_substeps <= MAX_SUBSTEPS]
+        if not refinements:
+            coarsest = 2 * REFERENCE_REFINEMENTS[0]
+            raise SceneError("--dt", f"a smallest step of at least {1 / (scene.simulation.fps * MAX_SUBSTEPS / coarsest):.3g}"
+                             f" s (the reference is {coarsest} times finer, at most {MAX_SUBSTEPS} substeps a frame)",
+                             min(dts), "command line")
+    bar = Progress(frames * (len(planned) + (len(refinements) + 1) * len(resolutions_or_own)),
+                   f"study {scene.name} on {dev}") if progress else None
     tick = (lambda n: bar.update(bar.done + n)) if bar else (lambda n: None)
-    runs, references = [], []
+    runs, references, chosen = [], [], []
     try:
         for resolution in resolutions_or_own:
             at_resolution = [p for p in planned if p.resolution == resolution]
-            reference, half = _check_reference(at_resolution[0].scene, dev, frames, ref_substeps, tick)
+            refinement, reference, half = _check_reference(at_resolution[0].scene, dev, frames, study_substeps,
+                                                           refinements, tick)
             resolved_above = RESOLVED_FACTOR * half.error_rms
-            group = [_study_run(p, simulate(p.scene, dev, frames, reference.positions, tick=tick), resolved_above)
-                     for p in at_resolution]
+            trajectories = [simulate(p.scene, dev, frames, reference.positions, tick=tick) for p in at_resolution]
+            group = [_study_run(p, run, resolved_above) for p, run in zip(at_resolution, trajectories)]
             runs += group
+            chosen.append(refinement)
             references.append(ReferenceCheck(resolution, reference.particles, REFERENCE_INTEGRATOR, reference.dt,
                                              half.dt, half.error_rms, half.error_max, reference.energy_drift,
-                                             all(r.resolved for r in group if r.unstable_frame is None)))
+                                             all(r.resolved for r in group if r.unstable_frame is None),
+                                             converged_frames(half, trajectories)))
     finally:
         if bar:
             bar.close()
     orders = {i: convergence_order([r for r in runs if r.integrator == i]) for i in integrators}
-    return Study(scene.name, dev, frames, scene.simulation.fps, reference_refinement, runs, references, orders,
+    return Study(scene.name, dev, frames, scene.simulation.fps, chosen, runs, references, orders,
                  environment(dev))
 
 
@@ -428,9 +472,11 @@ def run_study(scene: Scene | str | Path, integrators: Sequence[str] = INTEGRATOR
 def study_json(study: Study) -> dict:
     return {"scene": study.scene, "device": study.device, "frames": study.frames, "fps": study.fps,
             "environment": study.environment, "definitions": DEFINITIONS,
-            "reference": {"integrator": REFERENCE_INTEGRATOR, "refinement": study.reference_refinement,
-                          "rule": "same scene and resolution, smallest study step / refinement; checked against "
-                                  "half its step", "converged": study.converged,
+            "reference": {"integrator": REFERENCE_INTEGRATOR, "refinements": study.reference_refinements,
+                          "rule": "same scene and resolution, smallest study step / refinement (for each "
+                                  "resolution, of 2, 4, ..., 32 the one whose difference from half its step is the "
+                                  "smallest, unless given); checked against half its step",
+                          "converged": study.converged,
                           "checks": [dataclasses.asdict(r) for r in study.references]},
             "orders": study.orders, "runs": [dataclasses.asdict(r) for r in study.runs]}
 
@@ -559,14 +605,18 @@ def format_table(study: Study) -> str:
         lines.append(f"reference {c.resolution or 'scene'}: {c.integrator} dt {c.dt * 1e3:.4g} ms vs "
                      f"{c.dt_half * 1e3:.4g} ms: difference rms {c.difference_rms:.3g} m, max "
                      f"{c.difference_max:.3g} m, energy drift {c.energy_drift:.3g}; "
-                     + ("converged" if c.converged else "NOT converged (some errors are below its resolution)"))
+                     + ("converged" if c.converged else "NOT converged (some errors are below its resolution)"
+                        + (f"; converged over frames 1..{c.converged_frames} (--frames {c.converged_frames})"
+                           if c.converged_frames > WARMUP_FRAMES else "")))
     return "\n".join(lines)
 
 
 def summary_line(study: Study, out: Path) -> str:
     unstable = sum(r.unstable_frame is not None for r in study.runs)
     orders = ", ".join(f"{i} {'n/a' if o is None else format(o, '.2f')}" for i, o in study.orders.items())
-    reference = "" if study.converged else "; reference NOT converged"
+    horizon = min(c.converged_frames for c in study.references)
+    reference = "" if study.converged else "; reference NOT converged" + (
+        f" (it is over frames 1..{horizon})" if horizon > WARMUP_FRAMES else "")
     return (f"study {study.scene}: {len(study.runs)} runs ({unstable} unstable) on {study.device}; orders {orders}"
             f"{reference}; wrote {out}/")
 
@@ -587,8 +637,9 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--frames", type=int,
                         help=f"frames per run (default: the scene's, at most {DEFAULT_MAX_FRAMES})")
     parser.add_argument("--device", help="cpu, cuda or cuda:N (default: cuda if available, else cpu)")
-    parser.add_argument("--reference-refinement", type=int, default=REFERENCE_REFINEMENT, metavar="N",
-                        help=f"reference step = smallest study step / N (default {REFERENCE_REFINEMENT})")
+    parser.add_argument("--reference-refinement", type=int, metavar="N",
+                        help="reference step = smallest study step / N (default: of 2, 4, ..., 32 the one whose "
+                             "difference from half its step is the smallest)")
     parser.add_argument("--out", type=Path, help="output folder (default: out/study-SCENE)")
     return parser
 
