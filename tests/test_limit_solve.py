@@ -197,6 +197,6 @@ def test_multilevel_converges_where_plain_jacobi_stops_at_its_cap():
 
 def test_multilevel_needs_the_converged_solve_and_no_chebyshev():
     with pytest.raises(wc.SceneError, match="limit_multilevel"):
-        wc.Simulation(limit_multilevel=True)
+        wc.Simulation(limit_solve="fixed", limit_multilevel=True)
     with pytest.raises(wc.SceneError, match="limit_chebyshev_rho"):
         wc.Simulation(limit_solve="converged", limit_multilevel=True, limit_chebyshev_rho=0.9)

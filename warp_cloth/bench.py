@@ -1,6 +1,11 @@
 """Benchmarks: wall time of whole runs, median of repeats, printed as a table and written as JSON with the
 device and versions. Never a test: time is measured here and asserted nowhere.
 
+The scenes built here set ``limit_solve = "fixed"``: they time the seed's loop (a set number of limit
+passes a substep) and the speed matrix as first measured, and every row says the worst strain that bought;
+what solving the limit to a tolerance costs is tools/strain_solve_probe.py's (docs/strain-solve.md). The
+built-in scenes run as their files say.
+
     python -m warp_cloth.bench --suite core --device cpu --json out/bench-core-cpu.json
 """
 
@@ -58,7 +63,8 @@ def seed_cloth_scene(n: int, self_collision: bool = False, integrator: str = "ex
                     motion=Oscillation(axis=(0.0, 0.0, 1.0), amplitude=5.0, frequency=0.1, phase=np.pi / 4))
     return Scene(name=f"seed_{n}x{n}", cloths=(cloth,), ground=Ground(), spheres=(sphere,),
                  collision=Collision(iterations=1) if self_collision else None,
-                 simulation=Simulation(fps=24, frames=240, dt=dt, integrator=integrator, limit_iterations=6))
+                 simulation=Simulation(fps=24, frames=240, dt=dt, integrator=integrator, limit_solve="fixed",
+                                       limit_iterations=6))
 
 
 def large_cloth_scene(n: int, substeps: int = 10) -> Scene:
@@ -72,7 +78,8 @@ def large_cloth_scene(n: int, substeps: int = 10) -> Scene:
                   limit=Limit(0.1, 0.1))
     return Scene(name=f"drop_{n}x{n}", cloths=(cloth,), ground=Ground(friction=0.3),
                  spheres=(Sphere(name="ball", center=(0.0, 1.5, 0.0), radius=1.5, friction=0.3),),
-                 simulation=Simulation(fps=24, frames=48, substeps=substeps, integrator="symplectic"))
+                 simulation=Simulation(fps=24, frames=48, substeps=substeps, integrator="symplectic",
+                                       limit_solve="fixed"))
 
 
 @dataclass(frozen=True)
@@ -134,7 +141,8 @@ def stacked_layers_scene(particles: int, broad_phase: str = "hash_grid", layers:
                          limit=Limit(0.1, 0.1)) for k in range(layers))
     return Scene(name=f"layers_{particles}", cloths=cloths,
                  collision=Collision(iterations=4, broad_phase=broad_phase, lists=lists),
-                 simulation=Simulation(fps=24, frames=1, substeps=substeps, gravity=(0.0, 0.0, 0.0)))
+                 simulation=Simulation(fps=24, frames=1, substeps=substeps, gravity=(0.0, 0.0, 0.0),
+                                       limit_solve="fixed"))
 
 
 def hanging_cloth_scene(n: int, integrator: str, substeps: int) -> Scene:
@@ -145,7 +153,8 @@ def hanging_cloth_scene(n: int, integrator: str, substeps: int) -> Scene:
                   structural=SpringKind(10.0, 0.1), shear=SpringKind(10.0, 0.1),
                   bend=SpringKind(10.0, 0.1, "compression", "compression"))
     return Scene(name=f"hanging_{n}x{n}", cloths=(cloth,),
-                 simulation=Simulation(fps=24, frames=48, substeps=substeps, integrator=integrator))
+                 simulation=Simulation(fps=24, frames=48, substeps=substeps, integrator=integrator,
+                                       limit_solve="fixed"))
 
 
 def integrator_cases(device: str) -> list[Case]:
@@ -262,7 +271,7 @@ def matrix_scene(variant: str, n: int, integrator: str) -> Scene:
     return Scene(name=f"{variant}_{n}x{n}", cloths=(cloth,), spheres=spheres,
                  collision=Collision(iterations=2) if variant == "self" else None,
                  simulation=Simulation(fps=MATRIX_FPS, frames=48, substeps=MATRIX_SUBSTEPS, integrator=integrator,
-                                       limit_iterations=2))
+                                       limit_solve="fixed", limit_iterations=2))
 
 
 def matrix_sizes(device: str) -> list[int]:

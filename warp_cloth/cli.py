@@ -115,9 +115,10 @@ def _cmd_scenes() -> int:
 
 
 def _limit_solve(sim) -> str:
-    """What a converged limit solve took over the run, for the summary line ('' for a fixed one)."""
+    """What the limit solve took over the run, for the summary line ('' where nothing is limited)."""
     if sim.plan.projection is None:
-        return ""
+        fixed = sim.scene.simulation.limit_solve == "fixed" and sim.model.limits is not None
+        return "; limit solve fixed: a set number of passes a substep, not solved to a tolerance" if fixed else ""
     stats = sim.solver_stats()
     cap = sim.scene.simulation.limit_max_passes
     ended = ("every solve ended within tolerance" if stats.limit_residual <= 1.0 else
