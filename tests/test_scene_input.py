@@ -289,10 +289,10 @@ TOO_MUCH_WORK = [
     # Each within its own bound, together past what a frame may take (checked at start-up).
     (("substeps = 2", 'substeps = 10000\nlimit_iterations = 1000'), "simulation.substeps",
      "at most 50,000 passes a frame"),
-    (("substeps = 2", 'substeps = 100\nlimit_solve = "fixed"\nlimit_iterations = 999'), "simulation.limit_iterations",
-     "at most 50,000 passes a frame"),
-    (("substeps = 2", 'substeps = 100\nlimit_max_passes = 999'), "simulation.limit_max_passes",
-     "at most 50,000 passes a frame"),
+    (("substeps = 2", 'substeps = 100\nlimit_solve = "fixed"\nlimit_iterations = 999'),
+     "simulation.limit_iterations", "at most 50,000 passes a frame"),
+    (("substeps = 2", 'substeps = 100\nlimit_solve = "converged"\nlimit_max_passes = 999'),
+     "simulation.limit_max_passes", "at most 50,000 passes a frame"),
     (("substeps = 2", 'substeps = 20\nintegrator = "implicit"\n[implicit]\nnewton_iterations = 100\n'
                       'cg_max_iterations = 100000'), "implicit.cg_max_iterations", "at most 50,000 passes a frame"),
 ]

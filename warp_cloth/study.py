@@ -437,9 +437,9 @@ def run_study(scene: Scene | str | Path, integrators: Sequence[str] = INTEGRATOR
         refinements = [r for r in REFERENCE_REFINEMENTS if 2 * r * study_substeps <= MAX_SUBSTEPS]
         if not refinements:
             coarsest = 2 * REFERENCE_REFINEMENTS[0]
-            raise SceneError("--dt", f"a smallest step of at least {1 / (scene.simulation.fps * MAX_SUBSTEPS / coarsest):.3g}"
-                             f" s (the reference is {coarsest} times finer, at most {MAX_SUBSTEPS} substeps a frame)",
-                             min(dts), "command line")
+            shortest = coarsest / (scene.simulation.fps * MAX_SUBSTEPS)
+            raise SceneError("--dt", f"a smallest step of at least {shortest:.3g} s (the reference is {coarsest} "
+                                     f"times finer, at most {MAX_SUBSTEPS} substeps a frame)", min(dts), "command line")
     bar = Progress(frames * (len(planned) + (len(refinements) + 1) * len(resolutions_or_own)),
                    f"study {scene.name} on {dev}") if progress else None
     tick = (lambda n: bar.update(bar.done + n)) if bar else (lambda n: None)
