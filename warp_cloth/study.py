@@ -46,7 +46,7 @@ from .model import FLAG_ELASTIC_COMPRESSION, FLAG_ELASTIC_TENSION, Model, Spring
 from .progress import Progress
 from .scene import INTEGRATORS, MAX_SUBSTEPS, Cloth, Scene
 from .scene_file import load_scene
-from .simulator import Simulator, resolve_device
+from .simulator import MAX_PASSES_PER_FRAME, Simulator, resolve_device
 from .stability import UnstableStepWarning, scene_with_step
 
 EXIT_BAD_INPUT = 2
@@ -159,8 +159,15 @@ def _cloth_at(cloth: Cloth, resolution: int) -> Cloth:
 
 def with_step(scene: Scene, integrator: str, frames: int, dt: float | None = None,
               substeps: int | None = None) -> Scene:
+    """The scene at a step; a converged limit solve's cap lowered where the step's substeps times it would
+    pass the bound on a frame's passes (``check_work``, which counts the cap): the fine steps of a
+    reference take a few passes a substep, far below any cap."""
     simulation = dataclasses.replace(scene.simulation, integrator=integrator, frames=frames, dt=dt,
                                      substeps=substeps)
+    if simulation.limit_solve == "converged" and simulation.substeps_per_frame is not None:
+        fitting = MAX_PASSES_PER_FRAME // simulation.substeps_per_frame - 1
+        if 2 <= fitting < simulation.limit_max_passes:
+            simulation = dataclasses.replace(simulation, limit_max_passes=fitting)
     return dataclasses.replace(scene, simulation=simulation)
 
 
