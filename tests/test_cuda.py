@@ -46,8 +46,15 @@ def assert_within_rounding(a: wc.Simulator, b: wc.Simulator, label: str) -> None
             assert difference < CPU_CUDA_TOLERANCE[frame]
 
 
+def fixed_hanging() -> wc.Scene:
+    """The hanging cloth with a set number of limit passes: a solve that stops at a tolerance takes a pass
+    more or less where rounding puts the residual on the other side of it, and the runs then differ by up
+    to the tolerance (5 mm on its 1 m edges), which says nothing of the kernels' arithmetic."""
+    return with_simulation(wc.load_scene("hanging"), limit_solve="fixed")
+
+
 def test_cpu_and_cuda_agree_without_collisions():
-    scene = wc.load_scene("hanging")
+    scene = fixed_hanging()
     assert scene.ground is None and not scene.spheres
     assert_within_rounding(wc.Simulator(scene, device="cpu"), wc.Simulator(scene, device="cuda"), "hanging, cpu-cuda")
 
@@ -88,7 +95,7 @@ def test_cuda_substep_launches_the_same_kernels_as_cpu(monkeypatch):
 def test_threads_per_particle_change_only_rounding(threads):
     """Several threads per particle sum the same terms in another order: against one thread per particle
     on the same GPU, the hanging cloth differs no more than CPU and CUDA may."""
-    scene = wc.load_scene("hanging")
+    scene = fixed_hanging()
     one, several = (wc.Simulator(scene, device="cuda", threads_per_particle=k) for k in (1, threads))
     assert_within_rounding(one, several, f"hanging, {threads} threads a particle")
 
