@@ -1,10 +1,10 @@
 """Benchmarks: wall time of whole runs, median of repeats, printed as a table and written as JSON with the
 device and versions. Never a test: time is measured here and asserted nowhere.
 
-The scenes built here set ``limit_solve = "fixed"``: they time the seed's loop (a set number of limit
-passes a substep) and the speed matrix as first measured, and every row says the worst strain that bought;
-what solving the limit to a tolerance costs is tools/strain_solve_probe.py's (docs/strain-solve.md). The
-built-in scenes run as their files say.
+The scenes built here run with ``limit_solve = "fixed"`` (``fixed_solve``): they time the seed's loop (a set
+number of limit passes a substep) and the speed matrix as first measured, and every row says the worst strain
+that bought; what solving the limit to a tolerance costs is tools/strain_solve_probe.py's
+(docs/strain-solve.md). The built-in scenes run as their files say.
 
     python -m warp_cloth.bench --suite core --device cpu --json out/bench-core-cpu.json
 """
@@ -51,6 +51,11 @@ SEED_CPP_SECONDS = {"seed_25x25+self": 2.64, "seed_default_60x60x2": 193.4,
                        for n, t in ((5, 0.224), (10, 2.30), (15, 14.7), (20, 66.7), (25, 157.9))}}
 
 
+def fixed_solve(**settings) -> Simulation:
+    """A benchmark scene's [simulation]: the fixed limit solve (see above) and ``settings``."""
+    return Simulation(limit_solve="fixed", **settings)
+
+
 def seed_cloth_scene(n: int, self_collision: bool = False, integrator: str = "explicit", dt: float = 0.0025) -> Scene:
     """The seed's single-cloth benchmark loop: an n x n cloth (L0 = 1 m, 0.025 kg a particle, k = 10,
     b = 1) pinned at two corners, explicit Euler at dt 0.0025 (17 substeps a frame), 6 strain-limit
@@ -63,8 +68,7 @@ def seed_cloth_scene(n: int, self_collision: bool = False, integrator: str = "ex
                     motion=Oscillation(axis=(0.0, 0.0, 1.0), amplitude=5.0, frequency=0.1, phase=np.pi / 4))
     return Scene(name=f"seed_{n}x{n}", cloths=(cloth,), ground=Ground(), spheres=(sphere,),
                  collision=Collision(iterations=1) if self_collision else None,
-                 simulation=Simulation(fps=24, frames=240, dt=dt, integrator=integrator, limit_solve="fixed",
-                                       limit_iterations=6))
+                 simulation=fixed_solve(fps=24, frames=240, dt=dt, integrator=integrator, limit_iterations=6))
 
 
 def large_cloth_scene(n: int, substeps: int = 10) -> Scene:
@@ -78,8 +82,7 @@ def large_cloth_scene(n: int, substeps: int = 10) -> Scene:
                   limit=Limit(0.1, 0.1))
     return Scene(name=f"drop_{n}x{n}", cloths=(cloth,), ground=Ground(friction=0.3),
                  spheres=(Sphere(name="ball", center=(0.0, 1.5, 0.0), radius=1.5, friction=0.3),),
-                 simulation=Simulation(fps=24, frames=48, substeps=substeps, integrator="symplectic",
-                                       limit_solve="fixed"))
+                 simulation=fixed_solve(fps=24, frames=48, substeps=substeps, integrator="symplectic"))
 
 
 @dataclass(frozen=True)
@@ -141,8 +144,7 @@ def stacked_layers_scene(particles: int, broad_phase: str = "hash_grid", layers:
                          limit=Limit(0.1, 0.1)) for k in range(layers))
     return Scene(name=f"layers_{particles}", cloths=cloths,
                  collision=Collision(iterations=4, broad_phase=broad_phase, lists=lists),
-                 simulation=Simulation(fps=24, frames=1, substeps=substeps, gravity=(0.0, 0.0, 0.0),
-                                       limit_solve="fixed"))
+                 simulation=fixed_solve(fps=24, frames=1, substeps=substeps, gravity=(0.0, 0.0, 0.0)))
 
 
 def hanging_cloth_scene(n: int, integrator: str, substeps: int) -> Scene:
@@ -153,8 +155,7 @@ def hanging_cloth_scene(n: int, integrator: str, substeps: int) -> Scene:
                   structural=SpringKind(10.0, 0.1), shear=SpringKind(10.0, 0.1),
                   bend=SpringKind(10.0, 0.1, "compression", "compression"))
     return Scene(name=f"hanging_{n}x{n}", cloths=(cloth,),
-                 simulation=Simulation(fps=24, frames=48, substeps=substeps, integrator=integrator,
-                                       limit_solve="fixed"))
+                 simulation=fixed_solve(fps=24, frames=48, substeps=substeps, integrator=integrator))
 
 
 def integrator_cases(device: str) -> list[Case]:
@@ -270,8 +271,8 @@ def matrix_scene(variant: str, n: int, integrator: str) -> Scene:
     spheres = (Sphere(name="ball", center=SPHERE_CENTER, radius=SPHERE_RADIUS),) if with_sphere else ()
     return Scene(name=f"{variant}_{n}x{n}", cloths=(cloth,), spheres=spheres,
                  collision=Collision(iterations=2) if variant == "self" else None,
-                 simulation=Simulation(fps=MATRIX_FPS, frames=48, substeps=MATRIX_SUBSTEPS, integrator=integrator,
-                                       limit_solve="fixed", limit_iterations=2))
+                 simulation=fixed_solve(fps=MATRIX_FPS, frames=48, substeps=MATRIX_SUBSTEPS, integrator=integrator,
+                                       limit_iterations=2))
 
 
 def matrix_sizes(device: str) -> list[int]:

@@ -14,7 +14,7 @@ times the difference between the two, and the reference is converged when every 
 resolved. Positions are float32, so refining further is not always better: past some step the rounding
 error of many small steps outgrows the truncation error (on the seed's hanging cloth, below about 0.15 ms
 the difference between a step and its half grows as the step shrinks). So the study chooses the reference
-step: it halves the smallest study step 2, 4, 8, ... 32 times while the difference between each step and
+step: it divides the smallest study step by 2, 4, 8, ... 32 while the difference between each step and
 the next keeps shrinking, and takes the step of the smallest difference (``--reference-refinement N``
 fixes the step at the smallest study step / N instead). Where a scene's motion amplifies small
 differences (a fold that can fall either way), no step converges over every frame; the check then says
