@@ -1,4 +1,4 @@
-"""Rigid colliders: the ground plane and spheres.
+"""Rigid colliders: the ground plane, spheres and the user's meshes.
 
 A particle inside is put back on the surface, and, as for every position correction here, its velocity
 changes by that correction over h (so a particle that sank in during the substep stops, and one hit by a
@@ -32,6 +32,11 @@ class RigidColliders:
     velocity: wp.array(dtype=wp.vec3)
     radius: wp.array(dtype=float)
     friction: wp.array(dtype=float)
+    angular_velocity: wp.array(dtype=wp.vec3)  # radians a second about each centre
+    meshes: wp.array(dtype=wp.uint64)  # mesh colliders' BVHs (wp.Mesh ids; none: empty)
+    mesh_thickness: wp.array(dtype=float)
+    mesh_friction: wp.array(dtype=float)
+    mesh_reach: float  # how far past its thickness a mesh looks for particles (behind its faces too)
 
 
 @wp.func
@@ -73,9 +78,36 @@ def collide_spheres(p: wp.vec3, vel: wp.vec3, hit: int, colliders: RigidCollider
                 normal = d / dist
             depth = colliders.radius[s] - dist
             p = colliders.center[s] + colliders.radius[s] * normal
-            vel = contact_velocity(vel + normal * (depth / h), colliders.velocity[s], normal, depth / h,
+            surface_velocity = colliders.velocity[s] + wp.cross(colliders.angular_velocity[s],
+                                                                colliders.radius[s] * normal)
+            vel = contact_velocity(vel + normal * (depth / h), surface_velocity, normal, depth / h,
                                    colliders.friction[s])
             hit = 1
+    return p, vel, hit
+
+
+@wp.func
+def collide_meshes(p: wp.vec3, vel: wp.vec3, hit: int, colliders: RigidColliders, h: float):
+    """Each mesh keeps the particle ``thickness`` off the side its nearest face faces: a particle closer,
+    or behind that face (inside a closed mesh), is put at that distance along the direction from the
+    nearest surface point (a face's normal, or out from an edge or corner)."""
+    for m in range(colliders.meshes.shape[0]):
+        mesh = colliders.meshes[m]
+        thickness = colliders.mesh_thickness[m]
+        query = wp.mesh_query_point_sign_normal(mesh, p, thickness + colliders.mesh_reach)
+        if query.result:
+            closest = wp.mesh_eval_position(mesh, query.face, query.u, query.v)
+            d = p - closest
+            dist = wp.length(d)
+            normal = wp.mesh_eval_face_normal(mesh, query.face)
+            if dist > 1.0e-9:
+                normal = d * (query.sign / dist)
+            depth = thickness - query.sign * dist
+            if depth > 0.0:
+                p = closest + thickness * normal
+                vel = contact_velocity(vel + normal * (depth / h), wp.vec3(0.0), normal, depth / h,
+                                       colliders.mesh_friction[m])
+                hit = 1
     return p, vel, hit
 
 
@@ -86,6 +118,7 @@ def collide_particle(p: wp.vec3, vel: wp.vec3, colliders: RigidColliders, h: flo
     hit = int(0)
     p, vel, hit = collide_ground(p, vel, hit, colliders, h)
     p, vel, hit = collide_spheres(p, vel, hit, colliders, h)
+    p, vel, hit = collide_meshes(p, vel, hit, colliders, h)
     return p, vel, hit
 
 

@@ -13,12 +13,17 @@ import warp as wp
 class ExternalForces:
     gravity: wp.vec3  # m/s^2
     drag: float  # 1/s: air drag on the particle's velocity
+    wind: wp.array(dtype=wp.vec3)  # (n,) each particle's wind acceleration this substep (wind.py); empty: none
 
 
 @wp.func
-def external_acceleration(forces: ExternalForces, x: wp.vec3, v: wp.vec3) -> wp.vec3:
-    """The acceleration of a particle at x with velocity v from the external forces."""
-    return forces.gravity - forces.drag * v
+def external_acceleration(forces: ExternalForces, i: int, x: wp.vec3, v: wp.vec3) -> wp.vec3:
+    """The acceleration of particle i, at x with velocity v, from the external forces (the wind's taken
+    as it was at the substep's start: explicit in both integrators)."""
+    a = forces.gravity - forces.drag * v
+    if forces.wind.shape[0] > 0:
+        a = a + forces.wind[i]
+    return a
 
 
 @wp.func

@@ -36,7 +36,8 @@ class PairRules:
     cloth_id: wp.array(dtype=int)
     self_collision: int
     between_cloths: int
-    grid_xy: wp.array(dtype=int)  # (n,) gx + 65536 gy, or empty where no cloth skips its grid neighbours
+    adjacent_offsets: wp.array(dtype=int)  # (n + 1,) particles that share a face (CSR), or empty where no
+    adjacent_other: wp.array(dtype=int)  # cloth skips them; each particle's list sorted
     exclude_adjacent: wp.array(dtype=int)  # (cloths,) 1 where a cloth skips them, or empty
     search_scale: float  # candidates lie within this many contact distances
 
@@ -57,9 +58,9 @@ def contact_distance(ri: float, rj: float, separation: float) -> float:
 
 @wp.func
 def may_collide(rules: PairRules, i: int, j: int) -> bool:
-    """Whether the pair i-j is one the scene asks to collide. Rest-adjacent particles of a cloth (grid
-    neighbours, diagonals included) are skipped only where that cloth's strain limit cannot keep them
-    apart by itself."""
+    """Whether the pair i-j is one the scene asks to collide. Rest-adjacent particles of a cloth (that share
+    a face: on a grid, neighbours with diagonals) are skipped only where that cloth's strain limit cannot
+    keep them apart by itself."""
     ci = rules.cloth_id[i]
     if ci != rules.cloth_id[j]:
         return rules.between_cloths != 0
@@ -67,12 +68,9 @@ def may_collide(rules: PairRules, i: int, j: int) -> bool:
         return False
     if rules.exclude_adjacent.shape[0] > 0:
         if rules.exclude_adjacent[ci] != 0:
-            a = rules.grid_xy[i]
-            b = rules.grid_xy[j]
-            dx = wp.abs((a & 65535) - (b & 65535))
-            dy = wp.abs((a >> 16) - (b >> 16))
-            if dx <= 1 and dy <= 1:
-                return False
+            for k in range(rules.adjacent_offsets[i], rules.adjacent_offsets[i + 1]):
+                if rules.adjacent_other[k] == j:
+                    return False
     return True
 
 

@@ -76,7 +76,7 @@ def gather_spring_forces(step: ExplicitStepArgs, i: int, first: int, stride: int
 def stepped(step: ExplicitStepArgs, i: int, f: wp.vec3, x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3)):
     xi = x[i]
     vi = v[i]
-    return explicit_step(xi, vi, step.inv_mass[i], f, external_acceleration(step.forces, xi, vi), step.h,
+    return explicit_step(xi, vi, step.inv_mass[i], f, external_acceleration(step.forces, i, xi, vi), step.h,
                          step.semi_implicit)
 
 
@@ -496,7 +496,7 @@ def newton_rhs(y: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), v0: wp.ar
         return
     m = args.mass[i]
     f = spring_forces(args.springs, i, 0, 1, y, v)
-    f = f + m * external_acceleration(args.forces, y[i], v[i])
+    f = f + m * external_acceleration(args.forces, i, y[i], v[i])
     out = args.h * f - m * (v[i] - v0[i])
     if linearized_at_start != 0:
         out = out - (args.h * args.h) * stiffness_times_motion(args.springs, i, y, v0)

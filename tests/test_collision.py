@@ -11,7 +11,8 @@ import warp_cloth as wc
 from conftest import run_cli, with_simulation
 from warp_cloth.diagnostics import ContactGaps, TriangleIntersections
 from warp_cloth.kernels import particle_collision, spatial_hash
-from warp_cloth.model import collision_radius, needs_adjacent_exclusion
+from warp_cloth.cloth_grid import build_grid
+from warp_cloth.model import collision_radii, needs_adjacent_exclusion
 from warp_cloth.device_model import no_colliders
 from warp_cloth.kernels import passes as fused
 from warp_cloth.kernels.gathering import launch_gathering
@@ -33,8 +34,15 @@ def two_cloth_scene(limit_a: bool) -> wc.Scene:
     return wc.Scene(name="pair", cloths=(a, b), collision=wc.Collision(iterations=1))
 
 
+def grid_coordinates(scene: wc.Scene) -> np.ndarray:
+    """Every particle's gx + 65536 gy on its cloth's grid."""
+    return np.concatenate([np.arange(c.particle_count) % (c.resolution[0] + 1)
+                           + 65536 * (np.arange(c.particle_count) // (c.resolution[0] + 1)) for c in scene.cloths])
+
+
 def brute_force_pairs(x, radius, separation, cloth_id, grid_xy, exclude, self_on, between_on):
-    """Every allowed pair closer than its contact distance, by checking all n^2 pairs."""
+    """Every allowed pair closer than its contact distance, by checking all n^2 pairs (grid neighbours by
+    their grid coordinates gx + 65536 gy)."""
     pairs = set()
     n = len(x)
     for i in range(n):
@@ -95,7 +103,7 @@ def test_hash_grid_stage_matches_brute_force(seed, limit_a, self_on, between_on)
     assert lists.overflow == 0
     candidates = lists.candidates()
     radius = contacts.radius
-    reference = brute_force_pairs(x, radius, s.separation, sim.model.cloth_id, contacts.grid_xy, exclude,
+    reference = brute_force_pairs(x, radius, s.separation, sim.model.cloth_id, grid_coordinates(scene), exclude,
                                   self_on, between_on)
     found = {(i, int(j)) for i in range(n) for j in candidates[i]
              if np.linalg.norm(x[i] - x[j]) < s.separation * 0.5 * (radius[i] + radius[j])}
@@ -113,13 +121,16 @@ def test_hash_grid_stage_matches_brute_force(seed, limit_a, self_on, between_on)
 
 def test_seed_radius_rule_and_when_grid_neighbours_need_exclusion():
     cloth = wc.Cloth(resolution=(10, 10), size=(10.0, 10.0), limit=wc.Limit(0.1, 0.1))
-    r = collision_radius(cloth, None)
-    assert r == pytest.approx(0.25 * np.sqrt(2.0) * 1.1)
+    mesh = build_grid(cloth)
+    r = collision_radii(cloth, mesh, None)
+    np.testing.assert_allclose(r, 0.25 * np.sqrt(2.0) * 1.1)
     # Contact at 2.1 r = 0.817 of a cell; the limit keeps neighbours >= 0.9 of a cell apart.
-    assert not needs_adjacent_exclusion(cloth, r, 2.1)
-    assert needs_adjacent_exclusion(dataclasses.replace(cloth, limit=None), r, 2.1)
+    assert not needs_adjacent_exclusion(cloth, mesh, r, 2.1)
+    free = dataclasses.replace(cloth, limit=None)
+    assert needs_adjacent_exclusion(free, mesh, collision_radii(free, mesh, None), 2.1)
     stretched = dataclasses.replace(cloth, size=(10.0, 4.0))  # 1 x 0.4 cells: diagonal rule too large
-    assert needs_adjacent_exclusion(stretched, collision_radius(stretched, None), 2.1)
+    stretched_mesh = build_grid(stretched)
+    assert needs_adjacent_exclusion(stretched, stretched_mesh, collision_radii(stretched, stretched_mesh, None), 2.1)
 
 
 SCENE_FRAMES = {"fold": 120, "pile": 48, "seed_default": 48}
@@ -223,7 +234,7 @@ def test_kept_neighbour_lists_hold_every_touching_pair():
         if substep % 17:
             continue
         x = sim.positions()
-        touching = brute_force_pairs(x, contacts.radius, rules.separation, sim.model.cloth_id, contacts.grid_xy,
+        touching = brute_force_pairs(x, contacts.radius, rules.separation, sim.model.cloth_id, grid_coordinates(sim.scene),
                                      contacts.exclude_adjacent, rules.self_collision, rules.between_cloths)
         listed = {(i, int(j)) for i, candidates in enumerate(sim.plan.lists.candidates()) for j in candidates}
         assert touching <= listed

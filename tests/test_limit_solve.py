@@ -88,7 +88,7 @@ def test_long_range_limits_are_implied_by_the_springs_limits():
     cloth = dataclasses.replace(cloth, jitter=0.0, limit=dataclasses.replace(cloth.limit, long_range=True))
     model = wc.Simulator(dataclasses.replace(scene, cloths=(cloth,)), device="cpu").model
     limits = model.limits
-    stretched = model.grids[0].positions * 1.1  # every distance across the flat cloth 10% longer
+    stretched = model.cloths[0].positions * 1.1  # every distance across the flat cloth 10% longer
     owner = np.repeat(np.arange(len(limits.offsets) - 1), np.diff(limits.offsets))
     length = np.linalg.norm(stretched[owner] - stretched[limits.other], axis=1)
     far = limits.min_length == 0.0
@@ -133,7 +133,7 @@ def grid_hierarchy(cells: int):
 def test_a_grid_coarsens_to_every_other_row_and_column_with_straight_limits():
     model = grid_hierarchy(32)
     levels = model.hierarchy
-    rest = model.grids[0].positions
+    rest = model.cloths[0].positions
     columns = 33
     first_level = levels.particle[levels.first[0]:levels.first[1]]
     free = first_level[model.inv_mass[first_level] > 0]

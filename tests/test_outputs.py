@@ -95,7 +95,7 @@ def test_usd_has_ground_static_sphere_and_catmull_clark_when_asked(tmp_path):
 
 def test_poly_format_is_points_polys_end_with_one_based_labels():
     points = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0.5]], dtype=np.float32)
-    text = format_poly(points, np.array([[0, 1, 2, 3]]))
+    text = format_poly(points, np.array([4]), np.array([0, 1, 2, 3]))
     assert text == "POINTS\n1: 0 0 0\n2: 1 0 0\n3: 1 1 0\n4: 0 1 0.5\nPOLYS\n1: 1 2 3 4 <\nEND\n"
 
 

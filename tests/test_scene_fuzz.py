@@ -34,6 +34,9 @@ BASES = {name: tomllib.loads(resources.files("warp_cloth.scenes").joinpath(f"{na
 for _name, _doc in BASES.items():
     _doc["name"] = _name
     _doc["simulation"]["frames"] = 1  # should a case be wrongly accepted, it costs one frame
+    for _table in _doc.get("cloth", []) + _doc.get("collider", []):  # the cases are written elsewhere; as a
+        if isinstance(_table.get("mesh"), str):                       # table, as the fields' hints have it
+            _table["mesh"] = {"file": str(resources.files("warp_cloth.scenes").joinpath(_table["mesh"]))}
 
 NAN, INF = float("nan"), float("inf")
 BAD_NAMES = ["a-b", "\u00e9", "x" * 101, "", "ground", "1st", "a b"]

@@ -5,7 +5,7 @@ import numpy as np
 
 import warp_cloth as wc
 from conftest import run_cli
-from warp_cloth.cloth_grid import SHEAR, STRUCTURAL
+from warp_cloth.cloth_mesh import SHEAR, STRUCTURAL
 from warp_cloth.strain import BINS_PER_UNIT, StrainMonitor
 
 
@@ -25,7 +25,7 @@ class Positions:
 def host_strains(sim: wc.Simulator, x: np.ndarray) -> np.ndarray:
     """Every structural and shear edge's strain, computed here from the grids (float64)."""
     strains = []
-    for c, grid in enumerate(sim.model.grids):
+    for c, grid in enumerate(sim.model.cloths):
         chosen = np.isin(grid.spring_kind, (STRUCTURAL, SHEAR))
         pairs = grid.springs[chosen] + sim.model.offsets[c]
         rest = grid.rest_lengths[chosen].astype(np.float32).astype(np.float64)

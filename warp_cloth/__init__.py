@@ -13,8 +13,8 @@ import importlib
 from typing import TYPE_CHECKING
 
 from .errors import SceneError, UnstableSimulation
-from .scene import (Box, Cloth, Collision, Ground, ImplicitSolver, Limit, Oscillation, Output, Pin, Scene,
-                    Simulation, Sphere, SpringKind)
+from .scene import (Box, Cloth, Collision, Ground, ImplicitSolver, Limit, MeshCollider, MeshSource, Oscillation,
+                    Output, Pin, Scene, Simulation, Sphere, SpringKind, Wind)
 
 if TYPE_CHECKING:
     from .scene_file import builtin_scene_names, load_scene, scene_from_dict
@@ -35,9 +35,10 @@ _IMPORTED_AT_FIRST_USE = {
 __version__ = "0.1.0"
 
 __all__ = [
-    "Box", "CheckpointWriter", "Cloth", "Collision", "Ground", "ImplicitSolver", "Limit", "Oscillation", "Output",
+    "Box", "CheckpointWriter", "Cloth", "Collision", "Ground", "ImplicitSolver", "Limit", "MeshCollider", "MeshSource",
+    "Oscillation", "Output",
     "Pin", "PolyWriter", "RunSummary", "Scene", "SceneError", "Simulation", "Simulator", "Sphere", "SpringKind",
-    "StrainMonitor", "StrainReport",
+    "StrainMonitor", "StrainReport", "Wind",
     "UnstableSimulation", "UnstableStepWarning", "UsdWriter", "builtin_scene_names", "load_scene", "scene_from_dict",
 ]
 

@@ -30,6 +30,7 @@ from typing import Callable
 import numpy as np
 import warp as wp
 
+from .bench_meshes import RINGS_FOR_100K, as_mesh_cloth, sphere_triangles, with_mesh_sphere, without_grid_only
 from .progress import Progress
 from .scene import Cloth, Collision, Ground, Limit, Oscillation, Pin, Scene, Simulation, Sphere, SpringKind
 from .scene_file import load_scene
@@ -291,6 +292,21 @@ def matrix_cases(device: str) -> list[Case]:
                          matrix_frames(n, device), fresh=False) for n in matrix_sizes(device)]
 
 
+def mesh_cases(device: str) -> list[Case]:
+    """The speed matrix's sphere cloth (limit without its grid-only attachments) as a grid, read from an
+    OBJ of its quads, and of its triangles; then with its sphere made a mesh of about 100k triangles."""
+    cases = []
+    for n in [64] if device == "cpu" else [256, 1024]:
+        grid = without_grid_only(matrix_scene("sphere", n, "symplectic"))
+        frames = matrix_frames(n, device)
+        cases += [Case(f"grid {n}^2", grid, frames, fresh=False),
+                  Case(f"mesh quads {n}^2", as_mesh_cloth(grid, triangles=False), frames, fresh=False),
+                  Case(f"mesh triangles {n}^2", as_mesh_cloth(grid, triangles=True), frames, fresh=False),
+                  Case(f"grid {n}^2, sphere as {sphere_triangles(RINGS_FOR_100K) // 1000}k-triangle mesh",
+                       with_mesh_sphere(grid, RINGS_FOR_100K), frames, fresh=False)]
+    return cases
+
+
 @dataclass(frozen=True)
 class Suite:
     cases: Callable[[str], list[Case]]  # of the device ("cpu" or "cuda")
@@ -313,6 +329,9 @@ SUITES = {
                                   "self collision, 64^2 and 128^2 on the CPU (to 2048^2 on a GPU), symplectic and "
                                   "implicit, and springs only, each with its worst edge strain; with --newton the "
                                   "same cloths in Newton's solvers"),
+    "meshes": Suite(mesh_cases, "the matrix's sphere cloth as a grid and read back from OBJ files of its quads and "
+                                "of its triangles, then with its sphere a mesh collider of 100k triangles (64^2 on "
+                                "the CPU, 256^2 and 1024^2 on a GPU)"),
 }
 
 

@@ -24,15 +24,21 @@ FORMAT = 2  # 2: the state's arrays by name (1 named them by the stage that held
 
 def scene_fingerprint(scene) -> str:
     """A hash of everything that decides the frames: the scene without its frame count and output
-    settings (a resumed run may ask for more frames), the step it runs at and this package's version."""
+    settings (a resumed run may ask for more frames), the step it runs at, the meshes that mesh cloths
+    were read from (their content, not only their paths) and this package's version."""
     from . import __version__
 
     fields = dataclasses.asdict(scene)
     del fields["simulation"]["frames"]
     for key in ("dir", "usd", "poly"):
         del fields["output"][key]
-    text = f"{__version__}|{scene.simulation.time_step!r}|{fields!r}"
-    return hashlib.sha256(text.encode()).hexdigest()
+    digest = hashlib.sha256(f"{__version__}|{scene.simulation.time_step!r}|{fields!r}".encode())
+    for cloth in scene.cloths:
+        if cloth.mesh is not None:
+            surface = cloth.surface()
+            for array in (surface.points, surface.face_counts, surface.face_indices):
+                digest.update(array.tobytes())
+    return digest.hexdigest()
 
 
 def checkpoint_path(output: Path) -> Path:

@@ -1,37 +1,19 @@
-"""One cloth as arrays: particle positions, masses, springs, quads, UVs and pinned particles.
+"""A grid cloth as a ``ClothMesh``: particle positions, masses, springs, quads, UVs and pinned particles.
 
 Grid particle (x, y) has index ``x + (nx + 1) * y``, as in the seed. Springs: structural to the right and
-upper neighbours, shear on both diagonals of each quad, bend two apart along rows and columns.
+upper neighbours, shear on both diagonals of each quad, bend two apart along rows and columns (the springs
+``cloth_mesh.mesh_springs`` makes of the same quads, in the seed's order).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
+from .cloth_mesh import BEND, SHEAR, STRUCTURAL, ClothMesh
 from .errors import SceneError
 from .scene import Cloth, Pin
-
-STRUCTURAL, SHEAR, BEND = 0, 1, 2
-SPRING_KINDS = ("structural", "shear", "bend")
-
-
-@dataclass(frozen=True)
-class ClothGrid:
-    positions: np.ndarray  # (n, 3) float64
-    masses: np.ndarray  # (n,)
-    springs: np.ndarray  # (s, 2) int64 particle pairs
-    spring_kind: np.ndarray  # (s,) STRUCTURAL / SHEAR / BEND
-    rest_lengths: np.ndarray  # (s,)
-    quads: np.ndarray  # (q, 4) counter-clockwise in (u, v)
-    uvs: np.ndarray  # (n, 2)
-
-    @property
-    def triangles(self) -> np.ndarray:
-        q = self.quads
-        return np.concatenate([q[:, [0, 1, 2]], q[:, [0, 2, 3]]])
 
 
 def rotation_matrix(degrees_xyz: tuple[float, float, float]) -> np.ndarray:
@@ -76,7 +58,7 @@ def grid_positions(cloth: Cloth) -> np.ndarray:
     return local @ cloth_frame(cloth).T + np.asarray(cloth.origin, dtype=float)
 
 
-def build_grid(cloth: Cloth) -> ClothGrid:
+def build_grid(cloth: Cloth) -> ClothMesh:
     nx, ny = cloth.resolution
     dx, dy = cloth.size[0] / nx, cloth.size[1] / ny
     gx, gy = _grid_coordinates(cloth)
@@ -87,7 +69,8 @@ def build_grid(cloth: Cloth) -> ClothGrid:
     qx, qy = qx.ravel(), qy.ravel()
     quads = np.stack([idx(qx, qy), idx(qx + 1, qy), idx(qx + 1, qy + 1), idx(qx, qy + 1)], axis=1)
     uvs = np.stack([gx / nx, gy / ny], axis=1)
-    return ClothGrid(positions, _masses(cloth, gx, gy, dx, dy), springs, kinds, rests, quads, uvs)
+    return ClothMesh(positions, _masses(cloth, gx, gy, dx, dy), springs, kinds, rests,
+                     np.full(len(quads), 4, dtype=np.int64), quads.ravel().astype(np.int64), uvs)
 
 
 def _grid_springs(nx: int, ny: int, dx: float, dy: float):

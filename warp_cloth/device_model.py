@@ -14,6 +14,7 @@ from warp_cloth.kernels.forces import ExternalForces
 from warp_cloth.kernels.limits import StrainLimits
 from warp_cloth.kernels.particle_collision import Contacts, PairRules
 from warp_cloth.kernels.springs import Springs
+from warp_cloth.kernels.wind import Wind
 
 from .model import Model
 from .scene import Collision, Scene
@@ -101,6 +102,8 @@ class DeviceModel:
         self.forces = ExternalForces()
         self.forces.gravity = wp.vec3(*simulation.gravity)
         self.forces.drag = simulation.drag
+        self.wind = self._wind(model, scene.wind)
+        self.forces.wind = wp.zeros(n if self.wind is not None else 0, dtype=wp.vec3, device=device)
         self.springs = self._springs(model, n)
         self.limits = self._limits(model)
         self.hierarchy = self._hierarchy(model) if model.hierarchy is not None and self.limits is not None else None
@@ -122,7 +125,11 @@ class DeviceModel:
         self.ground = scene.ground
         self._sphere_radius = upload(spheres.radius if spheres is not None else np.zeros(0), float, device)
         self._sphere_friction = upload(spheres.friction if spheres is not None else np.zeros(0), float, device)
-        self.has_colliders = scene.ground is not None or spheres is not None
+        self._sphere_spin = upload(spheres.angular_velocity if spheres is not None else np.zeros((0, 3)), wp.vec3,
+                                   device)
+        self._meshes, self._mesh_ids, self._mesh_thickness, self._mesh_friction = self._mesh_colliders(model)
+        self._mesh_reach = float(model.edge_rest.max()) if len(model.edge_rest) else 0.0
+        self.has_colliders = scene.ground is not None or spheres is not None or model.mesh_colliders is not None
         self.contacts = None if model.contacts is None else self._contacts(model, scene.collision)
         self.no_marks = wp.zeros(0, dtype=int, device=device)  # for passes whose colliders mark no one
         self._no_colliders = no_colliders(device)
@@ -175,9 +182,11 @@ class DeviceModel:
         rules.self_collision = int(settings.self_collision)
         rules.between_cloths = int(settings.between_cloths)
         if contacts.exclude_adjacent is None:
-            rules.grid_xy = rules.exclude_adjacent = wp.zeros(0, dtype=int, device=device)
+            rules.adjacent_offsets = rules.adjacent_other = rules.exclude_adjacent = wp.zeros(0, dtype=int,
+                                                                                              device=device)
         else:
-            rules.grid_xy = upload(contacts.grid_xy, int, device)
+            rules.adjacent_offsets = upload(contacts.rest_adjacent.offsets, int, device)
+            rules.adjacent_other = upload(contacts.rest_adjacent.other, int, device)
             rules.exclude_adjacent = upload(contacts.exclude_adjacent, int, device)
         rules.search_scale = settings.search_scale
         return ParticleContacts(settings, upload(contacts.radius, float, device), rules, contacts.max_radius,
@@ -201,6 +210,28 @@ class DeviceModel:
         contacts.separation, contacts.max_neighbors = 1.0, 1
         return contacts
 
+    def _wind(self, model: Model, settings) -> Wind | None:
+        if settings is None:
+            return None
+        wind, device, faces = Wind(), self.device, model.wind_faces
+        wind.velocity = wp.vec3(*settings.velocity)
+        wind.turbulence, wind.scale, wind.air_density = settings.turbulence, settings.scale, settings.air_density
+        wind.drag, wind.lift = settings.drag, settings.lift
+        wind.faces = upload(faces.faces, wp.vec4i, device)
+        wind.offsets, wind.incident = upload(faces.offsets, int, device), upload(faces.incident, int, device)
+        return wind
+
+    def _mesh_colliders(self, model: Model):
+        """The mesh colliders' BVHs (kept here: the kernels hold only their ids), ids, thicknesses, frictions."""
+        colliders, device = model.mesh_colliders, self.device
+        if colliders is None:
+            return (), wp.zeros(0, dtype=wp.uint64, device=device), wp.zeros(0, dtype=float, device=device), \
+                wp.zeros(0, dtype=float, device=device)
+        meshes = tuple(wp.Mesh(points=upload(points, wp.vec3, device), indices=upload(triangles.ravel(), int, device))
+                       for points, triangles in zip(colliders.points, colliders.triangles))
+        ids = wp.array(np.array([m.id for m in meshes], dtype=np.uint64), dtype=wp.uint64, device=device)
+        return meshes, ids, upload(colliders.thickness, float, device), upload(colliders.friction, float, device)
+
     def colliders(self, center: wp.array, velocity: wp.array) -> RigidColliders:
         """The scene's rigid colliders as the kernels take them, spheres where ``center`` and ``velocity``
         (the state's) have them."""
@@ -210,6 +241,9 @@ class DeviceModel:
         colliders.ground_friction = self.ground.friction if self.ground is not None else 0.0
         colliders.center, colliders.velocity = center, velocity
         colliders.radius, colliders.friction = self._sphere_radius, self._sphere_friction
+        colliders.angular_velocity = self._sphere_spin
+        colliders.meshes, colliders.mesh_thickness = self._mesh_ids, self._mesh_thickness
+        colliders.mesh_friction, colliders.mesh_reach = self._mesh_friction, self._mesh_reach
         return colliders
 
     def no_colliders(self) -> RigidColliders:
@@ -221,7 +255,10 @@ def no_colliders(device) -> RigidColliders:
     colliders = RigidColliders()
     colliders.ground = 0
     colliders.ground_height = colliders.ground_friction = 0.0
-    colliders.center = colliders.velocity = wp.zeros(0, dtype=wp.vec3, device=device)
+    colliders.center = colliders.velocity = colliders.angular_velocity = wp.zeros(0, dtype=wp.vec3, device=device)
     colliders.radius = colliders.friction = wp.zeros(0, dtype=float, device=device)
+    colliders.meshes = wp.zeros(0, dtype=wp.uint64, device=device)
+    colliders.mesh_thickness = colliders.mesh_friction = wp.zeros(0, dtype=float, device=device)
+    colliders.mesh_reach = 0.0
     return colliders
 

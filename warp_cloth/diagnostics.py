@@ -16,7 +16,7 @@ class TriangleIntersections:
 
     def __init__(self, sim: Simulator) -> None:
         model = sim.model
-        triangles = np.concatenate([g.triangles + model.offsets[c] for c, g in enumerate(model.grids)])
+        triangles = np.concatenate([g.triangles + model.offsets[c] for c, g in enumerate(model.cloths)])
         self.device = sim.device
         self.points = wp.array(model.positions, dtype=wp.vec3, device=self.device)
         self.triangles = wp.array(triangles.astype(np.int32).ravel(), dtype=int, device=self.device)

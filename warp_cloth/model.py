@@ -15,10 +15,12 @@ import numpy as np
 from warp_cloth.kernels import springs as spring_kernels
 
 from .adjacency import Adjacency
-from .cloth_grid import BEND, SHEAR, STRUCTURAL, ClothGrid, build_grid, grid_positions, pinned_indices
+from .cloth_grid import build_grid, grid_positions, pinned_indices
+from .cloth_mesh import BEND, SHEAR, STRUCTURAL, ClothMesh, enclosing_radii, rest_adjacent_pairs
 from .errors import SceneError
 from .hierarchy import Hierarchy, build_hierarchy
-from .scene import Scene, SpringKind
+from .mesh_cloth import build_mesh_cloth, mesh_positions
+from .scene import Cloth, Scene, SpringKind
 
 # The spring kernels' regime bits (kernels/springs.py), which the host side sets and reads.
 FLAG_ELASTIC_TENSION = int(spring_kernels.ELASTIC_TENSION)
@@ -43,6 +45,7 @@ class Springs:
     stiffness: np.ndarray
     damping: np.ndarray
     flags: np.ndarray  # (s,) int32
+    kind: np.ndarray  # (s,) int32: STRUCTURAL, SHEAR or BEND
     limit_min: np.ndarray  # (s,) shortest allowed length, 0 where the spring is not limited
     limit_max: np.ndarray  # (s,) longest allowed length, inf where not limited
     adjacency: Adjacency
@@ -78,6 +81,7 @@ class Spheres:
     initial_center: np.ndarray  # (k, 3) where the sphere is at t = 0
     radius: np.ndarray
     friction: np.ndarray
+    angular_velocity: np.ndarray  # (k, 3) radians a second
     amplitude: np.ndarray  # (k, 3)
     frequency: np.ndarray
     phase: np.ndarray
@@ -85,13 +89,32 @@ class Spheres:
 
 
 @dataclass(frozen=True)
+class WindFaces:
+    """Every cloth's faces, and each particle's, for the wind's forces."""
+
+    faces: np.ndarray  # (f, 4) int32, -1 as a triangle's fourth
+    offsets: np.ndarray  # (n + 1,) int32: particle i's faces are incident[offsets[i]:offsets[i + 1]]
+    incident: np.ndarray  # int32 face indices
+
+
+@dataclass(frozen=True)
+class MeshColliders:
+    """Each mesh collider's triangles in world space (its quads fanned into two)."""
+
+    points: tuple[np.ndarray, ...]  # (v, 3) float32 each
+    triangles: tuple[np.ndarray, ...]  # (t, 3) int32 each
+    thickness: np.ndarray  # (k,) float32
+    friction: np.ndarray  # (k,) float32
+
+
+@dataclass(frozen=True)
 class ParticleContacts:
     """What particle collision needs: each particle's sphere radius and, only where some cloth's
-    strain limit cannot keep its grid neighbours apart, grid coordinates to skip those pairs."""
+    strain limit cannot keep the particles of a face apart, those pairs to skip."""
 
     radius: np.ndarray  # (n,) float32
     exclude_adjacent: np.ndarray | None  # (cloths,) int32, 1 where rest-adjacent pairs are skipped
-    grid_xy: np.ndarray | None  # (n,) int32: gx + 65536 gy
+    rest_adjacent: Adjacency | None  # particles that share a face, both ways, each list sorted
 
     @property
     def max_radius(self) -> float:
@@ -100,7 +123,7 @@ class ParticleContacts:
 
 @dataclass(frozen=True)
 class Model:
-    grids: tuple[ClothGrid, ...]
+    cloths: tuple[ClothMesh, ...]
     offsets: tuple[int, ...]  # first particle of each cloth, plus the total at the end
     positions: np.ndarray  # (n, 3) float32
     velocities: np.ndarray
@@ -115,6 +138,8 @@ class Model:
     edges: np.ndarray  # (e, 2) int32: every cloth's structural and shear edges, springs or not
     edge_rest: np.ndarray  # (e,) float32: their rest lengths
     hierarchy: Hierarchy | None = None  # coarser levels of the strain limits, for the multilevel solve
+    mesh_colliders: MeshColliders | None = None
+    wind_faces: WindFaces | None = None
 
     @property
     def particle_count(self) -> int:
@@ -125,18 +150,18 @@ class Model:
 
 
 def build_model(scene: Scene) -> Model:
-    grids = tuple(build_grid(c) for c in scene.cloths)
+    meshes = tuple(build_grid(c) if c.mesh is None else build_mesh_cloth(c) for c in scene.cloths)
     offsets = [0]
-    for g in grids:
+    for g in meshes:
         offsets.append(offsets[-1] + len(g.positions))
     n = offsets[-1]
-    positions = np.concatenate([g.positions for g in grids]).astype(np.float32)
+    positions = np.concatenate([g.positions for g in meshes]).astype(np.float32)
     velocities = np.concatenate([np.tile(np.asarray(c.velocity, dtype=np.float32), (len(g.positions), 1))
-                                 for c, g in zip(scene.cloths, grids)])
-    masses = np.concatenate([g.masses for g in grids]).astype(np.float32)
-    cloth_id = np.concatenate([np.full(len(g.positions), c, dtype=np.int32) for c, g in enumerate(grids)])
+                                 for c, g in zip(scene.cloths, meshes)])
+    masses = np.concatenate([g.masses for g in meshes]).astype(np.float32)
+    cloth_id = np.concatenate([np.full(len(g.positions), c, dtype=np.int32) for c, g in enumerate(meshes)])
     selections = select_pins(scene)
-    pins = _pins(scene, grids, offsets, selections)
+    pins = _pins(scene, meshes, offsets, selections)
     inv_mass = (1.0 / masses).astype(np.float32)
     if pins is not None:
         inv_mass[pins.index] = 0.0
@@ -144,12 +169,13 @@ def build_model(scene: Scene) -> Model:
         omega = 2.0 * np.pi * pins.frequency[:, None]
         positions[pins.index] = pins.anchor + pins.amplitude * np.sin(pins.phase)[:, None]
         velocities[pins.index] = pins.amplitude * omega * np.cos(pins.phase)[:, None]
-    springs = _springs(scene, grids, offsets, n)
-    limits = _limits(springs, n, _attachments(scene, offsets, selections), _long_range(scene, grids, offsets))
-    edges, edge_rest = _edges(grids, offsets)
+    springs = _springs(scene, meshes, offsets, n)
+    limits = _limits(springs, n, _attachments(scene, offsets, selections), _long_range(scene, meshes, offsets))
+    edges, edge_rest = _edges(meshes, offsets)
     hierarchy = _hierarchy(springs, masses, inv_mass, scene, offsets) if scene.simulation.limit_multilevel else None
-    return Model(grids, tuple(offsets), positions, velocities, masses, inv_mass, cloth_id, springs, limits,
-                 pins, _spheres(scene), _contacts(scene, grids), edges, edge_rest, hierarchy)
+    return Model(meshes, tuple(offsets), positions, velocities, masses, inv_mass, cloth_id, springs, limits,
+                 pins, _spheres(scene), _contacts(scene, meshes), edges, edge_rest, hierarchy,
+                 _mesh_colliders(scene), _wind_faces(meshes, offsets) if scene.wind is not None else None)
 
 
 def _hierarchy(springs: Springs | None, masses: np.ndarray, inv_mass: np.ndarray, scene: Scene,
@@ -161,6 +187,9 @@ def _hierarchy(springs: Springs | None, masses: np.ndarray, inv_mass: np.ndarray
     limited = np.isfinite(springs.limit_max)
     lattice = np.zeros(len(masses))
     for c, cloth in enumerate(scene.cloths):
+        if cloth.mesh is not None:  # no rows to prefer: the pinned particles first, then any
+            lattice[offsets[c]:offsets[c + 1]] = np.where(inv_mass[offsets[c]:offsets[c + 1]] == 0.0, 30, 0)
+            continue
         columns = cloth.resolution[0] + 1
         index = np.arange(cloth.particle_count)
         halvings = _halvings(index % columns), _halvings(index // columns)
@@ -176,28 +205,29 @@ def _halvings(k: np.ndarray) -> np.ndarray:
     return np.where(k == 0, 30, np.log2((k & -k).clip(1)).astype(np.int64))
 
 
-def _edges(grids, offsets) -> tuple[np.ndarray, np.ndarray]:
+def _edges(meshes, offsets) -> tuple[np.ndarray, np.ndarray]:
     """The structural and shear edges of every cloth, whose strain is what the strain limit bounds."""
-    chosen = [np.isin(g.spring_kind, (STRUCTURAL, SHEAR)) for g in grids]
-    edges = np.concatenate([g.springs[c] + offset for g, c, offset in zip(grids, chosen, offsets)])
-    rest = np.concatenate([g.rest_lengths[c] for g, c in zip(grids, chosen)])
+    chosen = [np.isin(g.spring_kind, (STRUCTURAL, SHEAR)) for g in meshes]
+    edges = np.concatenate([g.springs[c] + offset for g, c, offset in zip(meshes, chosen, offsets)])
+    rest = np.concatenate([g.rest_lengths[c] for g, c in zip(meshes, chosen)])
     return edges.astype(np.int32).reshape(-1, 2), rest.astype(np.float32)
 
 
-def _springs(scene: Scene, grids, offsets, n: int) -> Springs | None:
-    parts: dict[str, list[np.ndarray]] = {k: [] for k in ("pairs", "rest", "k", "b", "flags", "lo", "hi")}
-    for c, (cloth, grid) in enumerate(zip(scene.cloths, grids)):
+def _springs(scene: Scene, meshes, offsets, n: int) -> Springs | None:
+    parts: dict[str, list[np.ndarray]] = {k: [] for k in ("pairs", "rest", "k", "b", "flags", "kind", "lo", "hi")}
+    for c, (cloth, mesh) in enumerate(zip(scene.cloths, meshes)):
         for kind_id, kind in ((STRUCTURAL, cloth.structural), (SHEAR, cloth.shear), (BEND, cloth.bend)):
             if not kind.enabled:
                 continue
-            sel = grid.spring_kind == kind_id
+            sel = mesh.spring_kind == kind_id
             count = int(sel.sum())
-            rest = grid.rest_lengths[sel]
-            parts["pairs"].append(grid.springs[sel] + offsets[c])
+            rest = mesh.rest_lengths[sel]
+            parts["pairs"].append(mesh.springs[sel] + offsets[c])
             parts["rest"].append(rest)
             parts["k"].append(np.full(count, kind.stiffness))
             parts["b"].append(np.full(count, kind.damping))
             parts["flags"].append(np.full(count, regime_flags(kind), dtype=np.int32))
+            parts["kind"].append(np.full(count, kind_id, dtype=np.int32))
             limited = cloth.limit is not None and kind_id in (STRUCTURAL, SHEAR)
             parts["lo"].append(rest * (1.0 - cloth.limit.compression) if limited else np.zeros(count))
             parts["hi"].append(rest * (1.0 + cloth.limit.stretch) if limited else np.full(count, np.inf))
@@ -205,7 +235,8 @@ def _springs(scene: Scene, grids, offsets, n: int) -> Springs | None:
         return None
     pairs = np.concatenate(parts["pairs"])
     f32 = lambda key: np.concatenate(parts[key]).astype(np.float32)  # noqa: E731
-    return Springs(pairs, f32("rest"), f32("k"), f32("b"), np.concatenate(parts["flags"]), f32("lo"), f32("hi"),
+    return Springs(pairs, f32("rest"), f32("k"), f32("b"), np.concatenate(parts["flags"]), np.concatenate(parts["kind"]),
+                   f32("lo"), f32("hi"),
                    Adjacency.of(pairs, n))
 
 
@@ -228,16 +259,16 @@ def _limits(springs: Springs | None, n: int, attachments: tuple[np.ndarray, np.n
 LONG_RANGE_DIRECTIONS = ((1, 0), (0, 1), (1, 1), (1, -1))  # along rows, columns and both diagonals
 
 
-def _long_range(scene: Scene, grids, offsets) -> tuple[np.ndarray, np.ndarray]:
+def _long_range(scene: Scene, meshes, offsets) -> tuple[np.ndarray, np.ndarray]:
     """Pairs 2, 4, 8, ... cells apart along the rows, columns and diagonals of the cloths whose limit asks
     for ``long_range``, with (1 + stretch) times the rest length of the path of structural or shear springs
     between them as their longest length."""
     pairs, longest = [np.zeros((0, 2), dtype=np.int64)], [np.zeros(0, dtype=np.float32)]
-    for c, (cloth, grid) in enumerate(zip(scene.cloths, grids)):
+    for c, (cloth, mesh) in enumerate(zip(scene.cloths, meshes)):
         if cloth.limit is None or not cloth.limit.long_range:
             continue
         nx, ny = cloth.resolution
-        rest = grid.positions.reshape(ny + 1, nx + 1, 3)
+        rest = mesh.positions.reshape(ny + 1, nx + 1, 3)
         gy, gx = np.mgrid[0:ny + 1, 0:nx + 1]
         for dx, dy in LONG_RANGE_DIRECTIONS:
             # path[span][y, x]: rest length of the path from (x, y) span steps on (nan past the edge)
@@ -325,7 +356,7 @@ def select_pins(scene: Scene) -> list[list[np.ndarray]]:
             selections.append([])
             continue
         # Only a region needs the particles' positions: a whole grid's worth, skipped for corners and edges.
-        positions = grid_positions(cloth) if any(pin.region is not None for pin in cloth.pins) else None
+        positions = initial_positions(cloth) if any(pin.region is not None for pin in cloth.pins) else None
         owner: dict[int, str] = {}
         chosen_per_pin = []
         for p, pin in enumerate(cloth.pins):
@@ -341,7 +372,12 @@ def select_pins(scene: Scene) -> list[list[np.ndarray]]:
     return selections
 
 
-def _pins(scene: Scene, grids, offsets, selections: list[list[np.ndarray]]) -> Pins | None:
+def initial_positions(cloth: Cloth) -> np.ndarray:
+    """A cloth's particles in its initial pose, (n, 3) float64, without building the rest of it."""
+    return grid_positions(cloth) if cloth.mesh is None else mesh_positions(cloth)
+
+
+def _pins(scene: Scene, meshes, offsets, selections: list[list[np.ndarray]]) -> Pins | None:
     index, amplitude, frequency, phase = [], [], [], []
     for c, (cloth, chosen_per_pin) in enumerate(zip(scene.cloths, selections)):
         for pin, chosen in zip(cloth.pins, chosen_per_pin):
@@ -354,7 +390,7 @@ def _pins(scene: Scene, grids, offsets, selections: list[list[np.ndarray]]) -> P
     if not index:
         return None
     idx = np.concatenate(index).astype(np.int32)
-    positions = np.concatenate([g.positions for g in grids])
+    positions = np.concatenate([g.positions for g in meshes])
     amplitude_all = np.concatenate(amplitude).astype(np.float32)
     return Pins(idx, positions[idx].astype(np.float32), amplitude_all,
                 np.concatenate(frequency).astype(np.float32), np.concatenate(phase).astype(np.float32),
@@ -369,46 +405,66 @@ def _spheres(scene: Scene) -> Spheres | None:
     f32 = lambda xs: np.asarray(xs, dtype=np.float32)  # noqa: E731
     initial = [s.center if s.motion is None else np.add(s.center, s.motion.offset(0.0)) for s in scene.spheres]
     return Spheres(f32([s.center for s in scene.spheres]), f32(initial), f32([s.radius for s in scene.spheres]),
-                   f32([s.friction for s in scene.spheres]), f32(amp),
+                   f32([s.friction for s in scene.spheres]), f32([s.angular_velocity() for s in scene.spheres]),
+                   f32(amp),
                    f32([0.0 if s.motion is None else s.motion.frequency for s in scene.spheres]),
                    f32([0.0 if s.motion is None else s.motion.phase for s in scene.spheres]),
                    moving=any(s.motion is not None and s.motion.amplitude > 0 for s in scene.spheres))
 
 
-def collision_radius(cloth, radius_override: float | None) -> float:
-    """The seed's rule: a quarter of the rest diagonal stretched to the limit, so that a particle sphere
-    cannot pass through a quad (the quad's centre is then two radii from its corners)."""
+def _wind_faces(meshes, offsets) -> WindFaces:
+    faces = np.concatenate([np.where(m.face_table() < 0, -1, m.face_table() + o) for m, o in zip(meshes, offsets)])
+    corners = faces.ravel()
+    face = np.repeat(np.arange(len(faces)), 4)[corners >= 0]
+    particle = corners[corners >= 0]
+    order = np.lexsort((face, particle))
+    first = np.zeros(offsets[-1] + 1, dtype=np.int32)
+    np.cumsum(np.bincount(particle, minlength=offsets[-1]), out=first[1:])
+    return WindFaces(faces.astype(np.int32), first, face[order].astype(np.int32))
+
+
+def _mesh_colliders(scene: Scene) -> MeshColliders | None:
+    if not scene.colliders:
+        return None
+    surfaces = [c.surface() for c in scene.colliders]
+    return MeshColliders(tuple(s.points.astype(np.float32) for s in surfaces),
+                         tuple(s.triangles().astype(np.int32) for s in surfaces),
+                         np.array([c.thickness for c in scene.colliders], dtype=np.float32),
+                         np.array([c.friction for c in scene.colliders], dtype=np.float32))
+
+
+def collision_radii(cloth: Cloth, mesh: ClothMesh, radius_override: float | None) -> np.ndarray:
+    """Each particle's sphere: the seed's rule made general, half the widest of its faces (the smallest
+    circle around a face's triangle) stretched to the limit, so that a particle sphere cannot pass through
+    a face; on a square grid a quarter of the rest diagonal, the face's centre two radii from its corners."""
     if radius_override is not None:
-        return radius_override
-    nx, ny = cloth.resolution
+        return np.full(len(mesh.positions), radius_override)
     stretch = cloth.limit.stretch if cloth.limit is not None else 0.0
-    return 0.25 * float(np.hypot(cloth.size[0] / nx, cloth.size[1] / ny)) * (1.0 + stretch)
+    return 0.5 * (1.0 + stretch) * enclosing_radii(mesh.positions, mesh.face_counts, mesh.face_indices)
 
 
-def needs_adjacent_exclusion(cloth, radius: float, separation: float) -> bool:
-    """True unless the strain limit alone keeps every grid neighbour (diagonals too) farther apart than
-    the contact distance: with the seed's rule and a 10% limit, neighbours stay >= 0.9 of a cell apart
-    while contact needs 0.82 of a (square) cell, so they never touch and need no exclusion."""
+def needs_adjacent_exclusion(cloth: Cloth, mesh: ClothMesh, radii: np.ndarray, separation: float) -> bool:
+    """True unless the strain limit alone keeps every pair of particles that share a face farther apart
+    than their contact distance: with the seed's rule and a 10% limit, grid neighbours stay >= 0.9 of a
+    cell apart while contact needs 0.82 of a (square) cell, so they never touch and need no exclusion."""
     if cloth.limit is None:
         return True
-    nx, ny = cloth.resolution
-    shortest_neighbour = (1.0 - cloth.limit.compression) * min(cloth.size[0] / nx, cloth.size[1] / ny)
-    return separation * radius >= shortest_neighbour
+    pairs = rest_adjacent_pairs(mesh.face_counts, mesh.face_indices)
+    rest = np.linalg.norm(mesh.positions[pairs[:, 0]] - mesh.positions[pairs[:, 1]], axis=1)
+    contact = separation * 0.5 * (radii[pairs[:, 0]] + radii[pairs[:, 1]])
+    return bool(np.any((1.0 - cloth.limit.compression) * rest <= contact))
 
 
-def _contacts(scene: Scene, grids) -> ParticleContacts | None:
+def _contacts(scene: Scene, meshes) -> ParticleContacts | None:
     collision = scene.collision
     if collision is None:
         return None
-    radii = [collision_radius(c, collision.radius) for c in scene.cloths]
-    radius = np.concatenate([np.full(len(g.positions), r, dtype=np.float32) for r, g in zip(radii, grids)])
-    exclude = np.array([needs_adjacent_exclusion(c, r, collision.separation) and collision.self_collision
-                        for c, r in zip(scene.cloths, radii)], dtype=np.int32)
+    radii = [collision_radii(c, m, collision.radius) for c, m in zip(scene.cloths, meshes)]
+    radius = np.concatenate(radii).astype(np.float32)
+    exclude = np.array([needs_adjacent_exclusion(c, m, r, collision.separation) and collision.self_collision
+                        for c, m, r in zip(scene.cloths, meshes, radii)], dtype=np.int32)
     if not exclude.any():
         return ParticleContacts(radius, None, None)
-    grid_xy = []
-    for cloth in scene.cloths:
-        nx, ny = cloth.resolution
-        gx, gy = np.meshgrid(np.arange(nx + 1), np.arange(ny + 1), indexing="xy")
-        grid_xy.append((gx.ravel() + 65536 * gy.ravel()).astype(np.int32))
-    return ParticleContacts(radius, exclude, np.concatenate(grid_xy))
+    offsets = np.cumsum([0] + [len(m.positions) for m in meshes])
+    pairs = np.concatenate([rest_adjacent_pairs(m.face_counts, m.face_indices) + o for m, o in zip(meshes, offsets)])
+    return ParticleContacts(radius, exclude, Adjacency.of(pairs, int(offsets[-1])))

@@ -7,7 +7,7 @@ from typing import Protocol
 
 import warp as wp
 
-from warp_cloth.kernels import colliders, gathering, motion, passes as fused
+from warp_cloth.kernels import colliders, gathering, motion, passes as fused, wind
 from warp_cloth.kernels.colliders import RigidColliders
 from warp_cloth.kernels.particle_collision import Contacts
 
@@ -191,6 +191,24 @@ class MoveSpheres:
         launch(motion.move_spheres, state.sphere_center.shape[0], state,
                inputs=[state.clock, self.model.h, s.center, s.amplitude, s.frequency, s.phase],
                outputs=[state.sphere_center, state.sphere_velocity])
+
+
+class WindForces:
+    """Each particle's acceleration by the wind on its faces, from the positions and velocities the
+    substep starts from: the integration after it reads them as an external force."""
+
+    name = "wind"
+
+    def __init__(self, model: DeviceModel) -> None:
+        self.model = model
+        self.shares = wp.zeros(model.wind.faces.shape[0], dtype=wp.vec3, device=model.device)
+
+    def run(self, state: DeviceState) -> None:
+        model = self.model
+        launch(wind.face_forces, self.shares.shape[0], state,
+               inputs=[model.wind, state.clock, model.h, state.x, state.v], outputs=[self.shares])
+        launch(wind.wind_accelerations, model.particle_count, state, inputs=[model.wind, self.shares, model.inv_mass],
+               outputs=[model.forces.wind])
 
 
 class AdvanceClock:

@@ -30,7 +30,7 @@ def check_pins_within_reach(scene: Scene, model: Model) -> None:
             rows = rows[np.linspace(0, len(rows) - 1, MOST_PINS).astype(int)]
         if len(rows) < 2 or not np.any(pins.amplitude[rows]):
             continue
-        rest = model.grids[c].positions[pins.index[rows] - model.offsets[c]]
+        rest = model.cloths[c].positions[pins.index[rows] - model.offsets[c]]
         offsets = (pins.amplitude[rows].astype(np.float64)[:, None, :]
                    * np.sin(2.0 * np.pi * pins.frequency[rows, None] * times[None, :]
                             + pins.phase[rows, None])[:, :, None])  # (pins, times, 3)

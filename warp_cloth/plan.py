@@ -14,7 +14,8 @@ from .implicit import BackwardEuler
 from .limit_solve import ConvergedProjection
 from .neighbour_lists import LIST_THREADS_BY_SIZE, NeighbourLists
 from .passes import (AdvanceClock, Collide, ContactStart, DrivePins, MoveSpheres, Pass, contact_start_args,
-                     contact_velocities, explicit_step, limit_and_separation_pass, limit_pass, separation_pass)
+                     WindForces, contact_velocities, explicit_step, limit_and_separation_pass, limit_pass,
+                     separation_pass)
 from .scene import ImplicitSolver
 from .state import DeviceState
 
@@ -61,7 +62,7 @@ class Plan:
 def build_plan(model: DeviceModel, state: DeviceState, implicit_settings: ImplicitSolver,
                threads: int | None = None) -> Plan:
     """The substep, in order: moving spheres to the substep's end (nothing before the colliders reads
-    them); integration; driven pins; then, with particle collision, the contacts' start (in the explicit
+    them); the wind's forces; integration; driven pins; then, with particle collision, the contacts' start (in the explicit
     step where nothing comes between), the candidate lists, the projection passes and the contact
     velocities; without it, the strain limit's passes or the colliders alone; the clock last, where
     something moves with it. ``threads``: per particle on the gathering passes (None: by size)."""
@@ -78,6 +79,8 @@ def build_plan(model: DeviceModel, state: DeviceState, implicit_settings: Implic
             if threads is None else threads
         lists = NeighbourLists(model, state, list_threads)
         start = contact_start_args(model, state, rigid or model.no_colliders(), lists.rebuild_distance)
+    if model.wind is not None:
+        passes.append(WindForces(model))
     if model.integrator == "implicit":
         implicit = BackwardEuler(model, implicit_settings)
         passes.append(implicit)
@@ -105,7 +108,7 @@ def build_plan(model: DeviceModel, state: DeviceState, implicit_settings: Implic
                       for k in range(model.limit_iterations))
     elif rigid is not None:
         passes.append(Collide(model, rigid))
-    if driven_pins or model.sphere_motion is not None:
+    if driven_pins or model.sphere_motion is not None or (model.wind is not None and model.wind.turbulence > 0):
         passes.append(AdvanceClock())
     return Plan(tuple(passes), model.h, chosen, implicit, lists, projection)
 

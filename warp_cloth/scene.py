@@ -190,8 +190,38 @@ class Pin:
 
 
 @dataclass(frozen=True)
+class MeshSource:
+    """Where a cloth's mesh comes from: an OBJ file, or a ``Mesh`` prim of a USD file (``prim``: its path;
+    left out, the stage's only mesh). A scene file may give the file alone: ``mesh = "garment.obj"``; a
+    relative path is taken from the scene file's folder."""
+
+    file: str
+    prim: str | None = None
+
+    def __post_init__(self) -> None:
+        check_fields(self)
+        _require(bool(self.file), "file", "the path of an OBJ or USD file", self.file)
+
+    @classmethod
+    def from_string(cls, file: str) -> "MeshSource":
+        return cls(file)
+
+
+def _surface_of(source: MeshSource):
+    """A mesh source's checked mesh, its errors keyed ``mesh`` with the mesh file named after the scene's."""
+    from .mesh_io import load_mesh
+
+    try:
+        return load_mesh(source.file, source.prim)
+    except SceneError as exc:
+        expected = f"{exc.expected} (in {exc.source})" if exc.source else exc.expected
+        raise SceneError(exc.key, expected, exc.got, has_got=exc.has_got) from None
+
+
+@dataclass(frozen=True)
 class Cloth:
-    """A rectangular grid of ``resolution`` quads, ``(nx + 1) * (ny + 1)`` particles.
+    """A rectangular grid of ``resolution`` quads, ``(nx + 1) * (ny + 1)`` particles, or the user's own
+    ``mesh`` (``Cloth.from_mesh``).
 
     Built in its local (u, v) plane, laid ``vertical`` (u along +X, v along +Y, facing +Z) or
     ``horizontal`` (u along +X, v along -Z, facing +Y), then rotated by ``rotation`` (degrees about X,
@@ -200,6 +230,11 @@ class Cloth:
     plane by up to that fraction of a cell (the seed used 0.05), reproducibly from ``seed``. ``twist``
     (degrees) starts the cloth twisted about its middle line along v, the far edge turned that much:
     the springs keep the flat grid's rest lengths, so the cloth springs back.
+
+    A mesh cloth (triangles and quads, cloth_mesh.py) takes its particles, faces and UVs from the mesh as
+    modelled, rotated by ``rotation`` about the mesh's own origin and moved by ``origin``; the grid's keys
+    (resolution, size, orientation, jitter, twist) do not apply to it, nor do pins by corners or edges.
+    ``density`` gives each particle a share of its faces' area.
     """
 
     name: str = "cloth"
@@ -220,10 +255,57 @@ class Cloth:
     limit: Limit | None = None
     pins: tuple[Pin, ...] = ()
     color: Vec3 = (0.75, 0.32, 0.22)
+    mesh: MeshSource | None = None
+
+    GRID_KEYS = ("resolution", "size", "orientation", "jitter", "twist", "seed")
+
+    @classmethod
+    def from_mesh(cls, file: str, prim: str | None = None, **settings) -> "Cloth":
+        """A cloth made of the mesh in ``file`` (OBJ or USD, see ``MeshSource``), with any other settings."""
+        return cls(mesh=MeshSource(str(file), prim), **settings)
 
     def __post_init__(self) -> None:
         check_fields(self)
         check_identifier(self.name, "name")
+        _require(all(0 <= c <= 1 for c in self.color), "color", "[r, g, b] each in [0, 1]", list(self.color))
+        if self.mass is not None:
+            _positive(self.mass, "mass")
+        if self.density is not None:
+            _positive(self.density, "density")
+        _require(not (self.mass is not None and self.density is not None), "density",
+                 "either mass (per particle) or density (kg/m^2), not both", self.density)
+        if self.mesh is not None:
+            self._check_mesh()
+        else:
+            self._check_grid()
+        cell = self.shortest_edge()
+        farthest = max(abs(c) for c in self.origin) + self.extent()
+        _require(farthest <= MAX_CELLS_FROM_ORIGIN * cell, "origin",
+                 f"a cloth within {MAX_CELLS_FROM_ORIGIN * cell:.4g} m of the world origin ({MAX_CELLS_FROM_ORIGIN} "
+                 f"of its {cell:.3g} m cells: float32 positions farther out cannot resolve its springs)",
+                 list(self.origin))
+        self._check_mass_in_float32()
+
+    def _check_mesh(self) -> None:
+        for key in self.GRID_KEYS:
+            _require(getattr(self, key) == getattr(Cloth, key), key, "no grid setting on a mesh cloth (its "
+                     "particles are the mesh's)", getattr(self, key))
+        for p, pin in enumerate(self.pins):
+            _require(not (pin.corners or pin.edges), f"pins[{p}]", "pins by indices or region on a mesh cloth "
+                     "(corners and edges are a grid's)", has_got=False)
+        if self.limit is not None:
+            _require(not self.limit.long_range, "limit.long_range", "false on a mesh cloth (long-range limits "
+                     "are built along a grid's rows for now)", True)
+            _require(not self.limit.attachments, "limit.attachments", "false on a mesh cloth (attachments are "
+                     "measured across a grid for now)", True)
+        surface = self.surface()
+        _require(len(surface.points) <= MAX_PARTICLES, "mesh", f"at most {MAX_PARTICLES} vertices",
+                 len(surface.points))
+        _require(self.shortest_edge() >= MIN_CELL, "mesh", f"edges of at least {MIN_CELL:g} m (float32 "
+                 "positions cannot resolve shorter springs)", f"an edge of {self.shortest_edge():.3g} m")
+        _within_extent(float(abs(surface.points).max()), "mesh")
+
+    def _check_grid(self) -> None:
         nx, ny = self.resolution
         _require(nx >= 1 and ny >= 1, "resolution", "[nx, ny] quads, each >= 1", list(self.resolution))
         _require(nx < 65535 and ny < 32767, "resolution", "at most [65534, 32766] quads", list(self.resolution))
@@ -235,22 +317,26 @@ class Cloth:
         _require(min(self.size[0] / nx, self.size[1] / ny) >= MIN_CELL, "size",
                  f"cells of at least {MIN_CELL:g} m (size / resolution; float32 positions cannot resolve "
                  "smaller springs)", list(self.size))
-        _require(not (self.mass is not None and self.density is not None), "density",
-                 "either mass (per particle) or density (kg/m^2), not both", self.density)
-        if self.mass is not None:
-            _positive(self.mass, "mass")
-        if self.density is not None:
-            _positive(self.density, "density")
         _require(0 <= self.jitter <= 0.5, "jitter", "a fraction of a cell in [0, 0.5]", self.jitter)
-        _require(all(0 <= c <= 1 for c in self.color), "color", "[r, g, b] each in [0, 1]", list(self.color))
         _require(self.seed >= 0, "seed", "a whole number >= 0", self.seed)
-        cell = min(self.size[0] / nx, self.size[1] / ny)
-        farthest = max(abs(c) for c in self.origin) + max(self.size)
-        _require(farthest <= MAX_CELLS_FROM_ORIGIN * cell, "origin",
-                 f"a cloth within {MAX_CELLS_FROM_ORIGIN * cell:.4g} m of the world origin ({MAX_CELLS_FROM_ORIGIN} "
-                 f"of its {cell:.3g} m cells: float32 positions farther out cannot resolve its springs)",
-                 list(self.origin))
-        self._check_mass_in_float32()
+
+    def surface(self):
+        """A mesh cloth's checked mesh (``mesh_io.SurfaceMesh``, read once per file version); its errors
+        name this cloth's ``mesh`` key."""
+        return _surface_of(self.mesh)
+
+    def shortest_edge(self) -> float:
+        """The shortest rest length of an edge (a grid's shorter cell side)."""
+        if self.mesh is None:
+            return min(self.size[0] / self.resolution[0], self.size[1] / self.resolution[1])
+        return self.surface().shortest_edge
+
+    def extent(self) -> float:
+        """The longest side of the box around the cloth as modelled."""
+        if self.mesh is None:
+            return max(self.size)
+        points = self.surface().points
+        return float((points.max(axis=0) - points.min(axis=0)).max())
 
     def _check_mass_in_float32(self) -> None:
         """Every particle's mass (then its inverse too) and stiffness / mass, as the device holds them in float32."""
@@ -270,11 +356,19 @@ class Cloth:
         uniform = self.particle_mass()
         if uniform is not None:
             return uniform, uniform
+        if self.mesh is not None:
+            from .cloth_mesh import lumped_masses
+
+            surface = self.surface()
+            masses = lumped_masses(surface.points, surface.face_counts, surface.face_indices, self.density)
+            return float(masses.min()), float(masses.max())
         cell_area = self.size[0] / self.resolution[0] * self.size[1] / self.resolution[1]
         return self.density * cell_area / 4.0, self.density * cell_area
 
     @property
     def particle_count(self) -> int:
+        if self.mesh is not None:
+            return len(self.surface().points)
         return (self.resolution[0] + 1) * (self.resolution[1] + 1)
 
     def particle_mass(self) -> float | None:
@@ -302,13 +396,17 @@ class Ground:
 
 @dataclass(frozen=True)
 class Sphere:
-    """A rigid sphere collider, static or moving by ``motion`` about ``center``."""
+    """A rigid sphere collider, static or moving by ``motion`` about ``center``. ``spin`` turns it about
+    its centre: the axis [x, y, z] scaled to degrees a second (the right-hand rule); friction then acts
+    against the cloth's speed relative to the sphere's surface there, so a spinning sphere carries what
+    rests on it round."""
 
     name: str = "sphere"
     center: Vec3 = (0.0, 0.0, 0.0)
     radius: float = 1.0
     friction: float = 0.0
     motion: Oscillation | None = None
+    spin: Vec3 = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
         check_fields(self)
@@ -317,6 +415,60 @@ class Sphere:
         _positive(self.radius, "radius")
         _within_extent(self.radius, "radius")
         _non_negative(self.friction, "friction")
+
+    def angular_velocity(self) -> Vec3:
+        """``spin`` in radians a second."""
+        return (math.radians(self.spin[0]), math.radians(self.spin[1]), math.radians(self.spin[2]))
+
+
+@dataclass(frozen=True)
+class MeshCollider:
+    """A static rigid collider made of the user's mesh (OBJ, or a USD ``Mesh`` prim with its transform),
+    found through a BVH. Cloth is kept ``thickness`` metres off the side its faces face (for a closed mesh,
+    outside), so that a draped cloth rests a visible distance off the surface, and ``friction`` acts as on
+    the other colliders. A scene file may give the file alone: ``mesh = "table.obj"``."""
+
+    name: str = "collider"
+    mesh: MeshSource | None = None
+    thickness: float = 0.01
+    friction: float = 0.0
+
+    def __post_init__(self) -> None:
+        check_fields(self)
+        check_identifier(self.name, "name")
+        _require(self.mesh is not None, "mesh", "the collider's mesh (a file, or { file, prim })", has_got=False)
+        _non_negative(self.thickness, "thickness")
+        _within_extent(self.thickness, "thickness")
+        _non_negative(self.friction, "friction")
+        _within_extent(float(abs(self.surface().points).max()), "mesh")
+
+    def surface(self):
+        """The collider's checked mesh (``mesh_io.SurfaceMesh``); its errors name this collider's ``mesh``."""
+        return _surface_of(self.mesh)
+
+
+@dataclass(frozen=True)
+class Wind:
+    """Air moving at ``velocity`` (m/s), acting on every face of every cloth through aerodynamic drag
+    (``drag``: the coefficient of the pressure across a face) and lift (``lift``: across the flow, for a
+    face tilted to it), in air of ``air_density`` (kg/m^3); ``turbulence`` adds noise of that fraction of
+    the wind's speed, varying over ``scale`` metres and seconds (kernels/wind.py has the formulas)."""
+
+    velocity: Vec3 = (0.0, 0.0, 0.0)
+    turbulence: float = 0.0
+    scale: float = 1.0
+    air_density: float = 1.2
+    drag: float = 1.0
+    lift: float = 0.3
+
+    def __post_init__(self) -> None:
+        check_fields(self)
+        _within_extent(self.velocity, "velocity")
+        _non_negative(self.turbulence, "turbulence")
+        _positive(self.scale, "scale")
+        _non_negative(self.air_density, "air_density")
+        _non_negative(self.drag, "drag")
+        _non_negative(self.lift, "lift")
 
 
 @dataclass(frozen=True)
@@ -513,7 +665,9 @@ class Scene:
     cloths: tuple[Cloth, ...] = field(default=(), metadata={"toml": "cloth"})
     ground: Ground | None = None
     spheres: tuple[Sphere, ...] = field(default=(), metadata={"toml": "sphere"})
+    colliders: tuple[MeshCollider, ...] = field(default=(), metadata={"toml": "collider"})
     collision: Collision | None = None
+    wind: Wind | None = None
 
     def __post_init__(self) -> None:
         check_fields(self)
@@ -528,14 +682,14 @@ class Scene:
         select_pins(self)
 
     def _check_names_unique(self) -> None:
-        """Cloths and spheres are prims side by side under /World, beside the ground's, and cloths name .poly
-        files: names are compared ignoring case, as file names are on some systems."""
+        """Cloths, spheres and mesh colliders are prims side by side under /World, beside the ground's, and
+        cloths name .poly files: names are compared ignoring case, as file names are on some systems."""
         taken = {RESERVED_NAME: "the ground's prim"}
-        for kind, items in (("cloth", self.cloths), ("sphere", self.spheres)):
+        for kind, items in (("cloth", self.cloths), ("sphere", self.spheres), ("collider", self.colliders)):
             for k, item in enumerate(items):
                 other = taken.setdefault(item.name.casefold(), f"{kind}[{k}]")
                 _require(other == f"{kind}[{k}]", f"{kind}[{k}].name",
-                         f"a name that no other cloth or sphere has, nor the ground (ignoring case; {other} "
+                         f"a name that no other cloth, sphere or collider has, nor the ground (ignoring case; {other} "
                          "has it)", item.name)
 
     def _check_motion_in_bounds(self) -> None:

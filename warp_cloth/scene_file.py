@@ -68,10 +68,24 @@ def load_scene(name_or_path: str | Path) -> Scene:
         raise SceneError("", f"a readable file ({exc.strerror})", has_got=False, source=str(path)) from None
     if "name" not in data:
         data["name"] = file_name_from(path.stem)
+    _mesh_paths_from(path.parent, data)
     try:
         return scene_from_dict(data)
     except SceneError as exc:
         raise exc.in_file(str(path)) from None
+
+
+def _mesh_paths_from(folder: Path, data: dict[str, Any]) -> None:
+    """A cloth's or collider's relative mesh path is taken from the scene file's folder, not the working
+    directory."""
+    for table in ("cloth", "collider"):
+        items = data.get(table)
+        for item in items if isinstance(items, list) else ():
+            mesh = item.get("mesh") if isinstance(item, dict) else None
+            if isinstance(mesh, str) and mesh:
+                item["mesh"] = str(folder / mesh)
+            elif isinstance(mesh, dict) and isinstance(mesh.get("file"), str) and mesh["file"]:
+                mesh["file"] = str(folder / mesh["file"])
 
 
 def scene_from_dict(data: dict[str, Any]) -> Scene:
@@ -92,6 +106,11 @@ def _convert(value: Any, hint: Any, path: str) -> Any:
         return _convert(value, options[0], path)
     if dataclasses.is_dataclass(hint) and isinstance(value, dict):
         return _to_dataclass(value, hint, path)
+    if dataclasses.is_dataclass(hint) and isinstance(value, str) and hasattr(hint, "from_string"):
+        try:
+            return hint.from_string(value)
+        except SceneError as exc:
+            raise exc.within(path) from None
     if get_origin(hint) is tuple and isinstance(value, list):
         args = get_args(hint)
         if len(args) == 2 and args[1] is Ellipsis and dataclasses.is_dataclass(args[0]):

@@ -225,7 +225,7 @@ class Simulator:
         moment of its motion, as in the fast_sphere hard case, which stays stable."""
         x = self.model.positions.astype(np.float64)
         scene = self.scene
-        cells = np.array([min(c.size[0] / c.resolution[0], c.size[1] / c.resolution[1]) for c in scene.cloths])
+        cells = np.array([c.shortest_edge() for c in scene.cloths])
         allowed = self.INITIAL_COLLIDER_DEPTH_LIMIT * cells[self.model.cloth_id]
         depths = []  # (depth of each particle, collider)
         if scene.ground is not None:

@@ -41,6 +41,7 @@ import numpy as np
 import warp as wp
 
 from .bench import environment
+from .cloth_mesh import STRUCTURAL
 from .errors import SceneError, UnstableSimulation
 from .model import FLAG_ELASTIC_COMPRESSION, FLAG_ELASTIC_TENSION, Model, Springs
 from .progress import Progress
@@ -148,6 +149,9 @@ def with_resolution(scene: Scene, resolution: int) -> Scene:
 
 
 def _cloth_at(cloth: Cloth, resolution: int) -> Cloth:
+    if cloth.mesh is not None:
+        raise SceneError(f"cloth {cloth.name!r}", "grid cloths with --resolutions (this one is a mesh, whose "
+                         "vertices are as modelled)", has_got=False)
     if any(pin.indices for pin in cloth.pins):
         raise SceneError(f"cloth {cloth.name!r} pins", "pins by corners, edges or region with --resolutions "
                          "(indices name particles of one grid)", has_got=False)
@@ -183,15 +187,10 @@ def strain(springs: Springs, x: np.ndarray) -> np.ndarray:
     return lengths / springs.rest.astype(np.float64) - 1.0
 
 
-def strained_springs(model: Model, cloths: Sequence[Cloth]) -> np.ndarray:
-    """Mask of the springs whose strain is reported: strain-limited ones and structural ones (grid
-    neighbours along a row or a column)."""
+def strained_springs(model: Model) -> np.ndarray:
+    """Mask of the springs whose strain is reported: strain-limited ones and structural ones."""
     springs = model.springs
-    columns = np.concatenate([np.arange(c.particle_count) % (c.resolution[0] + 1) for c in cloths])
-    rows = np.concatenate([np.arange(c.particle_count) // (c.resolution[0] + 1) for c in cloths])
-    a, b = springs.pairs[:, 0], springs.pairs[:, 1]
-    structural = np.abs(columns[a] - columns[b]) + np.abs(rows[a] - rows[b]) == 1
-    return structural | np.isfinite(springs.limit_max)
+    return (springs.kind == STRUCTURAL) | np.isfinite(springs.limit_max)
 
 
 def strain_bounds(springs: Springs, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -280,7 +279,7 @@ def simulate(scene: Scene, device: str, frames: int, reference: Sequence[np.ndar
         warnings.simplefilter("ignore", UnstableStepWarning)
         sim = Simulator(scene, device=device)
     model, gravity, springs = sim.model, scene.simulation.gravity, sim.model.springs
-    mask = strained_springs(model, scene.cloths) if springs is not None else None
+    mask = strained_springs(model) if springs is not None else None
     bounds = strain_bounds(springs, mask) if springs is not None else None
     run = Trajectory(sim.dt, sim.substeps_per_frame, model.particle_count, frames)
     x = sim.positions().astype(np.float64)

@@ -26,15 +26,20 @@ def format_points(points: np.ndarray) -> str:
     return "POINTS\n" + ("%d: %.7g %.7g %.7g\n" * n) % tuple(v for row in zip(*columns) for v in row)
 
 
-def format_polys(quads: np.ndarray) -> str:
-    """The POLYS section and the end: ``label: p1 p2 p3 p4 <`` lines (the same every frame)."""
-    m = len(quads)
-    values = np.column_stack((np.arange(1, m + 1), np.asarray(quads) + 1)).ravel().tolist()
-    return "POLYS\n" + ("%d: %d %d %d %d <\n" * m) % tuple(values) + "END\n"
+def format_polys(face_counts: np.ndarray, face_indices: np.ndarray) -> str:
+    """The POLYS section and the end: ``label: p1 p2 p3 [p4] <`` lines (the same every frame)."""
+    counts, vertices = np.asarray(face_counts), np.asarray(face_indices) + 1
+    m = len(counts)
+    if m and (counts == counts[0]).all():  # one face size, one format: fast for a large grid
+        table = np.column_stack((np.arange(1, m + 1), vertices.reshape(m, counts[0])))
+        return "POLYS\n" + (("%d:" + " %d" * counts[0] + " <\n") * m) % tuple(table.ravel().tolist()) + "END\n"
+    faces = np.split(vertices, np.cumsum(counts)[:-1])
+    return "POLYS\n" + "".join(f"{k}: {' '.join(map(str, face.tolist()))} <\n"
+                               for k, face in enumerate(faces, start=1)) + "END\n"
 
 
-def format_poly(points: np.ndarray, quads: np.ndarray) -> str:
-    return format_points(points) + format_polys(quads)
+def format_poly(points: np.ndarray, face_counts: np.ndarray, face_indices: np.ndarray) -> str:
+    return format_points(points) + format_polys(face_counts, face_indices)
 
 
 def frame_file_name(cloth: str, frame: int) -> str:
@@ -82,7 +87,7 @@ class PolyWriter(StagedOutput):
 
     def begin(self, sim) -> None:
         self.prepare()
-        self._polys = [format_polys(grid.quads) for grid in sim.model.grids]
+        self._polys = [format_polys(mesh.face_counts, mesh.face_indices) for mesh in sim.model.cloths]
         if not self.resume:
             self.staging.mkdir(parents=True)
             return

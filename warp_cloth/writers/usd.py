@@ -97,6 +97,8 @@ class UsdWriter(StagedOutput):
                 self._sphere_translates.append(translate.GetAttr())
             else:
                 translate.Set(Gf.Vec3d(*sphere.center))
+        for collider in sim.scene.colliders:
+            self._define_mesh_collider(collider)
         if sim.scene.ground is not None:
             self._define_ground(sim)
         self._save()
@@ -126,19 +128,35 @@ class UsdWriter(StagedOutput):
         self._save()
 
     def _define_cloth(self, sim, c: int, cloth) -> None:
-        grid = sim.model.grids[c]
+        faces = sim.model.cloths[c]
         mesh = UsdGeom.Mesh.Define(self.stage, f"/World/{prim_name(cloth.name)}")
-        mesh.CreateFaceVertexCountsAttr(Vt.IntArray([4] * len(grid.quads)))
-        mesh.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(grid.quads.astype(np.int32).ravel()))
+        mesh.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(faces.face_counts.astype(np.int32)))
+        mesh.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(faces.face_indices.astype(np.int32)))
         mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.catmullClark if self.subdivision == "catmullClark"
                                          else UsdGeom.Tokens.none)
         mesh.CreateDoubleSidedAttr(True)
         mesh.CreateDisplayColorAttr(Vt.Vec3fArray([Gf.Vec3f(*cloth.color)]))
-        st = UsdGeom.PrimvarsAPI(mesh).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray,
-                                                     UsdGeom.Tokens.vertex)
-        st.Set(Vt.Vec2fArray.FromNumpy(grid.uvs.astype(np.float32)))
+        if faces.uvs is not None:
+            per_corner = len(faces.uvs) == len(faces.face_indices)  # a grid's are per particle
+            st = UsdGeom.PrimvarsAPI(mesh).CreatePrimvar(
+                "st", Sdf.ValueTypeNames.TexCoord2fArray,
+                UsdGeom.Tokens.faceVarying if per_corner else UsdGeom.Tokens.vertex)
+            st.Set(Vt.Vec2fArray.FromNumpy(faces.uvs.astype(np.float32)))
         self._points.append(mesh.CreatePointsAttr())
         self._extents.append(mesh.CreateExtentAttr())
+
+    def _define_mesh_collider(self, collider) -> None:
+        """A static mesh collider as it was read: world-space points, its faces."""
+        surface = collider.surface()
+        mesh = UsdGeom.Mesh.Define(self.stage, f"/World/{prim_name(collider.name)}")
+        points = surface.points.astype(np.float32)
+        mesh.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(points))
+        mesh.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(surface.face_counts.astype(np.int32)))
+        mesh.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(surface.face_indices.astype(np.int32)))
+        mesh.CreateExtentAttr(Vt.Vec3fArray([Gf.Vec3f(*points.min(axis=0).tolist()),
+                                             Gf.Vec3f(*points.max(axis=0).tolist())]))
+        mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+        mesh.CreateDisplayColorAttr(Vt.Vec3fArray([Gf.Vec3f(0.55, 0.6, 0.7)]))
 
     def _define_ground(self, sim) -> None:
         ground = sim.scene.ground

@@ -1,0 +1,104 @@
+"""Mesh colliders (OBJ and USD meshes through a BVH): a box's top holds a cloth as the analytic ground
+raised by the collider's thickness does; a closed mesh keeps a draped cloth outside it, off its surface
+by its thickness; bad collider input is refused."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from pxr import Usd, UsdGeom
+
+import warp_cloth as wc
+from conftest import run_cli_in_process
+
+
+def box_obj(path: Path, low, high) -> Path:
+    """A closed box with outward faces, as quads."""
+    (x0, y0, z0), (x1, y1, z1) = low, high
+    corners = [(x, y, z) for z in (z0, z1) for y in (y0, y1) for x in (x0, x1)]  # index x + 2 y + 4 z
+    quads = [(0, 2, 3, 1), (4, 5, 7, 6), (0, 1, 5, 4), (2, 6, 7, 3), (0, 4, 6, 2), (1, 3, 7, 5)]
+    text = "".join(f"v {x} {y} {z}\n" for x, y, z in corners) + \
+        "".join("f " + " ".join(str(i + 1) for i in q) + "\n" for q in quads)
+    path.write_text(text)
+    return path
+
+
+def falling_cloth(**collider) -> wc.Scene:
+    cloth = wc.Cloth(resolution=(8, 8), size=(1.6, 1.6), orientation="horizontal", origin=(-0.8, 0.4, 0.8),
+                     rotation=(0.0, 20.0, 0.0), density=0.2, limit=wc.Limit(0.1, 0.1),
+                     structural=wc.SpringKind(15.0, 0.02), shear=wc.SpringKind(15.0, 0.02),
+                     bend=wc.SpringKind(5.0, 0.01, "compression", "compression"))
+    simulation = wc.Simulation(fps=24, frames=36, substeps=20, integrator="symplectic", limit_solve="converged")
+    return wc.Scene(name="drop", cloths=(cloth,), simulation=simulation, **collider)
+
+
+def test_a_cloth_lands_on_a_mesh_box_as_on_the_ground_raised_by_its_thickness(tmp_path):
+    thickness, friction = 0.02, 0.4
+    box = wc.MeshCollider(name="box", mesh=wc.MeshSource(str(box_obj(tmp_path / "box.obj", (-3, -1, -3), (3, 0, 3)))),
+                          thickness=thickness, friction=friction)
+    on_box = wc.Simulator(falling_cloth(colliders=(box,)), device="cpu")
+    on_ground = wc.Simulator(falling_cloth(ground=wc.Ground(height=thickness, friction=friction)), device="cpu")
+    worst = 0.0
+    for _ in range(36):
+        on_box.step()
+        on_ground.step()
+        worst = max(worst, float(np.abs(on_box.positions() - on_ground.positions()).max()))
+    x = on_box.positions()
+    assert x[:, 1].min() == pytest.approx(thickness, abs=1e-5)  # resting on it, a thickness off the surface
+    assert np.ptp(x[:, 1]) < 0.01  # flat: the whole cloth has landed
+    assert worst < 1e-4  # the same motion (float32 rounding apart), landing and sliding with friction
+
+
+def test_a_closed_mesh_keeps_a_draped_cloth_outside_and_is_written_beside_it(tmp_path):
+    box_obj(tmp_path / "block.obj", (-0.4, -1.0, -0.4), (0.4, 0.0, 0.4))
+    scene = tmp_path / "drape.toml"
+    scene.write_text("""
+[simulation]
+frames = 24
+substeps = 20
+integrator = "symplectic"
+limit_solve = "converged"
+[[collider]]
+name = "block"
+mesh = "block.obj"
+thickness = 0.01
+[[cloth]]
+resolution = [12, 12]
+size = [1.6, 1.6]
+orientation = "horizontal"
+origin = [-0.8, 0.3, 0.8]
+density = 0.2
+limit = { stretch = 0.1, compression = 0.1 }
+structural = { stiffness = 15.0, damping = 0.02 }
+shear = { stiffness = 15.0, damping = 0.02 }
+""")
+    code, out, err = run_cli_in_process("run", str(scene), "--out", "out", cwd=tmp_path)
+    assert code == 0, err
+    stage = Usd.Stage.Open(str(tmp_path / "out" / "drape.usdc"))
+    block = UsdGeom.Mesh(stage.GetPrimAtPath("/World/block"))
+    assert len(block.GetPointsAttr().Get()) == 8 and list(block.GetFaceVertexCountsAttr().Get()) == [4] * 6
+    cloth = UsdGeom.Mesh(stage.GetPrimAtPath("/World/cloth"))
+    for frame in range(25):
+        x = np.asarray(cloth.GetPointsAttr().Get(frame), dtype=np.float64)
+        # Distance outside the block (negative inside): at least its thickness, but for rounding.
+        outside = np.maximum(np.abs(x) - [0.4, 0.0, 0.4], 0.0)
+        outside[:, 1] = np.maximum(x[:, 1], np.maximum(-1.0 - x[:, 1], 0.0))
+        inside = np.all((np.abs(x[:, [0, 2]]) < 0.4) & (x[:, [1]] < 0.0) & (x[:, [1]] > -1.0), axis=1)
+        assert not inside.any()
+        assert np.linalg.norm(outside, axis=1).min() >= 0.01 - 1e-4
+    x = np.asarray(cloth.GetPointsAttr().Get(24))
+    assert x[:, 1].min() < -0.3  # it has draped down the block's sides
+
+
+@pytest.mark.parametrize("text, expected", [
+    ('[[collider]]\nname = "c"\n', "collider[0].mesh: expected the collider's mesh"),
+    ('[[collider]]\nmesh = "nowhere.obj"\n', "collider[0].mesh: expected an existing, readable mesh file"),
+    ('[[collider]]\nmesh = "box.obj"\nthickness = -1.0\n', "collider[0].thickness: expected a number >= 0"),
+])
+def test_bad_collider_is_one_line_and_nothing_is_written(tmp_path, text, expected):
+    box_obj(tmp_path / "box.obj", (-1, -1, -1), (1, 0, 1))
+    scene = tmp_path / "scene.toml"
+    scene.write_text('[[cloth]]\norigin = [0.0, 2.0, 0.0]\n' + text)
+    code, _, err = run_cli_in_process("run", str(scene), "--out", "out", cwd=tmp_path)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and expected in err, err
+    assert not (tmp_path / "out").exists()

@@ -1,0 +1,83 @@
+"""Writes the built-in `tablecloth` scene's meshes into a folder:
+
+    python tools/make_scene_meshes.py scenes
+
+- tablecloth.obj: a flat disc of 1.2 m radius made of nearly equilateral triangles in 12 rings (ring k has
+  6 k vertices at radius k / 12 of the disc's), in the XZ plane facing +Y, with UVs from its plan view;
+- table.obj: a closed round table, a cylinder of 0.6 m radius from the floor to 0.9 m in 48 sides (quads),
+  its top and bottom fans of triangles, every face outward.
+"""
+
+import argparse
+import math
+
+
+def disc(radius: float, rings: int) -> tuple[list[tuple[float, float, float]], list[tuple[int, int, int]]]:
+    points = [(0.0, 0.0, 0.0)]
+    first = [0]  # index of each ring's first vertex
+    for k in range(1, rings + 1):
+        first.append(len(points))
+        r = radius * k / rings
+        points += [(r * math.cos(2 * math.pi * i / (6 * k)), 0.0, -r * math.sin(2 * math.pi * i / (6 * k)))
+                   for i in range(6 * k)]
+    faces = []
+    for k in range(1, rings + 1):
+        inner_count, outer_count = max(6 * (k - 1), 1), 6 * k
+        inner, outer = first[k - 1], first[k]
+        # Walk both rings around together, always advancing the one that is behind in angle.
+        i = j = 0
+        while i < inner_count or j < outer_count:
+            a = inner + i % inner_count
+            b = outer + j % outer_count
+            advance_outer = i >= inner_count or (j < outer_count and (j + 1) / outer_count <= (i + 1) / inner_count)
+            if k == 1 or advance_outer:
+                faces.append((a, b, outer + (j + 1) % outer_count))
+                j += 1
+                if k == 1 and j >= outer_count:
+                    break
+            else:
+                faces.append((a, b, inner + (i + 1) % inner_count))
+                i += 1
+    return points, faces
+
+
+def table(radius: float, height: float, sides: int):
+    """A closed cylinder on the floor: ring 0 at y = 0, ring 1 at the top, then the two caps' centres."""
+    ring = [(radius * math.cos(2 * math.pi * i / sides), 0.0, -radius * math.sin(2 * math.pi * i / sides))
+            for i in range(sides)]
+    points = ring + [(x, height, z) for x, _, z in ring] + [(0.0, 0.0, 0.0), (0.0, height, 0.0)]
+    bottom, top = 2 * sides, 2 * sides + 1
+    faces = []
+    for i in range(sides):
+        j = (i + 1) % sides
+        faces.append((i, j, sides + j, sides + i))  # counter-clockwise seen from outside
+        faces.append((sides + i, sides + j, top))
+        faces.append((j, i, bottom))
+    return points, faces
+
+
+def write_obj(path: str, title: str, points, faces, uv_radius: float | None = None) -> None:
+    with open(path, "w") as out:
+        out.write(f"# {title} (tools/make_scene_meshes.py)\n")
+        for x, y, z in points:
+            out.write(f"v {x:.6f} {y:.6f} {z:.6f}\n")
+        if uv_radius is None:
+            out.writelines("f " + " ".join(str(i + 1) for i in face) + "\n" for face in faces)
+            return
+        for x, _, z in points:
+            out.write(f"vt {0.5 + x / (2 * uv_radius):.6f} {0.5 - z / (2 * uv_radius):.6f}\n")
+        out.writelines("f " + " ".join(f"{i + 1}/{i + 1}" for i in face) + "\n" for face in faces)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("folder")
+    args = parser.parse_args()
+    points, faces = disc(1.2, 12)
+    write_obj(f"{args.folder}/tablecloth.obj", "A disc of radius 1.2 m in 12 rings", points, faces, uv_radius=1.2)
+    points, faces = table(0.6, 0.9, 48)
+    write_obj(f"{args.folder}/table.obj", "A round table of radius 0.6 m, 0.9 m high, in 48 sides", points, faces)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,349 @@
+"""Surface meshes from the user's files: OBJ, and a ``Mesh`` prim of a USD stage (.usd, .usda, .usdc).
+
+A mesh is read into world-space metres (a USD prim's transform and the stage's ``metersPerUnit`` applied, a
+Z-up stage turned Y-up as the simulation's gravity is -Y) and checked as a cloth needs it: faces of three
+or four vertices, none degenerate or repeated, every edge shared by at most two faces, every point on a
+face. A problem is a ``SceneError`` naming the file (and prim) and what was expected; a conversion the
+reader made is one of the mesh's ``notes``, for the run to say.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .errors import SceneError
+
+USD_SUFFIXES = (".usd", ".usda", ".usdc")
+MESH_SUFFIXES = (".obj", *USD_SUFFIXES)
+
+
+@dataclass(frozen=True)
+class SurfaceMesh:
+    points: np.ndarray  # (n, 3) float64, world metres
+    face_counts: np.ndarray  # (f,) int64, 3 or 4
+    face_indices: np.ndarray  # (sum of face_counts,) int64, each face's vertices in order
+    uvs: np.ndarray | None  # (sum of face_counts, 2) float64 per face corner, or None
+    prim: str | None  # the USD prim it came from
+    notes: tuple[str, ...]  # conversions made on reading (units, up axis) and handled oddities
+    shortest_edge: float = float("nan")  # metres, set by the checks
+
+    def triangles(self) -> np.ndarray:
+        """(t, 3): each face fanned from its first vertex (a quad a, b, c, d: a b c, a c d)."""
+        return fan_triangles(self.face_counts, self.face_indices)
+
+
+def face_starts(face_counts: np.ndarray) -> np.ndarray:
+    """Where each face's vertices begin in the face index list."""
+    return np.concatenate([[0], np.cumsum(face_counts)[:-1]]).astype(np.int64)
+
+
+def fan_triangles(face_counts: np.ndarray, face_indices: np.ndarray) -> np.ndarray:
+    starts = face_starts(face_counts)
+    first = face_indices[starts]
+    parts = [np.stack([first, face_indices[starts + 1], face_indices[starts + 2]], axis=1)]
+    quads = starts[face_counts == 4]
+    parts.append(np.stack([face_indices[quads], face_indices[quads + 2], face_indices[quads + 3]], axis=1))
+    return np.concatenate(parts).astype(np.int64)
+
+
+def load_mesh(file: str | Path, prim: str | None = None) -> SurfaceMesh:
+    """The checked surface mesh of ``file`` (OBJ or USD; for USD, the ``Mesh`` prim at ``prim``, or the
+    stage's only one). Read once per file version: a cloth asks for its mesh more than once."""
+    path = Path(file)
+    where = f"{path}" + (f" at {prim}" if prim else "")
+    if path.suffix.lower() not in MESH_SUFFIXES:
+        raise SceneError("mesh", f"a mesh file ending in one of {', '.join(MESH_SUFFIXES)}", str(path))
+    try:
+        stat = path.stat()
+    except OSError as exc:
+        raise SceneError("mesh", f"an existing, readable mesh file ({exc.strerror})", str(path)) from None
+    if not path.is_file():
+        raise SceneError("mesh", "a mesh file (this is not a regular file)", str(path))
+    return _load_cached(str(path.absolute()), prim, stat.st_mtime_ns, stat.st_size, where)
+
+
+@functools.lru_cache(maxsize=32)
+def _load_cached(path: str, prim: str | None, _mtime: int, _size: int, where: str) -> SurfaceMesh:
+    if path.lower().endswith(".obj"):
+        if prim is not None:
+            raise SceneError("mesh.prim", "no prim for an OBJ file (prims are USD's)", prim)
+        mesh = _read_obj(Path(path), where)
+    else:
+        mesh = _read_usd(Path(path), prim, where)
+    return _checked(mesh, where)
+
+
+def _read_obj(path: Path, where: str) -> SurfaceMesh:
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SceneError("mesh", f"a readable UTF-8 OBJ file ({exc})", has_got=False, source=where) from None
+    lines = text.splitlines()
+    return _read_obj_fast(lines) or _read_obj_lines(lines, where)
+
+
+def _read_obj_fast(lines: list[str]) -> SurfaceMesh | None:
+    """The common OBJ, parsed in bulk: ``v x y z``, ``vt u v`` and ``f`` lines whose corners all have one
+    form (``i``, ``i/t``, ``i/t/n`` or ``i//n``), positive indices in range, no comments or other statements
+    but ``vn``, ``o``, ``g``, ``s``, ``usemtl``, ``mtllib``. None for anything else: the line by line reader
+    then parses it, or says which line it cannot."""
+    kinds: dict[str, list[str]] = {"v ": [], "vt": [], "f ": []}
+    for line in lines:
+        head = line[:2]
+        if head in kinds:
+            kinds[head].append(line)
+        elif line.strip() and line.split(None, 1)[0] not in ("vn", "o", "g", "s", "usemtl", "mtllib"):
+            return None
+    face_lines = kinds["f "]
+    try:
+        points = np.array(" ".join(line[2:] for line in kinds["v "]).split(), dtype=np.float64)
+        texture = np.array(" ".join(line[3:] for line in kinds["vt"]).split(), dtype=np.float64)
+        tokens = np.array(" ".join(line[2:] for line in face_lines).split())
+    except ValueError:
+        return None
+    if len(points) != 3 * len(kinds["v "]) or len(texture) != 2 * len(kinds["vt"]) or not face_lines:
+        return None
+    counts = np.strings.count(np.array(face_lines), " ").astype(np.int64)  # "f a b c": one space a corner
+    slashes = np.strings.count(tokens, "/")
+    doubled = np.strings.find(tokens, "//") >= 0
+    if counts.sum() != len(tokens) or (slashes != slashes[0]).any() or (doubled != doubled[0]).any():
+        return None
+    form = int(slashes[0]), bool(doubled[0])
+    try:
+        fields = " ".join(tokens.tolist()).replace("//", " ").replace("/", " ").split()
+        refs = np.array(fields, dtype=np.int64).reshape(len(tokens), -1)
+    except ValueError:
+        return None
+    corners = refs[:, 0] - 1
+    has_uv = form[0] >= 1 and not form[1]
+    if corners.min(initial=0) < 0 or corners.max(initial=-1) >= len(kinds["v "]):
+        return None
+    uvs = None
+    if has_uv and len(texture):
+        uv_index = refs[:, 1] - 1
+        if uv_index.min() < 0 or uv_index.max() >= len(kinds["vt"]):
+            return None
+        uvs = texture.reshape(-1, 2)[uv_index]
+    return SurfaceMesh(points.reshape(-1, 3), counts, corners, uvs, None, ())
+
+
+def _read_obj_lines(lines: list[str], where: str) -> SurfaceMesh:
+    points: list[list[float]] = []
+    texture: list[list[float]] = []
+    counts: list[int] = []
+    corners: list[int] = []
+    corner_uvs: list[int] = []  # -1 where a corner has none
+    for number, line in enumerate(lines, start=1):
+        words = line.split("#", 1)[0].split()
+        if not words:
+            continue
+        try:
+            if words[0] == "v":
+                points.append([float(w) for w in words[1:4]])
+                if len(points[-1]) != 3:
+                    raise ValueError("a vertex needs x y z")
+            elif words[0] == "vt":
+                texture.append([float(w) for w in words[1:3]] + [0.0] * max(0, 3 - len(words)))
+            elif words[0] == "f":
+                counts.append(len(words) - 1)
+                for word in words[1:]:
+                    refs = word.split("/")
+                    corners.append(_obj_index(refs[0], len(points)))
+                    has_uv = len(refs) > 1 and refs[1] != ""
+                    corner_uvs.append(_obj_index(refs[1], len(texture)) if has_uv else -1)
+            elif words[0] in ("l", "p"):
+                raise ValueError("lines and points are not a surface")
+        except (ValueError, IndexError) as exc:
+            raise SceneError("mesh", f"OBJ statements v, vt and f (line {number}: {exc})", line.strip(),
+                             source=where) from None
+    uvs = None
+    if texture and corner_uvs and min(corner_uvs) >= 0:
+        uvs = np.asarray(texture, dtype=np.float64)[np.asarray(corner_uvs)]
+    return SurfaceMesh(np.asarray(points, dtype=np.float64).reshape(-1, 3), np.asarray(counts, dtype=np.int64),
+                       np.asarray(corners, dtype=np.int64), uvs, None, ())
+
+
+def _obj_index(word: str, count: int) -> int:
+    """OBJ's 1-based index (negative: from the end) as a 0-based one."""
+    index = int(word)
+    resolved = index - 1 if index > 0 else count + index
+    if index == 0 or not 0 <= resolved < count:
+        raise ValueError(f"index {index} refers to none of the {count} defined so far")
+    return resolved
+
+
+def _read_usd(path: Path, prim_path: str | None, where: str) -> SurfaceMesh:
+    from pxr import Usd, UsdGeom  # usd-core: imported where USD is read, as the writers do
+
+    try:
+        stage = Usd.Stage.Open(str(path))
+    except Exception as exc:  # pxr raises its own Tf.ErrorException for unreadable layers
+        raise SceneError("mesh", f"a USD file that opens ({str(exc).strip().splitlines()[-1]})", has_got=False,
+                         source=where) from None
+    if prim_path is None:
+        meshes = [p for p in stage.Traverse() if p.IsA(UsdGeom.Mesh)]
+        if len(meshes) != 1:
+            names = ", ".join(str(p.GetPath()) for p in meshes[:5])
+            raise SceneError("mesh.prim", "the path of the Mesh prim to use (the stage has "
+                             + (f"{len(meshes)}: {names})" if meshes else "none)"), has_got=False, source=where)
+        prim = meshes[0]
+    else:
+        prim = stage.GetPrimAtPath(prim_path) if prim_path.startswith("/") else Usd.Prim()
+        if not prim:
+            raise SceneError("mesh.prim", "the absolute path of a prim in the stage", prim_path, source=where)
+        if not prim.IsA(UsdGeom.Mesh):
+            raise SceneError("mesh.prim", "a Mesh prim", f"a {prim.GetTypeName() or 'typeless'} prim", source=where)
+    mesh = UsdGeom.Mesh(prim)
+    time = Usd.TimeCode.EarliestTime()
+    local = np.asarray(mesh.GetPointsAttr().Get(time) or [], dtype=np.float64).reshape(-1, 3)
+    counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get(time) or [], dtype=np.int64)
+    indices = np.asarray(mesh.GetFaceVertexIndicesAttr().Get(time) or [], dtype=np.int64)
+    if counts.sum() != len(indices):
+        raise SceneError("mesh", "faceVertexCounts that add up to the length of faceVertexIndices",
+                         f"{int(counts.sum())} vs {len(indices)}", source=where)
+    matrix = np.asarray(UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(time), dtype=np.float64)
+    world = local @ matrix[:3, :3] + matrix[3, :3]  # USD's row vectors
+    notes = []
+    meters = UsdGeom.GetStageMetersPerUnit(stage)
+    if meters != 1.0:
+        world = world * meters
+        notes.append(f"{where}: units of {meters:g} m converted to metres")
+    if UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z:
+        world = world @ Z_UP_TO_Y_UP.T
+        notes.append(f"{where}: Z-up stage turned Y-up (the simulation's gravity is -Y)")
+    return SurfaceMesh(world, counts, indices, _usd_uvs(mesh, counts, indices, time), str(prim.GetPath()),
+                       tuple(notes))
+
+
+Z_UP_TO_Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])  # (x, y, z) -> (x, z, -y)
+
+
+def _usd_uvs(mesh, counts: np.ndarray, indices: np.ndarray, time) -> np.ndarray | None:
+    """The ``st`` primvar per face corner, whatever its interpolation (None where the mesh has none)."""
+    from pxr import UsdGeom
+
+    primvar = UsdGeom.PrimvarsAPI(mesh).GetPrimvar("st")
+    if not primvar or not primvar.HasValue():
+        return None
+    values = np.asarray(primvar.ComputeFlattened(time), dtype=np.float64).reshape(-1, 2)
+    interpolation = primvar.GetInterpolation()
+    if interpolation == UsdGeom.Tokens.faceVarying and len(values) == len(indices):
+        return values
+    if interpolation in (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying) and len(values) > indices.max(initial=-1):
+        return values[indices]
+    if interpolation == UsdGeom.Tokens.uniform and len(values) == len(counts):
+        return np.repeat(values, counts, axis=0)
+    return None  # constant or malformed: nothing a texture could use
+
+
+def _checked(mesh: SurfaceMesh, where: str) -> SurfaceMesh:
+    """The mesh, or a SceneError for what no cloth can be made of."""
+    n, counts, indices = len(mesh.points), mesh.face_counts, mesh.face_indices
+
+    def refuse(expected: str, got: object = None, has_got: bool = True) -> None:
+        raise SceneError("mesh", expected, got, has_got=has_got, source=where)
+
+    if len(counts) == 0:
+        refuse("a surface mesh with faces", f"{n} points and no faces")
+    if not np.isfinite(mesh.points).all():
+        refuse("finite point coordinates", has_got=False)
+    bad = np.nonzero((counts < 3) | (counts > 4))[0]
+    if len(bad):
+        refuse("faces of 3 or 4 vertices (triangles and quads)", f"face {bad[0]} with {counts[bad[0]]}")
+    if indices.min() < 0 or indices.max() >= n:
+        refuse(f"face vertex indices in [0, {n - 1}]", int(indices.min() if indices.min() < 0 else indices.max()))
+    corners = face_table(counts, indices)  # (f, 4), -1 past a triangle's third vertex
+    for a in range(4):
+        for b in range(a + 1, 4):
+            repeated = np.nonzero((corners[:, a] == corners[:, b]) & (corners[:, a] >= 0))[0]
+            if len(repeated):
+                refuse("faces with distinct vertices", f"face {repeated[0]}: {corners[repeated[0]].tolist()}")
+    areas = face_areas(mesh.points, counts, indices)
+    scale = float(np.ptp(mesh.points, axis=0).max())
+    flat = np.nonzero(areas <= 1e-12 * scale * scale)[0]
+    if len(flat):
+        refuse("faces of non-zero area", f"face {flat[0]} (vertices {corners[flat[0]][corners[flat[0]] >= 0].tolist()})"
+                                         " is degenerate")
+    keys = np.sort(np.where(corners < 0, n, corners), axis=1)
+    key = ((keys[:, 0] * (n + 1) + keys[:, 1]) * (n + 1) + keys[:, 2]) * (n + 1) + keys[:, 3] if n < 40_000 \
+        else None  # 4 indices in one int64 only below that: larger meshes compare rows
+    _, first, seen = np.unique(key if key is not None else keys, axis=None if key is not None else 0,
+                               return_index=True, return_counts=True)
+    if (seen > 1).any():
+        repeat = np.nonzero(seen > 1)[0][0]
+        refuse("each face once", f"face {first[repeat]} is repeated")
+    unique_edges, uses = unique_pairs(face_edges(counts, indices), n)
+    if (uses > 2).any():
+        e = unique_edges[np.nonzero(uses > 2)[0][0]]
+        refuse("a manifold surface (every edge in at most two faces)", f"edge {e[0]}-{e[1]} in {uses.max()} faces")
+    unused = np.setdiff1d(np.arange(n), indices)
+    if len(unused):
+        refuse("every point on some face", f"{len(unused)} points on none, the first {unused[0]}")
+    pieces = count_pieces(n, unique_edges)
+    notes = mesh.notes + ((f"{where}: {pieces} separate pieces, simulated as one cloth",) if pieces > 1 else ())
+    shortest = float(edge_lengths(mesh.points, counts, indices).min())
+    return SurfaceMesh(mesh.points, counts, indices, mesh.uvs, mesh.prim, notes, shortest)
+
+
+def face_table(counts: np.ndarray, indices: np.ndarray) -> np.ndarray:
+    """(f, 4) vertex table, -1 as a triangle's fourth."""
+    starts = face_starts(counts)
+    table = np.full((len(counts), 4), -1, dtype=np.int64)
+    for k in range(4):
+        has = counts > k
+        table[has, k] = indices[starts[has] + k]
+    return table
+
+
+def face_edges(counts: np.ndarray, indices: np.ndarray) -> np.ndarray:
+    """(sum of counts, 2): each face's boundary edges, in face order."""
+    starts = np.repeat(face_starts(counts), counts)
+    position = np.arange(len(indices)) - starts
+    following = starts + (position + 1) % np.repeat(counts, counts)
+    return np.stack([indices, indices[following]], axis=1)
+
+
+def edge_lengths(points: np.ndarray, counts: np.ndarray, indices: np.ndarray) -> np.ndarray:
+    """The length of each face's each edge (an edge shared by two faces twice)."""
+    edges = face_edges(counts, indices)
+    return np.linalg.norm(points[edges[:, 0]] - points[edges[:, 1]], axis=1)
+
+
+def face_areas(points: np.ndarray, counts: np.ndarray, indices: np.ndarray) -> np.ndarray:
+    """Each face's area (a quad's as its two fan triangles')."""
+    triangles = fan_triangles(counts, indices)
+    a, b, c = (points[triangles[:, k]] for k in range(3))
+    tri_area = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    owner = np.concatenate([np.arange(len(counts)), np.nonzero(counts == 4)[0]])
+    return np.bincount(owner, weights=tri_area, minlength=len(counts))
+
+
+def unique_pairs(pairs: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct unordered pairs of vertices below n, sorted, and how often each occurs."""
+    low, high = np.minimum(pairs[:, 0], pairs[:, 1]), np.maximum(pairs[:, 0], pairs[:, 1])
+    keys, uses = np.unique(low.astype(np.int64) * n + high, return_counts=True)
+    return np.stack([keys // n, keys % n], axis=1), uses
+
+
+def count_pieces(n: int, edges: np.ndarray) -> int:
+    """Connected components of a graph of n vertices: every vertex hooked to the smallest label across its
+    edges, then labels followed to their roots, until nothing changes (a few dozen rounds on a mesh)."""
+    label = np.arange(n)
+    a, b = edges[:, 0], edges[:, 1]
+    while True:
+        low = np.minimum(label[a], label[b])
+        hooked = label.copy()
+        np.minimum.at(hooked, label[a], low)
+        np.minimum.at(hooked, label[b], low)
+        while True:  # follow each label to its root
+            jumped = hooked[hooked]
+            if np.array_equal(jumped, hooked):
+                break
+            hooked = jumped
+        if np.array_equal(hooked, label):
+            return len(np.unique(label))
+        label = hooked
