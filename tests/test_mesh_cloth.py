@@ -107,9 +107,10 @@ def test_a_grid_read_as_a_quad_mesh_moves_as_the_grid_does(tmp_path):
     assert np.ptp(a.positions()[:, 1]) > 0.5  # the cloth has swung down, so the comparison means something
 
 
-def test_a_triangle_mesh_cloth_holds_its_strain_limit(tmp_path):
+@pytest.mark.parametrize("device", ["cpu", pytest.param("cuda", marks=pytest.mark.cuda)])
+def test_a_triangle_mesh_cloth_holds_its_strain_limit(tmp_path, device):
     _, scene = hanging_pair(tmp_path, triangles=True, limit_solve="converged")
-    sim = wc.Simulator(scene, device="cpu")
+    sim = wc.Simulator(scene, device=device)
     limited = np.isfinite(sim.model.springs.limit_max)
     worst = 0.0
     for _ in range(24):

@@ -32,12 +32,13 @@ def falling_cloth(**collider) -> wc.Scene:
     return wc.Scene(name="drop", cloths=(cloth,), simulation=simulation, **collider)
 
 
-def test_a_cloth_lands_on_a_mesh_box_as_on_the_ground_raised_by_its_thickness(tmp_path):
+@pytest.mark.parametrize("device", ["cpu", pytest.param("cuda", marks=pytest.mark.cuda)])
+def test_a_cloth_lands_on_a_mesh_box_as_on_the_ground_raised_by_its_thickness(tmp_path, device):
     thickness, friction = 0.02, 0.4
     box = wc.MeshCollider(name="box", mesh=wc.MeshSource(str(box_obj(tmp_path / "box.obj", (-3, -1, -3), (3, 0, 3)))),
                           thickness=thickness, friction=friction)
-    on_box = wc.Simulator(falling_cloth(colliders=(box,)), device="cpu")
-    on_ground = wc.Simulator(falling_cloth(ground=wc.Ground(height=thickness, friction=friction)), device="cpu")
+    on_box = wc.Simulator(falling_cloth(colliders=(box,)), device=device)
+    on_ground = wc.Simulator(falling_cloth(ground=wc.Ground(height=thickness, friction=friction)), device=device)
     worst = 0.0
     for _ in range(36):
         on_box.step()

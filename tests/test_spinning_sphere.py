@@ -27,8 +27,9 @@ def angular_momentum(sim: wc.Simulator) -> float:
     return float((m * (x[:, 2] * v[:, 0] - x[:, 0] * v[:, 2])).sum())  # about +Y
 
 
-def test_friction_turns_the_cloth_at_mu_g_until_it_turns_with_the_sphere():
-    sim = wc.Simulator(resting_cloth_on_spinning_sphere(), device="cpu")
+@pytest.mark.parametrize("device", ["cpu", pytest.param("cuda", marks=pytest.mark.cuda)])
+def test_friction_turns_the_cloth_at_mu_g_until_it_turns_with_the_sphere(device):
+    sim = wc.Simulator(resting_cloth_on_spinning_sphere(), device=device)
     m = sim.model.masses
     x0 = sim.positions().astype(np.float64)
     lever = float((m * np.hypot(x0[:, 0], x0[:, 2])).sum())

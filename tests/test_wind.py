@@ -24,8 +24,9 @@ def sheet_in_wind(rotation=(0.0, 0.0, 0.0), lift=0.0, turbulence=0.0, substeps=4
                                              gravity=(0.0, 0.0, 0.0)))
 
 
-def test_a_flat_sheet_facing_the_wind_is_blown_along_as_the_drag_law_integrates():
-    sim = wc.Simulator(sheet_in_wind(), device="cpu")
+@pytest.mark.parametrize("device", ["cpu", pytest.param("cuda", marks=pytest.mark.cuda)])
+def test_a_flat_sheet_facing_the_wind_is_blown_along_as_the_drag_law_integrates(device):
+    sim = wc.Simulator(sheet_in_wind(), device=device)
     for _ in range(24):
         sim.step()
     v = sim.velocities().astype(np.float64)
