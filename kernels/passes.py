@@ -18,6 +18,7 @@ from .integration import explicit_step
 from .limits import StrainLimits, hold_to_pin, limit_correction, limit_corrections, limit_violation, mean_of
 from .particle_collision import (Contacts, ListState, PairRules, add_candidate, begin_contact, deepest_overlap,
                                  end_remake, is_candidate, mean_push, pushes, sort_and_drop_repeats, velocity_changes)
+from .solve_loop import chebyshev_extrapolation
 from .spatial_hash import cell_of, count_in, first_visit, neighbour_bucket, stamp_of
 from .springs import Springs, add_system_diagonal, add_system_times, spring_forces, stiffness_times_motion
 
@@ -276,6 +277,26 @@ def separation_pass_kernel(threads: int) -> wp.Kernel:
 def limit_and_separation_pass_kernel(threads: int) -> wp.Kernel:
     return gathering_kernel("limit_and_separation_pass", LimitAndSeparationPassArgs, gather_limits_and_pushes,
                             finish_limit_and_separation_pass, threads)
+
+
+# --- Chebyshev's acceleration of a converged projection's iteration, ending with the colliders -------------
+
+@wp.kernel
+def chebyshev_step_and_colliders(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3),
+                                 inv_mass: wp.array(dtype=float), omega: wp.array(dtype=float), h: float,
+                                 colliders: RigidColliders, x_start: wp.array(dtype=wp.vec3),
+                                 x_before: wp.array(dtype=wp.vec3)):
+    """The extrapolated position (solve_loop.chebyshev_extrapolation), put out of the rigid colliders as
+    every pass's move is; the velocity changed by both moves over h (extrapolating the velocities
+    themselves blew the matrix's sphere cloth up)."""
+    i = wp.tid()
+    if inv_mass[i] == 0.0:
+        return
+    xi = x[i]
+    xn = chebyshev_extrapolation(i, x, omega, x_start, x_before)
+    p, vel, hit = collide_particle(xn, v[i] + (xn - xi) / h, colliders, h)
+    x[i] = p
+    v[i] = vel
 
 
 # --- the check of a converged projection: how far limits and contacts are from holding ---------------------

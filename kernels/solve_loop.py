@@ -34,28 +34,20 @@ def continue_solve(tolerance: float, passes: int, active: wp.array(dtype=int), c
         residual[0] = 0.0
 
 
-@wp.kernel
-def chebyshev_step(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float),
-                   omega: wp.array(dtype=float), h: float, x_start: wp.array(dtype=wp.vec3),
-                   x_before: wp.array(dtype=wp.vec3)):
+@wp.func
+def chebyshev_extrapolation(i: int, x: wp.array(dtype=wp.vec3), omega: wp.array(dtype=float),
+                            x_start: wp.array(dtype=wp.vec3), x_before: wp.array(dtype=wp.vec3)) -> wp.vec3:
     """Chebyshev's semi-iterative acceleration of an iteration that took ``x_start`` to ``x`` (Wang 2015):
-    x' = omega (x - x_before) + x_before, the velocity changed by that extrapolation over h, as for every
-    projection here (extrapolating the velocities themselves blew the matrix's sphere cloth up); then the
-    iterates shift. ``omega`` = [this iteration's weight, the spectral radius squared, iterations so far,
-    the last residual]."""
-    i = wp.tid()
-    if inv_mass[i] == 0.0:
-        return
+    particle i's x' = omega (x - x_before) + x_before; the iterates shift (x_start then holds x'). ``omega``
+    = [this iteration's weight, the spectral radius squared, iterations so far, the last residual]."""
     xs = x_start[i]
     xb = x_before[i]
     if omega[2] < 1.5:
         xb = xs  # the first iteration has no iterate before it: plain
-    xi = x[i]
-    xn = omega[0] * (xi - xb) + xb
-    x[i] = xn
-    v[i] = v[i] + (xn - xi) / h
+    xn = omega[0] * (x[i] - xb) + xb
     x_before[i] = xs
     x_start[i] = xn
+    return xn
 
 
 @wp.kernel

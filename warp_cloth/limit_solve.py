@@ -79,6 +79,7 @@ class ConvergedProjection:
         self.cascade = Cascade(model, model.hierarchy, colliders) if model.hierarchy is not None else None
         steps = ([self.cascade] if self.cascade is not None else []) + body
         self.name = f"until within tolerance, {len(body)} at a time: " + ", ".join(p.name for p in steps)
+        self.colliders = colliders if colliders is not None else model.no_colliders()
         self.max_passes = model.limit_max_passes
         self.h = model.h
         device = model.device
@@ -119,9 +120,9 @@ class ConvergedProjection:
             for step in self.body:
                 step.run(state)
             if self.rho is not None:
-                wp.launch(solve_loop.chebyshev_step, dim=state.x.shape[0],
-                          inputs=[state.x, state.v, self.args.inv_mass, self.omega, self.h, *self.iterates],
-                          device=device)
+                wp.launch(fused.chebyshev_step_and_colliders, dim=state.x.shape[0],
+                          inputs=[state.x, state.v, self.args.inv_mass, self.omega, self.h, self.colliders,
+                                  *self.iterates], device=device)
             wp.launch(fused.projection_residual, dim=state.x.shape[0], inputs=[state.x, self.args],
                       outputs=[self.residual], device=device)
             if self.rho is not None:
