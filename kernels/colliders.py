@@ -90,7 +90,8 @@ def collide_spheres(p: wp.vec3, vel: wp.vec3, hit: int, colliders: RigidCollider
 def collide_meshes(p: wp.vec3, vel: wp.vec3, hit: int, colliders: RigidColliders, h: float):
     """Each mesh keeps the particle ``thickness`` off the side its nearest face faces: a particle closer,
     or behind that face (inside a closed mesh), is put at that distance along the direction from the
-    nearest surface point (a face's normal, or out from an edge or corner)."""
+    nearest surface point (a face's normal, or out from an edge or corner); friction acts against the
+    speed relative to the surface there (its vertices' velocities, zero for a static mesh)."""
     for m in range(colliders.meshes.shape[0]):
         mesh = colliders.meshes[m]
         thickness = colliders.mesh_thickness[m]
@@ -105,7 +106,8 @@ def collide_meshes(p: wp.vec3, vel: wp.vec3, hit: int, colliders: RigidColliders
             depth = thickness - query.sign * dist
             if depth > 0.0:
                 p = closest + thickness * normal
-                vel = contact_velocity(vel + normal * (depth / h), wp.vec3(0.0), normal, depth / h,
+                surface_velocity = wp.mesh_eval_velocity(mesh, query.face, query.u, query.v)
+                vel = contact_velocity(vel + normal * (depth / h), surface_velocity, normal, depth / h,
                                        colliders.mesh_friction[m])
                 hit = 1
     return p, vel, hit

@@ -57,3 +57,30 @@ def pinned_velocity_change(index: wp.array(dtype=int), amplitude: wp.array(dtype
     p = wp.tid()
     i = index[p]
     dv[i] = oscillation_velocity(clock_time(clock, h), amplitude[p], frequency[p], phase[p]) - v[i]
+
+
+@wp.kernel
+def place_keyed_points(clock: wp.array(dtype=int), h: float, key_times: wp.array(dtype=float),
+                       keys: wp.array2d(dtype=wp.vec3), points: wp.array(dtype=wp.vec3),
+                       velocities: wp.array(dtype=wp.vec3)):
+    """An animated mesh's vertex where its keys put it at the end of the substep, linearly between the two
+    keys around that time, with the velocity between them; before the first key and after the last it
+    holds still there."""
+    j = wp.tid()
+    t = clock_time(clock, h)
+    last = key_times.shape[0] - 1
+    if t <= key_times[0]:
+        points[j] = keys[0, j]
+        velocities[j] = wp.vec3(0.0)
+        return
+    if t >= key_times[last]:
+        points[j] = keys[last, j]
+        velocities[j] = wp.vec3(0.0)
+        return
+    k = int(0)
+    while key_times[k + 1] < t:
+        k += 1
+    span = key_times[k + 1] - key_times[k]
+    step = keys[k + 1, j] - keys[k, j]
+    points[j] = keys[k, j] + ((t - key_times[k]) / span) * step
+    velocities[j] = step / span

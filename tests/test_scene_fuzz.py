@@ -35,8 +35,11 @@ for _name, _doc in BASES.items():
     _doc["name"] = _name
     _doc["simulation"]["frames"] = 1  # should a case be wrongly accepted, it costs one frame
     for _table in _doc.get("cloth", []) + _doc.get("collider", []):  # the cases are written elsewhere; as a
-        if isinstance(_table.get("mesh"), str):                       # table, as the fields' hints have it
-            _table["mesh"] = {"file": str(resources.files("warp_cloth.scenes").joinpath(_table["mesh"]))}
+        _mesh = _table.get("mesh")                                    # table, as the fields' hints have it
+        if _mesh is not None:
+            _mesh = {"file": _mesh} if isinstance(_mesh, str) else _mesh
+            _mesh["file"] = str(resources.files("warp_cloth.scenes").joinpath(_mesh["file"]))
+            _table["mesh"] = _mesh
 
 NAN, INF = float("nan"), float("inf")
 BAD_NAMES = ["a-b", "\u00e9", "x" * 101, "", "ground", "1st", "a b"]

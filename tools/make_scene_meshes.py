@@ -5,7 +5,9 @@
 - tablecloth.obj: a flat disc of 1.2 m radius made of nearly equilateral triangles in 12 rings (ring k has
   6 k vertices at radius k / 12 of the disc's), in the XZ plane facing +Y, with UVs from its plan view;
 - table.obj: a closed round table, a cylinder of 0.6 m radius from the floor to 0.9 m in 48 sides (quads),
-  its top and bottom fans of triangles, every face outward.
+  its top and bottom fans of triangles, every face outward;
+- turntable.usda: a USD shot at 24 fps, Y-up, in metres: the same kind of cylinder, 0.8 m in radius and
+  0.6 m high, under an Xform keyed to turn once about +Y from frame 0 to frame 96.
 """
 
 import argparse
@@ -69,6 +71,29 @@ def write_obj(path: str, title: str, points, faces, uv_radius: float | None = No
         out.writelines("f " + " ".join(f"{i + 1}/{i + 1}" for i in face) + "\n" for face in faces)
 
 
+def write_turntable(path: str) -> None:
+    from pxr import Gf, Usd, UsdGeom
+
+    stage = Usd.Stage.CreateNew(path)
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
+    UsdGeom.SetStageMetersPerUnit(stage, 1.0)
+    stage.SetTimeCodesPerSecond(24.0)
+    stage.SetStartTimeCode(0)
+    stage.SetEndTimeCode(96)
+    stage.GetRootLayer().documentation = "A turntable that turns once in 4 s (tools/make_scene_meshes.py)"
+    world = UsdGeom.Xform.Define(stage, "/World")
+    stage.SetDefaultPrim(world.GetPrim())
+    turn = UsdGeom.Xform.Define(stage, "/World/Turntable").AddRotateYOp()
+    turn.Set(0.0, 0)
+    turn.Set(360.0, 96)
+    points, faces = table(0.8, 0.6, 48)
+    mesh = UsdGeom.Mesh.Define(stage, "/World/Turntable/Top")
+    mesh.CreatePointsAttr([Gf.Vec3f(*p) for p in points])
+    mesh.CreateFaceVertexCountsAttr([len(f) for f in faces])
+    mesh.CreateFaceVertexIndicesAttr([i for f in faces for i in f])
+    stage.GetRootLayer().Save()
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("folder")
@@ -77,6 +102,7 @@ def main() -> None:
     write_obj(f"{args.folder}/tablecloth.obj", "A disc of radius 1.2 m in 12 rings", points, faces, uv_radius=1.2)
     points, faces = table(0.6, 0.9, 48)
     write_obj(f"{args.folder}/table.obj", "A round table of radius 0.6 m, 0.9 m high, in 48 sides", points, faces)
+    write_turntable(f"{args.folder}/turntable.usda")
 
 
 if __name__ == "__main__":

@@ -230,9 +230,10 @@ def _simulator(scene: Scene, device: str, args: argparse.Namespace):
                 raise (exc.in_file(str(resolve_scene_path(args.scene))) if exc.source is None else exc) from None
         sim.prepare()
     print(f"{scene.name}: {sim.step_choice.describe()}", flush=True)
-    for cloth in scene.cloths:  # what reading a user's mesh converted or let pass
-        for note in cloth.surface().notes if cloth.mesh is not None else ():
-            print(f"warp-cloth: note: cloth {cloth.name!r}: {note}", file=sys.stderr, flush=True)
+    meshes = [("cloth", c) for c in scene.cloths if c.mesh is not None] + [("collider", c) for c in scene.colliders]
+    for kind, item in meshes:  # what reading a user's mesh converted or let pass
+        for note in item.surface().notes:
+            print(f"warp-cloth: note: {kind} {item.name!r}: {note}", file=sys.stderr, flush=True)
     step_source = "command line" if args.substeps is not None or args.dt is not None else args.scene
     for w in caught:
         if issubclass(w.category, UnstableStepWarning):

@@ -25,6 +25,14 @@ def upload(values: np.ndarray, dtype, device) -> wp.array:
 
 
 @dataclass(frozen=True)
+class MeshAnimation:
+    """An animated mesh collider: its BVH (whose points and velocities the keys set each substep) and keys."""
+    mesh: wp.Mesh
+    key_times: wp.array  # (k,) seconds
+    keys: wp.array  # (k, v) vec3
+
+
+@dataclass(frozen=True)
 class PinMotion:
     """Pinned particles and their oscillations (zero amplitude for fixed pins)."""
     index: wp.array
@@ -127,6 +135,7 @@ class DeviceModel:
         self._sphere_friction = upload(spheres.friction if spheres is not None else np.zeros(0), float, device)
         self._sphere_spin = upload(spheres.angular_velocity if spheres is not None else np.zeros((0, 3)), wp.vec3,
                                    device)
+        self.mesh_animation: tuple[MeshAnimation, ...] = ()
         self._meshes, self._mesh_ids, self._mesh_thickness, self._mesh_friction = self._mesh_colliders(model)
         self._mesh_reach = float(model.edge_rest.max()) if len(model.edge_rest) else 0.0
         self.has_colliders = scene.ground is not None or spheres is not None or model.mesh_colliders is not None
@@ -227,8 +236,12 @@ class DeviceModel:
         if colliders is None:
             return (), wp.zeros(0, dtype=wp.uint64, device=device), wp.zeros(0, dtype=float, device=device), \
                 wp.zeros(0, dtype=float, device=device)
-        meshes = tuple(wp.Mesh(points=upload(points, wp.vec3, device), indices=upload(triangles.ravel(), int, device))
+        meshes = tuple(wp.Mesh(points=upload(points, wp.vec3, device), indices=upload(triangles.ravel(), int, device),
+                               velocities=wp.zeros(len(points), dtype=wp.vec3, device=device))
                        for points, triangles in zip(colliders.points, colliders.triangles))
+        self.mesh_animation = tuple(
+            MeshAnimation(mesh, upload(times, float, device), upload(keys, wp.vec3, device))
+            for mesh, times, keys in zip(meshes, colliders.key_times, colliders.key_points) if keys is not None)
         ids = wp.array(np.array([m.id for m in meshes], dtype=np.uint64), dtype=wp.uint64, device=device)
         return meshes, ids, upload(colliders.thickness, float, device), upload(colliders.friction, float, device)
 

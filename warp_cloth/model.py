@@ -101,10 +101,16 @@ class WindFaces:
 class MeshColliders:
     """Each mesh collider's triangles in world space (its quads fanned into two)."""
 
-    points: tuple[np.ndarray, ...]  # (v, 3) float32 each
+    points: tuple[np.ndarray, ...]  # (v, 3) float32 each, where it starts
     triangles: tuple[np.ndarray, ...]  # (t, 3) int32 each
     thickness: np.ndarray  # (k,) float32
     friction: np.ndarray  # (k,) float32
+    key_times: tuple[np.ndarray | None, ...]  # seconds at which an animated collider's points are keyed
+    key_points: tuple[np.ndarray | None, ...]  # (keys, v, 3) float32 its points then; None: static
+
+    @property
+    def animated(self) -> bool:
+        return any(keys is not None for keys in self.key_points)
 
 
 @dataclass(frozen=True)
@@ -430,7 +436,9 @@ def _mesh_colliders(scene: Scene) -> MeshColliders | None:
     return MeshColliders(tuple(s.points.astype(np.float32) for s in surfaces),
                          tuple(s.triangles().astype(np.int32) for s in surfaces),
                          np.array([c.thickness for c in scene.colliders], dtype=np.float32),
-                         np.array([c.friction for c in scene.colliders], dtype=np.float32))
+                         np.array([c.friction for c in scene.colliders], dtype=np.float32),
+                         tuple(s.key_times for s in surfaces),
+                         tuple(None if s.key_points is None else s.key_points.astype(np.float32) for s in surfaces))
 
 
 def collision_radii(cloth: Cloth, mesh: ClothMesh, radius_override: float | None) -> np.ndarray:

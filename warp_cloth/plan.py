@@ -13,9 +13,9 @@ from .device_model import DeviceModel
 from .implicit import BackwardEuler
 from .limit_solve import ConvergedProjection
 from .neighbour_lists import LIST_THREADS_BY_SIZE, NeighbourLists
-from .passes import (AdvanceClock, Collide, ContactStart, DrivePins, MoveSpheres, Pass, contact_start_args,
-                     WindForces, contact_velocities, explicit_step, limit_and_separation_pass, limit_pass,
-                     separation_pass)
+from .passes import (AdvanceClock, Collide, ContactStart, DrivePins, MoveMeshColliders, MoveSpheres, Pass,
+                     WindForces, contact_start_args, contact_velocities, explicit_step, limit_and_separation_pass,
+                     limit_pass, separation_pass)
 from .scene import ImplicitSolver
 from .state import DeviceState
 
@@ -61,8 +61,8 @@ class Plan:
 
 def build_plan(model: DeviceModel, state: DeviceState, implicit_settings: ImplicitSolver,
                threads: int | None = None) -> Plan:
-    """The substep, in order: moving spheres to the substep's end (nothing before the colliders reads
-    them); the wind's forces; integration; driven pins; then, with particle collision, the contacts' start (in the explicit
+    """The substep, in order: moving spheres and animated mesh colliders to the substep's end (nothing
+    before the colliders reads them); the wind's forces; integration; driven pins; then, with particle collision, the contacts' start (in the explicit
     step where nothing comes between), the candidate lists, the projection passes and the contact
     velocities; without it, the strain limit's passes or the colliders alone; the clock last, where
     something moves with it. ``threads``: per particle on the gathering passes (None: by size)."""
@@ -73,6 +73,8 @@ def build_plan(model: DeviceModel, state: DeviceState, implicit_settings: Implic
     passes: list[Pass] = []
     if model.sphere_motion is not None:
         passes.append(MoveSpheres(model))
+    if model.mesh_animation:
+        passes.append(MoveMeshColliders(model))
     lists = start = implicit = projection = None
     if model.contacts is not None:
         list_threads = threads_per_particle(model.particle_count, model.device, LIST_THREADS_BY_SIZE) \
@@ -108,7 +110,8 @@ def build_plan(model: DeviceModel, state: DeviceState, implicit_settings: Implic
                       for k in range(model.limit_iterations))
     elif rigid is not None:
         passes.append(Collide(model, rigid))
-    if driven_pins or model.sphere_motion is not None or (model.wind is not None and model.wind.turbulence > 0):
+    if driven_pins or model.sphere_motion is not None or model.mesh_animation or \
+            (model.wind is not None and model.wind.turbulence > 0):
         passes.append(AdvanceClock())
     return Plan(tuple(passes), model.h, chosen, implicit, lists, projection)
 

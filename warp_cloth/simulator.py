@@ -194,7 +194,9 @@ class Simulator:
         self.plan: Plan = build_plan(self.device_model, self.state, self.scene.implicit, threads_per_particle)
         self.frame = 0
         self.substep_count = 0
-        self.use_graph = graph
+        # An animated mesh collider's BVH refit is a host call on the CPU, which a CPU graph does not record
+        # (a CUDA graph records the refit's kernels): there, launch pass by pass.
+        self.use_graph = graph and not (self.device.is_cpu and self.device_model.mesh_animation)
         self._graphs: dict[tuple[int, int], tuple[wp.Graph, int]] = {}
         self._launches_recorded = False  # without graphs: prepare() has recorded a frame (its modules are loaded)
         # One flag per substep of a frame, set by the blow-up guard (see kernels/guard.py), in two slots

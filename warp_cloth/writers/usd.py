@@ -146,11 +146,16 @@ class UsdWriter(StagedOutput):
         self._extents.append(mesh.CreateExtentAttr())
 
     def _define_mesh_collider(self, collider) -> None:
-        """A static mesh collider as it was read: world-space points, its faces."""
+        """A mesh collider as it was read: world-space points (keyed where it is animated), its faces."""
         surface = collider.surface()
         mesh = UsdGeom.Mesh.Define(self.stage, f"/World/{prim_name(collider.name)}")
         points = surface.points.astype(np.float32)
-        mesh.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(points))
+        attr = mesh.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(points))
+        if surface.key_points is not None:  # animated: its keys, at the frames of their times
+            fps = self.stage.GetFramesPerSecond()
+            for t, keyed in zip(surface.key_times, surface.key_points.astype(np.float32)):
+                attr.Set(Vt.Vec3fArray.FromNumpy(keyed), Usd.TimeCode(t * fps))
+            points = surface.key_points.reshape(-1, 3).astype(np.float32)
         mesh.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(surface.face_counts.astype(np.int32)))
         mesh.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(surface.face_indices.astype(np.int32)))
         mesh.CreateExtentAttr(Vt.Vec3fArray([Gf.Vec3f(*points.min(axis=0).tolist()),
