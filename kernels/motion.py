@@ -84,3 +84,42 @@ def place_keyed_points(clock: wp.array(dtype=int), h: float, key_times: wp.array
     step = keys[k + 1, j] - keys[k, j]
     points[j] = keys[k, j] + ((t - key_times[k]) / span) * step
     velocities[j] = step / span
+
+
+@wp.func
+def face_frame(mesh: wp.uint64, face: int) -> wp.mat33:
+    """An orthonormal frame of a mesh face as it is now: its first edge, across it, its normal (columns)."""
+    a = wp.mesh_eval_position(mesh, face, 1.0, 0.0)
+    b = wp.mesh_eval_position(mesh, face, 0.0, 1.0)
+    n = wp.mesh_eval_face_normal(mesh, face)
+    e1 = wp.normalize(b - a)
+    return wp.matrix_from_cols(e1, wp.cross(n, e1), n)
+
+
+@wp.kernel
+def attach_to_mesh(mesh: wp.uint64, index: wp.array(dtype=int), x: wp.array(dtype=wp.vec3),
+                   face: wp.array(dtype=int), bary: wp.array(dtype=wp.vec2), offset: wp.array(dtype=wp.vec3)):
+    """Each particle's nearest point on the mesh (face and barycentric coordinates) and where the particle
+    is from it in that face's frame, once, for pins that follow the mesh."""
+    k = wp.tid()
+    p = x[index[k]]
+    query = wp.mesh_query_point_no_sign(mesh, p, 1.0e7)
+    face[k] = query.face
+    bary[k] = wp.vec2(query.u, query.v)
+    on_face = wp.mesh_eval_position(mesh, query.face, query.u, query.v)
+    offset[k] = wp.transpose(face_frame(mesh, query.face)) * (p - on_face)
+
+
+@wp.kernel
+def follow_mesh(mesh: wp.uint64, index: wp.array(dtype=int), face: wp.array(dtype=int),
+                bary: wp.array(dtype=wp.vec2), offset: wp.array(dtype=wp.vec3), x: wp.array(dtype=wp.vec3),
+                v: wp.array(dtype=wp.vec3)):
+    """Pinned particles where their attachment to the mesh, as it is now, puts them, with the surface's
+    velocity there."""
+    k = wp.tid()
+    f = face[k]
+    u = bary[k][0]
+    w = bary[k][1]
+    i = index[k]
+    x[i] = wp.mesh_eval_position(mesh, f, u, w) + face_frame(mesh, f) * offset[k]
+    v[i] = wp.mesh_eval_velocity(mesh, f, u, w)

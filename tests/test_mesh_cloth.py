@@ -218,7 +218,7 @@ def test_mesh_cloth_refuses_grid_settings_and_usd_prims_that_are_not_meshes(tmp_
     path = grid_as_obj(tmp_path, GRID)
     with pytest.raises(wc.SceneError, match=r"resolution: expected no grid setting on a mesh cloth"):
         wc.Cloth.from_mesh(path, resolution=(4, 4))
-    with pytest.raises(wc.SceneError, match=r"pins\[0\]: expected pins by indices or region on a mesh cloth"):
+    with pytest.raises(wc.SceneError, match=r"pins\[0\]: expected pins by indices, region or group on a mesh cloth"):
         wc.Cloth.from_mesh(path, pins=(wc.Pin(corners=("top-left",)),))
     with pytest.raises(wc.SceneError, match=r"limit.long_range: expected false on a mesh cloth"):
         wc.Cloth.from_mesh(path, limit=wc.Limit(long_range=True))
@@ -241,3 +241,22 @@ def test_a_checkpoint_knows_the_mesh_it_was_made_with_not_only_its_path(tmp_path
     path.write_text(text.replace("v 0.0 0.0 0.0", "v 0.0 0.0 0.001", 1))
     assert "v 0.0 0.0 0.001" in path.read_text()
     assert scene_fingerprint(wc.Scene(cloths=(wc.Cloth.from_mesh(path),))) != before
+
+
+def test_pins_by_a_usd_group_a_subset_or_a_primvar(tmp_path):
+    path = usd_shot(tmp_path / "shot.usda")
+    stage = Usd.Stage.Open(str(path))
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/World/Shirt"))
+    UsdGeom.Subset.CreateGeomSubset(mesh, "collar", UsdGeom.Tokens.point, [3, 4, 5])
+    UsdGeom.Subset.CreateGeomSubset(mesh, "sleeve", UsdGeom.Tokens.face, [1])
+    weights = UsdGeom.PrimvarsAPI(mesh).CreatePrimvar("pin_weight", Sdf.ValueTypeNames.FloatArray,
+                                                      UsdGeom.Tokens.vertex)
+    weights.Set([1.0, 0.0, 0.0, 0.0, 0.0, 0.5])
+    stage.Save()
+    for group, expected in (("collar", [3, 4, 5]), ("sleeve", [1, 2, 4, 5]), ("pin_weight", [0, 5])):
+        cloth = wc.Cloth.from_mesh(path, prim="/World/Shirt", pins=(wc.Pin(group=group),))
+        sim = wc.Simulator(wc.Scene(cloths=(cloth,)), device="cpu")
+        assert sorted(sim.model.pins.index.tolist()) == expected, group
+    with pytest.raises(wc.SceneError, match=r"pins\[0\].group: expected the name of a GeomSubset or point primvar "
+                                            r"of the cloth's mesh \(collar, pin_weight, sleeve\)"):
+        wc.Simulator(wc.Scene(cloths=(wc.Cloth.from_mesh(path, pins=(wc.Pin(group="hem"),)),)), device="cpu")

@@ -172,3 +172,36 @@ def test_an_animated_collider_is_written_with_its_keys(tmp_path):
     points = UsdGeom.Mesh(stage.GetPrimAtPath("/World/box")).GetPointsAttr()
     assert points.GetTimeSamples() == [float(f) for f in range(25)]
     assert np.asarray(points.Get(12))[:, 1].max() == pytest.approx(0.25)
+
+
+@pytest.mark.parametrize("device", ["cpu", pytest.param("cuda", marks=pytest.mark.cuda)])
+def test_pins_on_a_target_follow_the_animated_collider(tmp_path, device):
+    """A cloth hanging from its top row, pinned to the box's side, which rises 0.5 m and turns 90 degrees:
+    the pins end where the box's motion takes the points they started at."""
+    shot = animated_box_shot(tmp_path / "shot.usda", rise=0.5, turn=90.0)
+    cloth = wc.Cloth(resolution=(6, 6), size=(1.2, 1.2), orientation="vertical", origin=(-0.6, -1.4, 2.05),
+                     density=0.2, limit=wc.Limit(0.1, 0.1), structural=wc.SpringKind(15.0, 0.02),
+                     shear=wc.SpringKind(15.0, 0.02),
+                     pins=(wc.Pin(edges=("top",), target="box"),))
+    box = wc.MeshCollider(name="box", mesh=wc.MeshSource(str(shot), "/World/Mover/Box"), thickness=0.01)
+    scene = wc.Scene(name="cape", cloths=(cloth,), colliders=(box,),
+                     simulation=wc.Simulation(fps=24, frames=30, substeps=20, integrator="symplectic",
+                                              limit_solve="converged"))
+    sim = wc.Simulator(scene, device=device)
+    pinned = sim.model.pins.index
+    start = sim.positions()[pinned].astype(np.float64)
+    for _ in range(30):
+        sim.step()
+    turn = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])  # 90 degrees about +Y
+    expected = start @ turn.T + [0.0, 0.5, 0.0]
+    np.testing.assert_allclose(sim.positions()[pinned], expected, atol=1e-4)
+    np.testing.assert_allclose(sim.velocities()[pinned], 0.0, atol=1e-4)  # the box has stopped
+    x = sim.positions()
+    assert np.isfinite(x).all() and x[:, 1].min() < expected[:, 1].min() - 0.6  # the 1.2 m cloth hangs from them
+
+
+def test_a_pin_target_must_name_a_collider():
+    cloth = wc.Cloth(pins=(wc.Pin(corners=("top-left",), target="body"),))
+    with pytest.raises(wc.SceneError, match=r"cloth\[0\].pins\[0\].target: expected the name of a \[\[collider\]\] "
+                                            r"\(the scene has none\)"):
+        wc.Scene(cloths=(cloth,))

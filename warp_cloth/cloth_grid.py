@@ -134,6 +134,12 @@ def pinned_indices(cloth: Cloth, pin: Pin, positions: np.ndarray | None, key: st
         else:
             ys = np.arange(ny + 1)
             chosen.append(idx(0 if edge == "left" else nx, ys))
+    if pin.group is not None:
+        groups = cloth.surface().groups
+        if pin.group not in groups:
+            raise SceneError(f"{key}.group", "the name of a GeomSubset or point primvar of the cloth's mesh ("
+                             + (", ".join(sorted(groups)) or "it has none") + ")", pin.group)
+        chosen.append(groups[pin.group])
     if pin.region is not None:
         inside = np.all((positions >= np.asarray(pin.region.min)) & (positions <= np.asarray(pin.region.max)),
                         axis=1)

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
+from warp_cloth.kernels import motion
 from warp_cloth.kernels.colliders import RigidColliders
 from warp_cloth.kernels.forces import ExternalForces
 from warp_cloth.kernels.limits import StrainLimits
@@ -30,6 +31,17 @@ class MeshAnimation:
     mesh: wp.Mesh
     key_times: wp.array  # (k,) seconds
     keys: wp.array  # (k, v) vec3
+
+
+@dataclass(frozen=True)
+class PinTarget:
+    """Pinned particles that follow a mesh collider: each one's face, barycentric coordinates on it, and
+    offset in the face's frame."""
+    mesh: wp.Mesh
+    index: wp.array
+    face: wp.array
+    bary: wp.array
+    offset: wp.array
 
 
 @dataclass(frozen=True)
@@ -124,6 +136,7 @@ class DeviceModel:
             upload(model.pins.index, int, device), upload(model.pins.anchor, wp.vec3, device),
             upload(model.pins.amplitude, wp.vec3, device), upload(model.pins.frequency, float, device),
             upload(model.pins.phase, float, device), model.pins.moving)
+        self.pin_targets: tuple[PinTarget, ...] = ()
         spheres = model.spheres
         self.sphere_count = 0 if spheres is None else len(spheres.center)
         self.sphere_start = None if spheres is None else spheres.initial_center  # host: the state starts there
@@ -139,6 +152,8 @@ class DeviceModel:
         self._meshes, self._mesh_ids, self._mesh_thickness, self._mesh_friction = self._mesh_colliders(model)
         self._mesh_reach = float(model.edge_rest.max()) if len(model.edge_rest) else 0.0
         self.has_colliders = scene.ground is not None or spheres is not None or model.mesh_colliders is not None
+        if model.pins is not None and (model.pins.target >= 0).any():
+            self.pin_targets = self._pin_targets(model)
         self.contacts = None if model.contacts is None else self._contacts(model, scene.collision)
         self.no_marks = wp.zeros(0, dtype=int, device=device)  # for passes whose colliders mark no one
         self._no_colliders = no_colliders(device)
@@ -229,6 +244,21 @@ class DeviceModel:
         wind.faces = upload(faces.faces, wp.vec4i, device)
         wind.offsets, wind.incident = upload(faces.offsets, int, device), upload(faces.incident, int, device)
         return wind
+
+    def _pin_targets(self, model: Model) -> tuple[PinTarget, ...]:
+        """Each targeted collider's pinned particles, attached to its nearest faces where they start."""
+        positions, device = upload(model.positions, wp.vec3, self.device), self.device
+        targets = []
+        for k in np.unique(model.pins.target[model.pins.target >= 0]).tolist():
+            index = upload(model.pins.index[model.pins.target == k], int, device)
+            count = index.shape[0]
+            target = PinTarget(self._meshes[k], index, wp.zeros(count, dtype=int, device=device),
+                               wp.zeros(count, dtype=wp.vec2, device=device),
+                               wp.zeros(count, dtype=wp.vec3, device=device))
+            wp.launch(motion.attach_to_mesh, dim=count, inputs=[target.mesh.id, index, positions],
+                      outputs=[target.face, target.bary, target.offset], device=device)
+            targets.append(target)
+        return tuple(targets)
 
     def _mesh_colliders(self, model: Model):
         """The mesh colliders' BVHs (kept here: the kernels hold only their ids), ids, thicknesses, frictions."""

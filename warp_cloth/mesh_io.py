@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -33,6 +33,7 @@ class SurfaceMesh:
     shortest_edge: float = float("nan")  # metres, set by the checks
     key_times: np.ndarray | None = None  # (k,) seconds at which a USD mesh's points or transforms are keyed
     key_points: np.ndarray | None = None  # (k, n, 3) its world points then (None: static)
+    groups: dict[str, np.ndarray] = field(default_factory=dict)  # named vertex sets (USD subsets, primvars)
 
     def triangles(self) -> np.ndarray:
         """(t, 3): each face fanned from its first vertex (a quad a, b, c, d: a b c, a c d)."""
@@ -234,7 +235,35 @@ def _read_usd(path: Path, prim_path: str | None, where: str) -> SurfaceMesh:
         key_times = np.asarray(codes, dtype=np.float64) / stage.GetTimeCodesPerSecond()
         key_points = np.stack(frames)
     return SurfaceMesh(world_at(time, local), counts, indices, _usd_uvs(mesh, counts, indices, time),
-                       str(prim.GetPath()), tuple(notes), key_times=key_times, key_points=key_points)
+                       str(prim.GetPath()), tuple(notes), key_times=key_times, key_points=key_points,
+                       groups=_usd_groups(mesh, counts, indices, len(local), time))
+
+
+def _usd_groups(mesh, counts: np.ndarray, indices: np.ndarray, n: int, time) -> dict[str, np.ndarray]:
+    """Named vertex sets of a USD mesh: each GeomSubset (of points, or of faces: their vertices), and each
+    numeric primvar on its points (vertex or varying), the points where it is non-zero (a DCC tool's
+    vertex group or weight map)."""
+    from pxr import UsdGeom
+
+    groups: dict[str, np.ndarray] = {}
+    starts = face_starts(counts)
+    for subset in UsdGeom.Subset.GetAllGeomSubsets(mesh):
+        members = np.asarray(subset.GetIndicesAttr().Get(time) or [], dtype=np.int64)
+        if subset.GetElementTypeAttr().Get() == UsdGeom.Tokens.face:
+            members = members[(members >= 0) & (members < len(counts))]
+            members = np.concatenate([indices[starts[f]:starts[f] + counts[f]] for f in members]) if len(members) \
+                else members
+        groups[subset.GetPrim().GetName()] = np.unique(members[(members >= 0) & (members < n)])
+    for primvar in UsdGeom.PrimvarsAPI(mesh).GetPrimvars():
+        if primvar.GetInterpolation() not in (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying):
+            continue
+        try:
+            values = np.asarray(primvar.ComputeFlattened(time), dtype=np.float64)
+        except (TypeError, ValueError):
+            continue  # not numbers (names, paths)
+        if values.ndim == 1 and len(values) == n:
+            groups.setdefault(primvar.GetPrimvarName(), np.nonzero(values)[0])
+    return groups
 
 
 def _animation_codes(prim, mesh) -> list[float]:
@@ -327,7 +356,7 @@ def _checked(mesh: SurfaceMesh, where: str) -> SurfaceMesh:
     notes = mesh.notes + ((f"{where}: {pieces} separate pieces, simulated as one cloth",) if pieces > 1 else ())
     shortest = float(edge_lengths(mesh.points, counts, indices).min())
     return SurfaceMesh(mesh.points, counts, indices, mesh.uvs, mesh.prim, notes, shortest, mesh.key_times,
-                       mesh.key_points)
+                       mesh.key_points, mesh.groups)
 
 
 def face_table(counts: np.ndarray, indices: np.ndarray) -> np.ndarray:

@@ -59,6 +59,7 @@ class Pins:
     frequency: np.ndarray
     phase: np.ndarray
     moving: bool
+    target: np.ndarray  # (p,) int32 the mesh collider each pinned particle follows, -1: none
 
 
 @dataclass(frozen=True)
@@ -384,9 +385,11 @@ def initial_positions(cloth: Cloth) -> np.ndarray:
 
 
 def _pins(scene: Scene, meshes, offsets, selections: list[list[np.ndarray]]) -> Pins | None:
-    index, amplitude, frequency, phase = [], [], [], []
+    index, amplitude, frequency, phase, target = [], [], [], [], []
+    collider_of = {c.name: k for k, c in enumerate(scene.colliders)}
     for c, (cloth, chosen_per_pin) in enumerate(zip(scene.cloths, selections)):
         for pin, chosen in zip(cloth.pins, chosen_per_pin):
+            target.append(np.full(len(chosen), collider_of.get(pin.target, -1), dtype=np.int32))
             motion = pin.motion
             amp = np.zeros(3) if motion is None else np.asarray(motion.unit_axis()) * motion.amplitude
             index.append(chosen + offsets[c])
@@ -400,7 +403,7 @@ def _pins(scene: Scene, meshes, offsets, selections: list[list[np.ndarray]]) -> 
     amplitude_all = np.concatenate(amplitude).astype(np.float32)
     return Pins(idx, positions[idx].astype(np.float32), amplitude_all,
                 np.concatenate(frequency).astype(np.float32), np.concatenate(phase).astype(np.float32),
-                moving=bool(np.any(amplitude_all != 0.0)))
+                moving=bool(np.any(amplitude_all != 0.0)), target=np.concatenate(target))
 
 
 def _spheres(scene: Scene) -> Spheres | None:

@@ -178,6 +178,21 @@ class DrivePins:
                outputs=[state.x, state.v])
 
 
+class FollowTargets:
+    """Pins that follow mesh colliders put where their attachments are now (after the integration, as
+    every driven pin)."""
+
+    name = "pins:follow colliders"
+
+    def __init__(self, model: DeviceModel) -> None:
+        self.model = model
+
+    def run(self, state: DeviceState) -> None:
+        for t in self.model.pin_targets:
+            launch(motion.follow_mesh, t.index.shape[0], state,
+                   inputs=[t.mesh.id, t.index, t.face, t.bary, t.offset], outputs=[state.x, state.v])
+
+
 class MoveSpheres:
     """Puts moving spheres where their motion has them at the end of the substep, with its velocity."""
 

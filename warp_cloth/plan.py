@@ -13,9 +13,9 @@ from .device_model import DeviceModel
 from .implicit import BackwardEuler
 from .limit_solve import ConvergedProjection
 from .neighbour_lists import LIST_THREADS_BY_SIZE, NeighbourLists
-from .passes import (AdvanceClock, Collide, ContactStart, DrivePins, MoveMeshColliders, MoveSpheres, Pass,
-                     WindForces, contact_start_args, contact_velocities, explicit_step, limit_and_separation_pass,
-                     limit_pass, separation_pass)
+from .passes import (AdvanceClock, Collide, ContactStart, DrivePins, FollowTargets, MoveMeshColliders, MoveSpheres,
+                     Pass, WindForces, contact_start_args, contact_velocities, explicit_step,
+                     limit_and_separation_pass, limit_pass, separation_pass)
 from .scene import ImplicitSolver
 from .state import DeviceState
 
@@ -68,7 +68,8 @@ def build_plan(model: DeviceModel, state: DeviceState, implicit_settings: Implic
     something moves with it. ``threads``: per particle on the gathering passes (None: by size)."""
     chosen = threads_per_particle(model.particle_count, model.device) if threads is None else threads
     rigid = model.colliders(state.sphere_center, state.sphere_velocity) if model.has_colliders else None
-    driven_pins = model.pins is not None and model.pins.moving
+    oscillating_pins = model.pins is not None and model.pins.moving
+    driven_pins = oscillating_pins or bool(model.pin_targets)
     converged = model.limit_solve == "converged"
     passes: list[Pass] = []
     if model.sphere_motion is not None:
@@ -89,8 +90,10 @@ def build_plan(model: DeviceModel, state: DeviceState, implicit_settings: Implic
     start_in_step = start is not None and implicit is None and not driven_pins
     if implicit is None:
         passes.append(explicit_step(model, chosen, start if start_in_step else None))
-    if driven_pins:
+    if oscillating_pins:
         passes.append(DrivePins(model))
+    if model.pin_targets:
+        passes.append(FollowTargets(model))
     if start is not None:
         if not start_in_step:
             passes.append(ContactStart(start))

@@ -169,24 +169,32 @@ class Box:
 
 @dataclass(frozen=True)
 class Pin:
-    """Particles held in place, or driven by an oscillation about their initial position.
+    """Particles held in place, driven by an oscillation about their initial position, or carried by a
+    ``target``: the named mesh collider, each pinned particle held where it started relative to the
+    collider's nearest face (a cape pinned to a moving character).
 
-    Selected by grid index (``x + (nx + 1) y``), named corners and edges of the grid (left/right is
-    the first grid direction, bottom/top the second), or a world-space box around the initial pose.
+    Selected by index (on a grid ``x + (nx + 1) y``), named corners and edges of the grid (left/right is
+    the first grid direction, bottom/top the second), a world-space box around the initial pose, or the
+    ``group`` of a USD mesh cloth: a ``GeomSubset`` of its points or faces, or a primvar on its points that
+    is non-zero where they belong.
     """
 
     indices: tuple[int, ...] = ()
     corners: tuple[Corner, ...] = ()
     edges: tuple[Edge, ...] = ()
     region: Box | None = None
+    group: str | None = None
     motion: Oscillation | None = None
+    target: str | None = None
 
     def __post_init__(self) -> None:
         check_fields(self)
         for k, index in enumerate(self.indices):
             _require(index >= 0, f"indices[{k}]", "a particle index >= 0", index)
-        _require(bool(self.indices or self.corners or self.edges or self.region), "",
-                 "at least one of indices, corners, edges, region", "none")
+        _require(bool(self.indices or self.corners or self.edges or self.region or self.group), "",
+                 "at least one of indices, corners, edges, region, group", "none")
+        _require(self.motion is None or self.target is None, "target", "either a motion or a target, not both",
+                 self.target)
 
 
 @dataclass(frozen=True)
@@ -291,8 +299,8 @@ class Cloth:
             _require(getattr(self, key) == getattr(Cloth, key), key, "no grid setting on a mesh cloth (its "
                      "particles are the mesh's)", getattr(self, key))
         for p, pin in enumerate(self.pins):
-            _require(not (pin.corners or pin.edges), f"pins[{p}]", "pins by indices or region on a mesh cloth "
-                     "(corners and edges are a grid's)", has_got=False)
+            _require(not (pin.corners or pin.edges), f"pins[{p}]", "pins by indices, region or group on a mesh "
+                     "cloth (corners and edges are a grid's)", has_got=False)
         if self.limit is not None:
             _require(not self.limit.long_range, "limit.long_range", "false on a mesh cloth (long-range limits "
                      "are built along a grid's rows for now)", True)
@@ -306,6 +314,9 @@ class Cloth:
         _within_extent(float(abs(surface.points).max()), "mesh")
 
     def _check_grid(self) -> None:
+        for p, pin in enumerate(self.pins):
+            _require(pin.group is None, f"pins[{p}].group", "no group on a grid cloth (groups are a USD mesh's)",
+                     pin.group)
         nx, ny = self.resolution
         _require(nx >= 1 and ny >= 1, "resolution", "[nx, ny] quads, each >= 1", list(self.resolution))
         _require(nx < 65535 and ny < 32767, "resolution", "at most [65534, 32766] quads", list(self.resolution))
@@ -676,6 +687,7 @@ class Scene:
         total = sum(c.particle_count for c in self.cloths)
         _require(total <= MAX_PARTICLES, "cloth", f"at most {MAX_PARTICLES} particles in all", total)
         self._check_names_unique()
+        self._check_pin_targets()
         self._check_motion_in_bounds()
         from .model import select_pins  # the pins' particles depend on the grid the model builds
 
@@ -691,6 +703,14 @@ class Scene:
                 _require(other == f"{kind}[{k}]", f"{kind}[{k}].name",
                          f"a name that no other cloth, sphere or collider has, nor the ground (ignoring case; {other} "
                          "has it)", item.name)
+
+    def _check_pin_targets(self) -> None:
+        colliders = [c.name for c in self.colliders]
+        for c, cloth in enumerate(self.cloths):
+            for p, pin in enumerate(cloth.pins):
+                _require(pin.target is None or pin.target in colliders, f"cloth[{c}].pins[{p}].target",
+                         "the name of a [[collider]] (" + (", ".join(colliders) or "the scene has none") + ")",
+                         pin.target)
 
     def _check_motion_in_bounds(self) -> None:
         """Start-up speeds and forces that the device holds in float32 and the blow-up guard accepts."""
