@@ -155,3 +155,16 @@ def collide(colliders: RigidColliders, h: float, inv_mass: wp.array(dtype=float)
     p, vel, hit = collide_particle(x[i], v[i], colliders, h)
     x[i] = p
     v[i] = vel
+
+
+@wp.kernel
+def depth_in_mesh(mesh: wp.uint64, thickness: float, reach: float, x: wp.array(dtype=wp.vec3),
+                  depth: wp.array(dtype=float)):
+    """How far each point is inside the mesh's thickness (behind its nearest face counts as inside; points
+    farther than ``reach`` from the surface: 0), for the check of where cloths start."""
+    i = wp.tid()
+    query = wp.mesh_query_point_sign_normal(mesh, x[i], reach)
+    depth[i] = 0.0
+    if query.result:
+        closest = wp.mesh_eval_position(mesh, query.face, query.u, query.v)
+        depth[i] = wp.max(0.0, thickness - query.sign * wp.length(x[i] - closest))

@@ -205,3 +205,15 @@ def test_a_pin_target_must_name_a_collider():
     with pytest.raises(wc.SceneError, match=r"cloth\[0\].pins\[0\].target: expected the name of a \[\[collider\]\] "
                                             r"\(the scene has none\)"):
         wc.Scene(cloths=(cloth,))
+
+
+def test_a_cloth_that_starts_inside_a_mesh_collider_is_refused_in_one_line(tmp_path):
+    box_obj(tmp_path / "box.obj", (-1, -1, -1), (1, 0, 1))
+    scene = tmp_path / "scene.toml"
+    scene.write_text('[[collider]]\nname = "block"\nmesh = "box.obj"\n[[cloth]]\nresolution = [4, 4]\n'
+                     'size = [1.0, 1.0]\norientation = "horizontal"\norigin = [-0.5, -0.5, 0.5]\n')
+    code, _, err = run_cli_in_process("run", str(scene), "--out", "out", cwd=tmp_path)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "cloth[0]: expected a cloth that starts outside the static colliders" in err
+    assert "0.51 m inside collider[0] 'block'" in err  # 0.5 m deep and the 1 cm thickness
+    assert not (tmp_path / "out").exists()

@@ -10,7 +10,7 @@ import numpy as np
 import warp as wp
 
 from warp_cloth.kernels import motion
-from warp_cloth.kernels.colliders import RigidColliders
+from warp_cloth.kernels.colliders import RigidColliders, depth_in_mesh
 from warp_cloth.kernels.forces import ExternalForces
 from warp_cloth.kernels.limits import StrainLimits
 from warp_cloth.kernels.particle_collision import Contacts, PairRules
@@ -244,6 +244,18 @@ class DeviceModel:
         wind.faces = upload(faces.faces, wp.vec4i, device)
         wind.offsets, wind.incident = upload(faces.offsets, int, device), upload(faces.incident, int, device)
         return wind
+
+    def depths_in_mesh_colliders(self, positions: np.ndarray, reach: float) -> list[np.ndarray]:
+        """How far each particle at ``positions`` is inside each mesh collider as it starts (see
+        ``kernels/colliders.depth_in_mesh``)."""
+        x = upload(positions, wp.vec3, self.device)
+        depths = []
+        for mesh, thickness in zip(self._meshes, self._mesh_thickness.numpy().tolist()):
+            depth = wp.zeros(len(positions), dtype=float, device=self.device)
+            wp.launch(depth_in_mesh, dim=len(positions), inputs=[mesh.id, thickness, reach, x], outputs=[depth],
+                      device=self.device)
+            depths.append(depth.numpy().astype(np.float64))
+        return depths
 
     def _pin_targets(self, model: Model) -> tuple[PinTarget, ...]:
         """Each targeted collider's pinned particles, attached to its nearest faces where they start."""

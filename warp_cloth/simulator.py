@@ -224,7 +224,8 @@ class Simulator:
         out at depth / step and tears its cloth (a 4 m cloth around a 1.5 m sphere blows up in its second
         substep): refuse it, as ``_refuse_initial_overlap`` refuses cloths that start inside each other.
         Shallower, the push is a contact like any other. A moving sphere may start in a cloth: that is a
-        moment of its motion, as in the fast_sphere hard case, which stays stable."""
+        moment of its motion, as in the fast_sphere hard case, which stays stable. A mesh collider, animated
+        or not, is checked where it starts (inside: behind its nearest face, or within its thickness)."""
         x = self.model.positions.astype(np.float64)
         scene = self.scene
         cells = np.array([c.shortest_edge() for c in scene.cloths])
@@ -239,6 +240,12 @@ class Simulator:
                     continue
                 distance = np.linalg.norm(x - spheres.initial_center[s].astype(np.float64), axis=1)
                 depths.append((float(spheres.radius[s]) - distance, f"sphere[{s}] '{sphere.name}'"))
+        if scene.colliders:
+            reach = float(np.ptp(x, axis=0).max()) + float(allowed.max())
+            free = self.model.inv_mass > 0  # pins on a target start where they are attached, on its surface
+            for k, (depth, collider) in enumerate(zip(self.device_model.depths_in_mesh_colliders(x, reach),
+                                                      scene.colliders)):
+                depths.append((np.where(free, depth, 0.0), f"collider[{k}] '{collider.name}'"))
         for depth, collider in depths:
             deep = np.nonzero(depth > allowed)[0]
             if len(deep) == 0:
