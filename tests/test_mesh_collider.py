@@ -217,3 +217,30 @@ def test_a_cloth_that_starts_inside_a_mesh_collider_is_refused_in_one_line(tmp_p
     assert "cloth[0]: expected a cloth that starts outside the static colliders" in err
     assert "0.51 m inside collider[0] 'block'" in err  # 0.5 m deep and the 1 cm thickness
     assert not (tmp_path / "out").exists()
+
+
+def test_a_collider_keyed_in_the_scene_moves_as_the_same_motion_keyed_in_usd(tmp_path):
+    """The box of animated_box_shot, from an OBJ with [[collider.keys]]: the same samples, the same run."""
+    shot = animated_box_shot(tmp_path / "shot.usda", rise=0.5, turn=90.0)
+    from_usd = resting_cloth_on(shot, friction=1.0)
+    corners = [(x, y, z) for z in (-2.0, 2.0) for y in (-1.0, 0.0) for x in (-2.0, 2.0)]
+    obj = tmp_path / "box.obj"
+    obj.write_text("".join(f"v {x} {y} {z}\n" for x, y, z in corners)
+                   + "f 1 3 4 2\nf 5 6 8 7\nf 1 2 6 5\nf 3 7 8 4\nf 1 5 7 3\nf 2 4 8 6\n")
+    keys = (wc.TransformKey(0.0), wc.TransformKey(1.0, translate=(0.0, 0.5, 0.0), rotate=(0.0, 90.0, 0.0)))
+    keyed = wc.MeshCollider(name="box", mesh=wc.MeshSource(str(obj)), thickness=0.01, friction=1.0, keys=keys)
+    from_keys = dataclasses.replace(from_usd, colliders=(keyed,))
+    a, b = wc.Simulator(from_usd, device="cpu"), wc.Simulator(from_keys, device="cpu")
+    np.testing.assert_allclose(a.model.mesh_colliders.key_times[0], b.model.mesh_colliders.key_times[0])
+    np.testing.assert_allclose(a.model.mesh_colliders.key_points[0], b.model.mesh_colliders.key_points[0], atol=1e-5)
+    for _ in range(36):
+        a.step()
+        b.step()
+    np.testing.assert_allclose(a.positions(), b.positions(), atol=1e-4)
+
+
+def test_collider_keys_must_run_forward_in_time(tmp_path):
+    box_obj(tmp_path / "box.obj", (-1, -1, -1), (1, 0, 1))
+    with pytest.raises(wc.SceneError, match=r"keys\[1\].time: expected times in increasing order"):
+        wc.MeshCollider(mesh=wc.MeshSource(str(tmp_path / "box.obj")),
+                        keys=(wc.TransformKey(1.0), wc.TransformKey(0.5)))

@@ -15,7 +15,7 @@ import numpy as np
 from warp_cloth.kernels import springs as spring_kernels
 
 from .adjacency import Adjacency
-from .cloth_grid import build_grid, grid_positions, pinned_indices
+from .cloth_grid import build_grid, grid_positions, pinned_indices, rotation_matrix
 from .cloth_mesh import BEND, SHEAR, STRUCTURAL, ClothMesh, enclosing_radii, rest_adjacent_pairs
 from .errors import SceneError
 from .hierarchy import Hierarchy, build_hierarchy
@@ -436,12 +436,26 @@ def _mesh_colliders(scene: Scene) -> MeshColliders | None:
     if not scene.colliders:
         return None
     surfaces = [c.surface() for c in scene.colliders]
-    return MeshColliders(tuple(s.points.astype(np.float32) for s in surfaces),
+    animations = [(s.key_times, s.key_points) if not c.keys else keyed_points(s.points, c.keys, scene.simulation.fps)
+                  for c, s in zip(scene.colliders, surfaces)]
+    return MeshColliders(tuple((s.points if p is None else p[0]).astype(np.float32)
+                               for s, (_, p) in zip(surfaces, animations)),
                          tuple(s.triangles().astype(np.int32) for s in surfaces),
                          np.array([c.thickness for c in scene.colliders], dtype=np.float32),
                          np.array([c.friction for c in scene.colliders], dtype=np.float32),
-                         tuple(s.key_times for s in surfaces),
-                         tuple(None if s.key_points is None else s.key_points.astype(np.float32) for s in surfaces))
+                         tuple(t for t, _ in animations),
+                         tuple(None if p is None else p.astype(np.float32) for _, p in animations))
+
+
+def keyed_points(points: np.ndarray, keys, fps: float) -> tuple[np.ndarray, np.ndarray]:
+    """A mesh moved along transform keys, sampled at the keys and every frame between the first and the
+    last (translations and rotation angles interpolated linearly, so that a turn stays a turn)."""
+    times = np.array([k.time for k in keys])
+    samples = np.union1d(times, np.arange(np.ceil(times[0] * fps), np.floor(times[-1] * fps) + 1) / fps)
+    translate = np.stack([np.interp(samples, times, [k.translate[a] for k in keys]) for a in range(3)], axis=1)
+    rotate = np.stack([np.interp(samples, times, [k.rotate[a] for k in keys]) for a in range(3)], axis=1)
+    placed = np.stack([points @ rotation_matrix(tuple(r)).T + t for r, t in zip(rotate, translate)])
+    return samples, placed
 
 
 def collision_radii(cloth: Cloth, mesh: ClothMesh, radius_override: float | None) -> np.ndarray:

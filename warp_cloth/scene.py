@@ -433,16 +433,34 @@ class Sphere:
 
 
 @dataclass(frozen=True)
+class TransformKey:
+    """Where a keyed collider is at ``time`` (seconds): turned by ``rotate`` (degrees about X, then Y, then
+    Z, about the mesh's own origin), then moved by ``translate``."""
+
+    time: float = 0.0
+    translate: Vec3 = (0.0, 0.0, 0.0)
+    rotate: Vec3 = (0.0, 0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        check_fields(self)
+        _non_negative(self.time, "time")
+        _within_extent(self.translate, "translate")
+
+
+@dataclass(frozen=True)
 class MeshCollider:
-    """A static rigid collider made of the user's mesh (OBJ, or a USD ``Mesh`` prim with its transform),
-    found through a BVH. Cloth is kept ``thickness`` metres off the side its faces face (for a closed mesh,
+    """A rigid collider made of the user's mesh (OBJ, or a USD ``Mesh`` prim with its transform), found
+    through a BVH. Cloth is kept ``thickness`` metres off the side its faces face (for a closed mesh,
     outside), so that a draped cloth rests a visible distance off the surface, and ``friction`` acts as on
-    the other colliders. A scene file may give the file alone: ``mesh = "table.obj"``."""
+    the other colliders. It moves with its USD time samples, or along ``keys`` (``[[collider.keys]]``:
+    translations and rotations at times, interpolated linearly in between, held before the first and
+    after the last). A scene file may give the file alone: ``mesh = "table.obj"``."""
 
     name: str = "collider"
     mesh: MeshSource | None = None
     thickness: float = 0.01
     friction: float = 0.0
+    keys: tuple[TransformKey, ...] = ()
 
     def __post_init__(self) -> None:
         check_fields(self)
@@ -452,6 +470,12 @@ class MeshCollider:
         _within_extent(self.thickness, "thickness")
         _non_negative(self.friction, "friction")
         _within_extent(float(abs(self.surface().points).max()), "mesh")
+        for k in range(1, len(self.keys)):
+            _require(self.keys[k].time > self.keys[k - 1].time, f"keys[{k}].time",
+                     f"times in increasing order (after keys[{k - 1}]'s {self.keys[k - 1].time:g} s)",
+                     self.keys[k].time)
+        _require(not (self.keys and self.surface().key_points is not None), "keys",
+                 "no keys on a mesh its USD file already animates", has_got=False)
 
     def surface(self):
         """The collider's checked mesh (``mesh_io.SurfaceMesh``); its errors name this collider's ``mesh``."""

@@ -97,8 +97,9 @@ class UsdWriter(StagedOutput):
                 self._sphere_translates.append(translate.GetAttr())
             else:
                 translate.Set(Gf.Vec3d(*sphere.center))
-        for collider in sim.scene.colliders:
-            self._define_mesh_collider(collider)
+        for k, collider in enumerate(sim.scene.colliders):
+            self._define_mesh_collider(collider, sim.model.mesh_colliders.key_times[k],
+                                       sim.model.mesh_colliders.key_points[k])
         if sim.scene.ground is not None:
             self._define_ground(sim)
         self._save()
@@ -145,17 +146,17 @@ class UsdWriter(StagedOutput):
         self._points.append(mesh.CreatePointsAttr())
         self._extents.append(mesh.CreateExtentAttr())
 
-    def _define_mesh_collider(self, collider) -> None:
-        """A mesh collider as it was read: world-space points (keyed where it is animated), its faces."""
+    def _define_mesh_collider(self, collider, key_times, key_points) -> None:
+        """A mesh collider: world-space points (sampled where it moves), its faces."""
         surface = collider.surface()
         mesh = UsdGeom.Mesh.Define(self.stage, f"/World/{prim_name(collider.name)}")
         points = surface.points.astype(np.float32)
         attr = mesh.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(points))
-        if surface.key_points is not None:  # animated: its keys, at the frames of their times
+        if key_points is not None:  # animated: its samples, at the frames of their times
             fps = self.stage.GetFramesPerSecond()
-            for t, keyed in zip(surface.key_times, surface.key_points.astype(np.float32)):
+            for t, keyed in zip(key_times, key_points.astype(np.float32)):
                 attr.Set(Vt.Vec3fArray.FromNumpy(keyed), Usd.TimeCode(t * fps))
-            points = surface.key_points.reshape(-1, 3).astype(np.float32)
+            points = key_points.reshape(-1, 3).astype(np.float32)
         mesh.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(surface.face_counts.astype(np.int32)))
         mesh.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(surface.face_indices.astype(np.int32)))
         mesh.CreateExtentAttr(Vt.Vec3fArray([Gf.Vec3f(*points.min(axis=0).tolist()),
