@@ -16,8 +16,11 @@ WITHIN = 1.1 * (1.0 + TOLERANCE) - 1.0 + 1e-5  # a 10% limit held to the toleran
 
 
 def hanging(**simulation) -> wc.Scene:
+    """The seed's hanging cloth under the plain converged solve (the scene file's own acceleration off),
+    with these simulation settings."""
     scene = wc.load_scene("hanging")
     step = {"dt": simulation.pop("dt"), "substeps": None} if "dt" in simulation else {}
+    simulation.setdefault("limit_chebyshev_rho", 0.0)
     return dataclasses.replace(scene, simulation=dataclasses.replace(
         scene.simulation, limit_solve="converged", limit_tolerance=TOLERANCE, **step, **simulation))
 
