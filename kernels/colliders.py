@@ -100,9 +100,9 @@ def collide_meshes(p: wp.vec3, vel: wp.vec3, hit: int, colliders: RigidColliders
             closest = wp.mesh_eval_position(mesh, query.face, query.u, query.v)
             d = p - closest
             dist = wp.length(d)
-            normal = wp.mesh_eval_face_normal(mesh, query.face)
-            if dist > 1.0e-9:
-                normal = d * (query.sign / dist)
+            normal = d * (query.sign / wp.max(dist, 1.0e-9))
+            if dist <= 1.0e-9:  # on the surface itself: the face's normal
+                normal = wp.mesh_eval_face_normal(mesh, query.face)
             depth = thickness - query.sign * dist
             if depth > 0.0:
                 p = closest + thickness * normal

@@ -12,6 +12,7 @@ from conftest import run_cli, with_simulation
 from warp_cloth.diagnostics import ContactGaps, TriangleIntersections
 from warp_cloth.kernels import particle_collision, spatial_hash
 from warp_cloth.cloth_grid import build_grid
+from warp_cloth.cloth_mesh import rest_adjacent_pairs
 from warp_cloth.model import collision_radii, needs_adjacent_exclusion
 from warp_cloth.device_model import no_colliders
 from warp_cloth.kernels import passes as fused
@@ -122,15 +123,17 @@ def test_hash_grid_stage_matches_brute_force(seed, limit_a, self_on, between_on)
 def test_seed_radius_rule_and_when_grid_neighbours_need_exclusion():
     cloth = wc.Cloth(resolution=(10, 10), size=(10.0, 10.0), limit=wc.Limit(0.1, 0.1))
     mesh = build_grid(cloth)
+    pairs = rest_adjacent_pairs(mesh.face_counts, mesh.face_indices)
     r = collision_radii(cloth, mesh, None)
     np.testing.assert_allclose(r, 0.25 * np.sqrt(2.0) * 1.1)
     # Contact at 2.1 r = 0.817 of a cell; the limit keeps neighbours >= 0.9 of a cell apart.
-    assert not needs_adjacent_exclusion(cloth, mesh, r, 2.1)
+    assert not needs_adjacent_exclusion(cloth, mesh.positions, pairs, r, 2.1)
     free = dataclasses.replace(cloth, limit=None)
-    assert needs_adjacent_exclusion(free, mesh, collision_radii(free, mesh, None), 2.1)
+    assert needs_adjacent_exclusion(free, mesh.positions, pairs, collision_radii(free, mesh, None), 2.1)
     stretched = dataclasses.replace(cloth, size=(10.0, 4.0))  # 1 x 0.4 cells: diagonal rule too large
     stretched_mesh = build_grid(stretched)
-    assert needs_adjacent_exclusion(stretched, stretched_mesh, collision_radii(stretched, stretched_mesh, None), 2.1)
+    assert needs_adjacent_exclusion(stretched, stretched_mesh.positions, pairs,
+                                    collision_radii(stretched, stretched_mesh, None), 2.1)
 
 
 SCENE_FRAMES = {"fold": 120, "pile": 48, "seed_default": 48}

@@ -7,6 +7,7 @@ through the public API, as a user's would) and is removed at its end.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import tempfile
 from pathlib import Path
@@ -38,9 +39,9 @@ def write_obj(path: Path, points: np.ndarray, faces: list[np.ndarray]) -> Path:
 def without_grid_only(scene: Scene) -> Scene:
     """The scene with its cloths' limits free of the grid-only attachments, so that a mesh copy is the
     same cloth."""
-    cloths = tuple(c if c.limit is None else _replace(c, limit=Limit(c.limit.stretch, c.limit.compression))
+    cloths = tuple(c if c.limit is None else dataclasses.replace(c, limit=Limit(c.limit.stretch, c.limit.compression))
                    for c in scene.cloths)
-    return _replace(scene, cloths=cloths)
+    return dataclasses.replace(scene, cloths=cloths)
 
 
 def as_mesh_cloth(scene: Scene, triangles: bool) -> Scene:
@@ -58,7 +59,7 @@ def as_mesh_cloth(scene: Scene, triangles: bool) -> Scene:
     mesh_cloth = Cloth(name=cloth.name, mesh=MeshSource(str(path)), mass=cloth.mass, density=cloth.density,
                        limit=cloth.limit, pins=tuple(pinned), structural=cloth.structural, shear=cloth.shear,
                        bend=cloth.bend, velocity=cloth.velocity)
-    return _replace(scene, name=f"{scene.name}_{'tri' if triangles else 'quad'}", cloths=(mesh_cloth,))
+    return dataclasses.replace(scene, name=f"{scene.name}_{'tri' if triangles else 'quad'}", cloths=(mesh_cloth,))
 
 
 def uv_sphere(center, radius: float, rings: int) -> tuple[np.ndarray, list[np.ndarray]]:
@@ -85,7 +86,7 @@ def with_mesh_sphere(scene: Scene, rings: int) -> Scene:
     points, faces = uv_sphere(sphere.center, sphere.radius, rings)
     path = write_obj(_folder() / f"sphere_{rings}.obj", points, faces)
     collider = MeshCollider(name=sphere.name, mesh=MeshSource(str(path)), thickness=0.0, friction=sphere.friction)
-    return _replace(scene, name=f"{scene.name}_mesh_sphere", spheres=(), colliders=(collider,))
+    return dataclasses.replace(scene, name=f"{scene.name}_mesh_sphere", spheres=(), colliders=(collider,))
 
 
 def sphere_triangles(rings: int) -> int:
@@ -93,9 +94,3 @@ def sphere_triangles(rings: int) -> int:
 
 
 RINGS_FOR_100K = math.ceil((1 + math.sqrt(1 + 100_000)) / 2)  # 4 r^2 - 4 r >= 100k triangles
-
-
-def _replace(obj, **changes):
-    import dataclasses
-
-    return dataclasses.replace(obj, **changes)

@@ -468,14 +468,15 @@ def collision_radii(cloth: Cloth, mesh: ClothMesh, radius_override: float | None
     return 0.5 * (1.0 + stretch) * enclosing_radii(mesh.positions, mesh.face_counts, mesh.face_indices)
 
 
-def needs_adjacent_exclusion(cloth: Cloth, mesh: ClothMesh, radii: np.ndarray, separation: float) -> bool:
-    """True unless the strain limit alone keeps every pair of particles that share a face farther apart
-    than their contact distance: with the seed's rule and a 10% limit, grid neighbours stay >= 0.9 of a
-    cell apart while contact needs 0.82 of a (square) cell, so they never touch and need no exclusion."""
+def needs_adjacent_exclusion(cloth: Cloth, positions: np.ndarray, pairs: np.ndarray, radii: np.ndarray,
+                             separation: float) -> bool:
+    """True unless the strain limit alone keeps every pair of particles that share a face (``pairs``, from
+    ``rest_adjacent_pairs``) farther apart than their contact distance: with the seed's rule and a 10%
+    limit, grid neighbours stay >= 0.9 of a cell apart while contact needs 0.82 of a (square) cell, so they
+    never touch and need no exclusion."""
     if cloth.limit is None:
         return True
-    pairs = rest_adjacent_pairs(mesh.face_counts, mesh.face_indices)
-    rest = np.linalg.norm(mesh.positions[pairs[:, 0]] - mesh.positions[pairs[:, 1]], axis=1)
+    rest = np.linalg.norm(positions[pairs[:, 0]] - positions[pairs[:, 1]], axis=1)
     contact = separation * 0.5 * (radii[pairs[:, 0]] + radii[pairs[:, 1]])
     return bool(np.any((1.0 - cloth.limit.compression) * rest <= contact))
 
@@ -486,10 +487,12 @@ def _contacts(scene: Scene, meshes) -> ParticleContacts | None:
         return None
     radii = [collision_radii(c, m, collision.radius) for c, m in zip(scene.cloths, meshes)]
     radius = np.concatenate(radii).astype(np.float32)
-    exclude = np.array([needs_adjacent_exclusion(c, m, r, collision.separation) and collision.self_collision
-                        for c, m, r in zip(scene.cloths, meshes, radii)], dtype=np.int32)
+    adjacent = [rest_adjacent_pairs(m.face_counts, m.face_indices) for m in meshes]
+    exclude = np.array([needs_adjacent_exclusion(c, m.positions, a, r, collision.separation)
+                        and collision.self_collision
+                        for c, m, a, r in zip(scene.cloths, meshes, adjacent, radii)], dtype=np.int32)
     if not exclude.any():
         return ParticleContacts(radius, None, None)
     offsets = np.cumsum([0] + [len(m.positions) for m in meshes])
-    pairs = np.concatenate([rest_adjacent_pairs(m.face_counts, m.face_indices) + o for m, o in zip(meshes, offsets)])
+    pairs = np.concatenate([a + o for a, o in zip(adjacent, offsets)])
     return ParticleContacts(radius, exclude, Adjacency.of(pairs, int(offsets[-1])))
