@@ -1,7 +1,8 @@
 """A round trip through a real DCC tool: Blender (the ``bpy`` module) builds a shot, a subdivided plane above
 a table that turns a quarter turn in a second, and exports it as USD; ``warp-cloth run`` simulates the plane
-as cloth on the table as an animated mesh collider; Blender imports the result and sees the cloth where
-our USD has it at every frame checked, resting on the table and turned with it. Blender runs in its own
+as cloth on the table as an animated mesh collider; Blender imports the result, the shot with the simulation
+layered over it (``<output>.shot.usda``), and sees the cloth where our USD has it at every frame checked,
+resting on the table and turned with it, and the table where its own animation has it. Blender runs in its own
 process (it carries its own USD libraries). Skipped where bpy cannot be installed (it is in the test extra
 for the Python versions its wheels exist for)."""
 
@@ -50,14 +51,15 @@ READ_RESULT = textwrap.dedent("""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     bpy.ops.wm.usd_import(filepath=sys.argv[-2])
     scene = bpy.context.scene
-    sheet = scene.objects["Sheet"]
     result = {"objects": sorted(o.name for o in scene.objects), "frames": {}}
     for frame in [int(f) for f in sys.argv[-1].split(",")]:
         scene.frame_set(frame)
-        evaluated = sheet.evaluated_get(bpy.context.evaluated_depsgraph_get())
-        mesh = evaluated.to_mesh()
-        result["frames"][frame] = [list(evaluated.matrix_world @ v.co) for v in mesh.vertices]
-        evaluated.to_mesh_clear()
+        result["frames"][frame] = {}
+        for name in ("Plane", "Cube"):  # the sheet's and the table's meshes, as Blender exported them
+            evaluated = scene.objects[name].evaluated_get(bpy.context.evaluated_depsgraph_get())
+            mesh = evaluated.to_mesh()
+            result["frames"][frame][name] = [list(evaluated.matrix_world @ v.co) for v in mesh.vertices]
+            evaluated.to_mesh_clear()
     print("RESULT " + json.dumps(result))
 """)
 
@@ -105,24 +107,29 @@ def test_blender_shot_simulated_and_read_back_by_blender(tmp_path: Path):
     code, out, err = run_cli_in_process("run", "shot.toml", "--out", "out", cwd=tmp_path)
     assert code == 0, err
     assert "Z-up stage turned Y-up" in err  # Blender's stage is Z-up; the run said what it converted
-    seen = json.loads(blender(READ_RESULT, str(tmp_path / "out" / "shot.usdc"),
+    seen = json.loads(blender(READ_RESULT, str(tmp_path / "out" / "shot.shot.usda"),
                               ",".join(map(str, FRAMES))).split("RESULT ", 1)[1])
-    assert {"Sheet", "Table"} <= set(seen["objects"])
+    assert {"Sheet", "Table"} <= set(seen["objects"])  # the shot's own objects
 
     stage = Usd.Stage.Open(str(tmp_path / "out" / "shot.usdc"))
-    ours = UsdGeom.Mesh(stage.GetPrimAtPath("/World/Sheet")).GetPointsAttr()
+    ours = UsdGeom.Mesh(stage.GetPrimAtPath("/root/Sheet/Plane")).GetPointsAttr()  # the input's prim path
+    shot = Usd.Stage.Open(str(tmp_path / "shot.usda"))
+    table = UsdGeom.Mesh(shot.GetPrimAtPath("/root/Table/Cube"))
     blender_frames = {}
     for frame in FRAMES:
         y_up = np.asarray(ours.Get(frame), dtype=np.float64)
         expected = np.stack([y_up[:, 0], -y_up[:, 2], y_up[:, 1]], axis=1)  # our Y-up, as Blender's Z-up
-        blender_frames[frame] = np.array(seen["frames"][str(frame)])
+        blender_frames[frame] = np.array(seen["frames"][str(frame)]["Plane"])
         np.testing.assert_allclose(blender_frames[frame], expected, atol=1e-5)
+        to_world = np.asarray(table.ComputeLocalToWorldTransform(frame), dtype=np.float64)
+        table_points = np.asarray(table.GetPointsAttr().Get(frame), dtype=np.float64)
+        np.testing.assert_allclose(seen["frames"][str(frame)]["Cube"], table_points @ to_world[:3, :3] + to_world[3, :3],
+                                   atol=1e-5)
 
     # What Blender sees is the simulation: the cloth fell onto the table (its top at 1 m, 1 cm thickness) ...
     assert blender_frames[0][:, 2].min() == pytest.approx(1.1, abs=1e-5)
     assert blender_frames[24][:, 2].min() == pytest.approx(1.01, abs=1e-3)
     # ... and turned with it by friction: as far as the table from frame 6 (landed) to 24, within 10%.
-    shot = Usd.Stage.Open(str(tmp_path / "shot.usda"))
     table_turn = shot.GetPrimAtPath("/root/Table").GetAttribute("xformOp:rotateXYZ")
     turned_table = table_turn.Get(24)[2] - table_turn.Get(6)[2]
     turned_cloth = corner_angle(blender_frames[24]) - corner_angle(blender_frames[6])

@@ -169,7 +169,8 @@ def test_an_animated_collider_is_written_with_its_keys(tmp_path):
     writer = wc.UsdWriter(tmp_path / "out.usdc")
     sim.run(2, writers=[writer])
     stage = Usd.Stage.Open(str(tmp_path / "out.usdc"))
-    points = UsdGeom.Mesh(stage.GetPrimAtPath("/World/box")).GetPointsAttr()
+    points = UsdGeom.Mesh(stage.GetPrimAtPath("/World/Mover/Box")).GetPointsAttr()  # the shot's path
+    assert writer.outputs == [tmp_path / "out.usdc", tmp_path / "out.shot.usda"]
     assert points.GetTimeSamples() == [float(f) for f in range(25)]
     assert np.asarray(points.Get(12))[:, 1].max() == pytest.approx(0.25)
 

@@ -21,6 +21,7 @@ from .. import output
 from ..errors import SceneError
 from ..output import (INCOMPLETE, OutputError, RunOutcome, StagedOutput, check_file_output, first_free, fsync_path,
                       labelled)
+from .shot_layer import GROUND_PATH, layer_path, prim_paths, shot_files, write_shot_layer
 
 USD_SUFFIXES = (".usd", ".usda", ".usdc")
 # A save appends the new samples and the whole structure again: small, but with every sample's time.
@@ -28,10 +29,6 @@ SAVE_MARGIN_BYTES = 64 * 1024
 BYTES_PER_SAMPLE_TIME = 16
 # Frames are saved early where they would take more than this fraction of the free space.
 EARLY_SAVE_FRACTION = 1 / 8
-
-
-def prim_name(name: str) -> str:
-    return Tf.MakeValidIdentifier(name)
 
 
 class UsdWriter(StagedOutput):
@@ -54,6 +51,11 @@ class UsdWriter(StagedOutput):
         self._points: list[Usd.Attribute] = []
         self._extents: list[Usd.Attribute] = []
         self._sphere_translates: list[Usd.Attribute] = []
+        self.layer: Path | None = None  # the shot layer, once a completed run with meshes from USD wrote it
+
+    def _names_made(self) -> list[str]:
+        layer = layer_path(self.path)
+        return [*super()._names_made(), layer.name, labelled(layer, "exporting", layer.suffix).name]
 
     def take_back(self, location: Path, frame: int, cloths: list[str]) -> None:
         """Before resuming: the frames an earlier run left at ``location`` go back under the staging name
@@ -83,11 +85,12 @@ class UsdWriter(StagedOutput):
         world = UsdGeom.Xform.Define(stage, "/World")
         stage.SetDefaultPrim(world.GetPrim())
         stage.GetRootLayer().documentation = f"warp-cloth scene '{sim.scene.name}'"
+        paths = prim_paths(sim.scene)
         for c, cloth in enumerate(sim.scene.cloths):
-            self._define_cloth(sim, c, cloth)
+            self._define_cloth(sim, c, cloth, paths.cloths[c])
         moving = sim.model.spheres is not None and sim.model.spheres.moving
-        for s, sphere in enumerate(sim.scene.spheres):
-            prim = UsdGeom.Sphere.Define(stage, f"/World/{prim_name(sphere.name)}")
+        for sphere, path in zip(sim.scene.spheres, paths.spheres):
+            prim = UsdGeom.Sphere.Define(stage, path)
             prim.CreateRadiusAttr(sphere.radius)
             r = sphere.radius
             prim.CreateExtentAttr(Vt.Vec3fArray([Gf.Vec3f(-r, -r, -r), Gf.Vec3f(r, r, r)]))
@@ -98,7 +101,7 @@ class UsdWriter(StagedOutput):
             else:
                 translate.Set(Gf.Vec3d(*sphere.center))
         for k, collider in enumerate(sim.scene.colliders):
-            self._define_mesh_collider(collider, sim.model.mesh_colliders.key_times[k],
+            self._define_mesh_collider(collider, paths.colliders[k], sim.model.mesh_colliders.key_times[k],
                                        sim.model.mesh_colliders.key_points[k])
         if sim.scene.ground is not None:
             self._define_ground(sim)
@@ -109,13 +112,12 @@ class UsdWriter(StagedOutput):
         if not self.staging.exists():
             raise SceneError("usd", f"the frames of the run to resume in {self.staging}", has_got=False)
         self.stage = stage = Usd.Stage.Open(str(self.staging))
-        self._points = [stage.GetPrimAtPath(f"/World/{prim_name(c.name)}").GetAttribute("points")
-                        for c in sim.scene.cloths]
-        self._extents = [stage.GetPrimAtPath(f"/World/{prim_name(c.name)}").GetAttribute("extent")
-                         for c in sim.scene.cloths]
+        paths = prim_paths(sim.scene)
+        self._points = [stage.GetPrimAtPath(path).GetAttribute("points") for path in paths.cloths]
+        self._extents = [stage.GetPrimAtPath(path).GetAttribute("extent") for path in paths.cloths]
         if sim.model.spheres is not None and sim.model.spheres.moving:
-            self._sphere_translates = [UsdGeom.Sphere(stage.GetPrimAtPath(f"/World/{prim_name(s.name)}"))
-                                       .GetOrderedXformOps()[0].GetAttr() for s in sim.scene.spheres]
+            self._sphere_translates = [UsdGeom.Sphere(stage.GetPrimAtPath(path)).GetOrderedXformOps()[0].GetAttr()
+                                       for path in paths.spheres]
         last = max(self._points[0].GetTimeSamples(), default=-1)
         if last < sim.frame:
             raise SceneError("usd", f"frames up to the checkpoint's frame {sim.frame} in {self.staging}",
@@ -128,9 +130,9 @@ class UsdWriter(StagedOutput):
         self._last_frame = sim.frame
         self._save()
 
-    def _define_cloth(self, sim, c: int, cloth) -> None:
+    def _define_cloth(self, sim, c: int, cloth, path: str) -> None:
         faces = sim.model.cloths[c]
-        mesh = UsdGeom.Mesh.Define(self.stage, f"/World/{prim_name(cloth.name)}")
+        mesh = UsdGeom.Mesh.Define(self.stage, path)
         mesh.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(faces.face_counts.astype(np.int32)))
         mesh.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(faces.face_indices.astype(np.int32)))
         mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.catmullClark if self.subdivision == "catmullClark"
@@ -146,10 +148,10 @@ class UsdWriter(StagedOutput):
         self._points.append(mesh.CreatePointsAttr())
         self._extents.append(mesh.CreateExtentAttr())
 
-    def _define_mesh_collider(self, collider, key_times, key_points) -> None:
+    def _define_mesh_collider(self, collider, path: str, key_times, key_points) -> None:
         """A mesh collider: world-space points (sampled where it moves), its faces."""
         surface = collider.surface()
-        mesh = UsdGeom.Mesh.Define(self.stage, f"/World/{prim_name(collider.name)}")
+        mesh = UsdGeom.Mesh.Define(self.stage, path)
         points = surface.points.astype(np.float32)
         attr = mesh.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(points))
         if key_points is not None:  # animated: its samples, at the frames of their times
@@ -172,7 +174,7 @@ class UsdWriter(StagedOutput):
         cx, cz, y = float(center[0]), float(center[2]), ground.height
         corners = [(cx - half, y, cz - half), (cx - half, y, cz + half), (cx + half, y, cz + half),
                    (cx + half, y, cz - half)]
-        mesh = UsdGeom.Mesh.Define(self.stage, "/World/ground")
+        mesh = UsdGeom.Mesh.Define(self.stage, GROUND_PATH)
         mesh.CreatePointsAttr(Vt.Vec3fArray([Gf.Vec3f(*p) for p in corners]))
         mesh.CreateFaceVertexCountsAttr(Vt.IntArray([4]))
         mesh.CreateFaceVertexIndicesAttr(Vt.IntArray([0, 1, 2, 3]))
@@ -255,11 +257,30 @@ class UsdWriter(StagedOutput):
             except Tf.ErrorException as exc:
                 exported.unlink(missing_ok=True)
                 raise OutputError(f"could not write {exported}: {str(exc).strip().splitlines()[-1]}") from None
+        layer = self._export_layer(sim)
         os.replace(exported, self.path)
+        if layer is not None:
+            self.layer = layer_path(self.path)
+            os.replace(layer, self.layer)
         fsync_path(self.path.parent)
         if exported != self.staging:
             self.staging.unlink()
         self._end(self.path)
+
+    def _export_layer(self, sim) -> Path | None:
+        """The shot layer of a scene with meshes from USD, written under its exporting name (see
+        ``shot_layer``); None for a scene without."""
+        shots = shot_files(sim.scene)
+        if not shots:
+            return None
+        exporting = labelled(layer_path(self.path), "exporting", ".usda")
+        try:
+            write_shot_layer(exporting, self.path, self.stage, shots, prim_paths(sim.scene).cloths,
+                             self._last_frame, sim.scene.simulation.fps)
+        except Tf.ErrorException as exc:
+            exporting.unlink(missing_ok=True)
+            raise OutputError(f"could not write {exporting}: {str(exc).strip().splitlines()[-1]}") from None
+        return exporting
 
     def abandon(self, sim, frames_written: int, outcome: RunOutcome) -> None:
         """Keep the frames so far: in place if the run was stopped and there is nothing to replace, else
@@ -286,3 +307,7 @@ class UsdWriter(StagedOutput):
     def _end(self, location: Path) -> None:
         self.stage = None
         super()._end(location)
+
+    @property
+    def outputs(self) -> list[Path]:
+        return [*super().outputs, *([self.layer] if self.layer is not None else [])]
