@@ -27,14 +27,50 @@ def advance_clock(clock: wp.array(dtype=int)):
     clock[0] = clock[0] + 1
 
 
+@wp.func
+def key_segment(t: float, times: wp.array(dtype=float), first: int, last: int) -> int:
+    """The key a linear path through keys ``first`` to ``last`` (inclusive) leaves from at ``t``: the last
+    key not after ``t``, ``first`` before it and ``last`` after the last."""
+    k = first
+    while k < last and times[k + 1] <= t:
+        k += 1
+    return k
+
+
+@wp.func
+def keyed_slope(t: float, times: wp.array(dtype=float), values: wp.array(dtype=wp.vec3), first: int,
+                last: int) -> wp.vec3:
+    """The rate of change at ``t`` of the path through keys ``first`` to ``last``: zero where it is held,
+    before the first key and after the last."""
+    k = key_segment(t, times, first, last)
+    if k == last or t <= times[first]:
+        return wp.vec3(0.0)
+    return (values[k + 1] - values[k]) / (times[k + 1] - times[k])
+
+
+@wp.func
+def keyed_value(t: float, times: wp.array(dtype=float), values: wp.array(dtype=wp.vec3), first: int,
+                last: int) -> wp.vec3:
+    """The value at ``t`` of the path through keys ``first`` to ``last``, linear between two keys."""
+    k = key_segment(t, times, first, last)
+    return values[k] + wp.max(t - times[k], 0.0) * keyed_slope(t, times, values, first, last)
+
+
 @wp.kernel
 def move_spheres(clock: wp.array(dtype=int), h: float, base: wp.array(dtype=wp.vec3),
-                 amplitude: wp.array(dtype=wp.vec3), frequency: wp.array(dtype=float),
-                 phase: wp.array(dtype=float), center: wp.array(dtype=wp.vec3), velocity: wp.array(dtype=wp.vec3)):
+                 key_start: wp.array(dtype=int), key_time: wp.array(dtype=float),
+                 key_offset: wp.array(dtype=wp.vec3), amplitude: wp.array(dtype=wp.vec3),
+                 frequency: wp.array(dtype=float), phase: wp.array(dtype=float), center: wp.array(dtype=wp.vec3),
+                 velocity: wp.array(dtype=wp.vec3)):
+    """Each sphere along its keys (linearly between them, held before the first and after the last) plus
+    its oscillation, at the end of the substep, with the velocity of both."""
     s = wp.tid()
     t = clock_time(clock, h)
-    center[s] = base[s] + oscillation_offset(t, amplitude[s], frequency[s], phase[s])
-    velocity[s] = oscillation_velocity(t, amplitude[s], frequency[s], phase[s])
+    first, last = key_start[s], key_start[s + 1] - 1
+    center[s] = base[s] + keyed_value(t, key_time, key_offset, first, last) + \
+        oscillation_offset(t, amplitude[s], frequency[s], phase[s])
+    velocity[s] = keyed_slope(t, key_time, key_offset, first, last) + \
+        oscillation_velocity(t, amplitude[s], frequency[s], phase[s])
 
 
 @wp.kernel

@@ -15,12 +15,15 @@ the integrators read as an external force (forces.py).
 
 import warp as wp
 
+from .motion import keyed_value
+
 wp.set_module_options({"fast_math": True})
 
 
 @wp.struct
 class Wind:
-    velocity: wp.vec3
+    key_time: wp.array(dtype=float)  # the velocity's keys (one, at 0, for a steady wind)
+    key_velocity: wp.array(dtype=wp.vec3)
     turbulence: float  # noise amplitude as a fraction of |velocity|
     scale: float  # metres and seconds over which the noise varies
     air_density: float
@@ -33,11 +36,12 @@ class Wind:
 
 @wp.func
 def air_velocity(wind: Wind, p: wp.vec3, t: float) -> wp.vec3:
+    velocity = keyed_value(t, wind.key_time, wind.key_velocity, 0, wind.key_time.shape[0] - 1)
     if wind.turbulence <= 0.0:
-        return wind.velocity
+        return velocity
     q = wp.vec4(p[0] / wind.scale, p[1] / wind.scale, p[2] / wind.scale, t / wind.scale)
     noise = wp.vec3(wp.noise(wp.uint32(11), q), wp.noise(wp.uint32(23), q), wp.noise(wp.uint32(37), q))
-    return wind.velocity + (wind.turbulence * wp.length(wind.velocity)) * noise
+    return velocity + (wind.turbulence * wp.length(velocity)) * noise
 
 
 @wp.func

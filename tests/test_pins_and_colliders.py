@@ -97,3 +97,32 @@ def test_pins_that_pull_the_cloth_past_its_limit_are_refused(tmp_path):
     loose = dataclasses.replace(pulled, cloths=(dataclasses.replace(pulled.cloths[0], limit=None),))
     wc.Simulator(loose, device="cpu")  # without a limit nothing bounds the stretch
     wc.Simulator(scene, device="cpu")  # the built-in scene swings them across the cloth: 8.54 m at most
+
+
+def keyed_sphere_scene(keys: tuple[wc.TransformKey, ...]) -> wc.Scene:
+    cloth = wc.Cloth(resolution=(8, 8), size=(0.6, 0.6), orientation="horizontal", origin=(-0.3, 0.52, 0.3),
+                     density=0.2, limit=wc.Limit(0.1, 0.1), structural=wc.SpringKind(15.0, 0.02),
+                     shear=wc.SpringKind(15.0, 0.02), bend=wc.SpringKind(5.0, 0.01, "compression", "compression"))
+    return wc.Scene(cloths=(cloth,), spheres=(wc.Sphere(radius=0.5, friction=0.5, keys=keys),),
+                    simulation=wc.Simulation(fps=24, frames=36, integrator="symplectic", limit_solve="converged"))
+
+
+def test_keyed_sphere_follows_its_keys_and_carries_the_cloth():
+    keys = (wc.TransformKey(time=0.1), wc.TransformKey(time=0.9, translate=(0.0, 0.4, 0.0)))
+    moved, still = wc.Simulator(keyed_sphere_scene(keys)), wc.Simulator(keyed_sphere_scene(()))
+    for frame in range(1, 37):
+        moved.step()
+        still.step()
+        t = frame / 24.0
+        rise = 0.4 * min(max((t - 0.1) / 0.8, 0.0), 1.0)
+        np.testing.assert_allclose(moved.sphere_centers()[0], [0.0, rise, 0.0], atol=1e-5)
+    # The sphere rose 0.4 m at 0.5 m/s and stopped 0.6 s ago: the cloth on it rose with it, draped as on the
+    # sphere that stayed (its own 1.3 cm ballistic rise when the sphere stopped long settled).
+    lift = moved.positions().astype(np.float64) - still.positions().astype(np.float64)
+    assert lift[:, 1].mean() == pytest.approx(0.4, abs=0.01)
+    assert np.abs(lift[:, [0, 2]]).max() < 0.02
+
+
+def test_a_sphere_key_with_a_rotation_is_refused():
+    with pytest.raises(wc.SceneError, match=r"keys\[0\].rotate: expected no rotation on a sphere's key"):
+        wc.Sphere(keys=(wc.TransformKey(rotate=(0.0, 90.0, 0.0)),))

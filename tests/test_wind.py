@@ -1,6 +1,7 @@
 """Wind: the drag a flat sheet feels is the model's (1/2 rho C_D A u^2), integrated over a second as the
 sheet is blown along; a tilted sheet is lifted across the flow; gusts are the same on every run."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -66,3 +67,37 @@ def test_gusts_are_the_same_on_every_run_and_vary_over_the_sheet():
     for _ in range(6):
         calm.step()
     assert np.ptp(runs[0][:, 2]) > 10 * np.ptp(calm.positions()[:, 2])  # the noise bends the sheet
+
+
+def test_keyed_wind_rising_then_held_blows_the_sheet_as_the_drag_law_integrates():
+    """Wind keyed from still at 0.25 s to SPEED at 0.75 s, then held: the sheet's speed over 1.5 s follows
+    dv/dt = k (u(t) - v) |u(t) - v|, integrated here by RK4."""
+    keys = (wc.WindKey(0.25, (0.0, 0.0, 0.0)), wc.WindKey(0.75, (0.0, 0.0, SPEED)))
+    scene = sheet_in_wind()
+    scene = dataclasses.replace(scene, wind=dataclasses.replace(scene.wind, velocity=(0.0, 0.0, 0.0), keys=keys))
+    sim = wc.Simulator(scene, device="cpu")
+    k = AIR * DRAG / (2.0 * DENSITY)
+
+    def dv_dt(t: float, v: float) -> float:
+        u = SPEED * min(max((t - 0.25) / 0.5, 0.0), 1.0)
+        return k * (u - v) * abs(u - v)
+
+    v, t, h = 0.0, 0.0, 1e-4
+    for frame in range(1, 37):
+        sim.step()
+        while t < frame / 24.0 - 1e-12:
+            a = dv_dt(t, v)
+            b = dv_dt(t + h / 2, v + h / 2 * a)
+            c = dv_dt(t + h / 2, v + h / 2 * b)
+            d = dv_dt(t + h, v + h * c)
+            v, t = v + h / 6 * (a + 2 * b + 2 * c + d), t + h
+        speed = float(sim.velocities().astype(np.float64)[:, 2].mean())
+        if frame <= 6:
+            assert speed == 0.0  # still air until the first key
+        else:
+            assert speed == pytest.approx(v, rel=0.02, abs=1e-3), frame
+
+
+def test_wind_with_both_a_velocity_and_keys_is_refused():
+    with pytest.raises(wc.SceneError, match="velocity: expected a velocity or keys, not both"):
+        wc.Wind(velocity=(1.0, 0.0, 0.0), keys=(wc.WindKey(0.0, (1.0, 0.0, 0.0)),))

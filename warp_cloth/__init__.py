@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 
 from .errors import SceneError, UnstableSimulation
 from .scene import (Box, Cloth, Collision, Ground, ImplicitSolver, Limit, MeshCollider, MeshSource, Oscillation,
-                    Output, Pin, Scene, Simulation, Sphere, SpringKind, TransformKey, Wind)
+                    Output, Pin, Scene, Simulation, Sphere, SpringKind, TransformKey, Wind, WindKey)
 
 if TYPE_CHECKING:
     from .scene_file import builtin_scene_names, load_scene, scene_from_dict
@@ -38,7 +38,7 @@ __all__ = [
     "Box", "CheckpointWriter", "Cloth", "Collision", "Ground", "ImplicitSolver", "Limit", "MeshCollider", "MeshSource",
     "Oscillation", "Output",
     "Pin", "PolyWriter", "RunSummary", "Scene", "SceneError", "Simulation", "Simulator", "Sphere", "SpringKind",
-    "StrainMonitor", "StrainReport", "TransformKey", "Wind",
+    "StrainMonitor", "StrainReport", "TransformKey", "Wind", "WindKey",
     "UnstableSimulation", "UnstableStepWarning", "UsdWriter", "builtin_scene_names", "load_scene", "scene_from_dict",
 ]
 

@@ -18,7 +18,7 @@ from warp_cloth.kernels.springs import Springs
 from warp_cloth.kernels.wind import Wind
 
 from .model import Model
-from .scene import Collision, Scene
+from .scene import Collision, Scene, WindKey
 
 
 def upload(values: np.ndarray, dtype, device) -> wp.array:
@@ -57,8 +57,11 @@ class PinMotion:
 
 @dataclass(frozen=True)
 class SphereMotion:
-    """The centre each sphere oscillates about, and its oscillation."""
+    """The centre each sphere moves about, its keys (see ``model.Spheres``) and its oscillation."""
     center: wp.array
+    key_start: wp.array
+    key_time: wp.array
+    key_offset: wp.array
     amplitude: wp.array
     frequency: wp.array
     phase: wp.array
@@ -141,7 +144,9 @@ class DeviceModel:
         self.sphere_count = 0 if spheres is None else len(spheres.center)
         self.sphere_start = None if spheres is None else spheres.initial_center  # host: the state starts there
         self.sphere_motion = None if spheres is None or not spheres.moving else SphereMotion(
-            upload(spheres.center, wp.vec3, device), upload(spheres.amplitude, wp.vec3, device),
+            upload(spheres.center, wp.vec3, device), upload(spheres.key_start, int, device),
+            upload(spheres.key_time, float, device), upload(spheres.key_offset, wp.vec3, device),
+            upload(spheres.amplitude, wp.vec3, device),
             upload(spheres.frequency, float, device), upload(spheres.phase, float, device))
         self.ground = scene.ground
         self._sphere_radius = upload(spheres.radius if spheres is not None else np.zeros(0), float, device)
@@ -238,7 +243,9 @@ class DeviceModel:
         if settings is None:
             return None
         wind, device, faces = Wind(), self.device, model.wind_faces
-        wind.velocity = wp.vec3(*settings.velocity)
+        keys = settings.keys or (WindKey(0.0, settings.velocity),)
+        wind.key_time = upload(np.asarray([k.time for k in keys]), float, device)
+        wind.key_velocity = upload(np.asarray([k.velocity for k in keys]), wp.vec3, device)
         wind.turbulence, wind.scale, wind.air_density = settings.turbulence, settings.scale, settings.air_density
         wind.drag, wind.lift = settings.drag, settings.lift
         wind.faces = upload(faces.faces, wp.vec4i, device)

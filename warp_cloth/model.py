@@ -20,7 +20,7 @@ from .cloth_mesh import BEND, SHEAR, STRUCTURAL, ClothMesh, enclosing_radii, res
 from .errors import SceneError
 from .hierarchy import Hierarchy, build_hierarchy
 from .mesh_cloth import build_mesh_cloth, mesh_positions
-from .scene import Cloth, Scene, SpringKind
+from .scene import Cloth, Scene, SpringKind, TransformKey
 
 # The spring kernels' regime bits (kernels/springs.py), which the host side sets and reads.
 FLAG_ELASTIC_TENSION = int(spring_kernels.ELASTIC_TENSION)
@@ -86,6 +86,9 @@ class Spheres:
     amplitude: np.ndarray  # (k, 3)
     frequency: np.ndarray
     phase: np.ndarray
+    key_start: np.ndarray  # (k + 1,) int32: sphere s's keys are key_time[key_start[s]:key_start[s + 1]]
+    key_time: np.ndarray  # float32 seconds
+    key_offset: np.ndarray  # (keys, 3) float32: the translation from the centre then
     moving: bool
 
 
@@ -412,13 +415,18 @@ def _spheres(scene: Scene) -> Spheres | None:
     amp = [np.zeros(3) if s.motion is None else np.asarray(s.motion.unit_axis()) * s.motion.amplitude
            for s in scene.spheres]
     f32 = lambda xs: np.asarray(xs, dtype=np.float32)  # noqa: E731
-    initial = [s.center if s.motion is None else np.add(s.center, s.motion.offset(0.0)) for s in scene.spheres]
+    initial = [np.add(s.center, s.keyed_offset(0.0)) + (0.0 if s.motion is None else s.motion.offset(0.0))
+               for s in scene.spheres]
+    keys = [s.keys or (TransformKey(),) for s in scene.spheres]  # unkeyed: held where it is
     return Spheres(f32([s.center for s in scene.spheres]), f32(initial), f32([s.radius for s in scene.spheres]),
                    f32([s.friction for s in scene.spheres]), f32([s.angular_velocity() for s in scene.spheres]),
                    f32(amp),
                    f32([0.0 if s.motion is None else s.motion.frequency for s in scene.spheres]),
                    f32([0.0 if s.motion is None else s.motion.phase for s in scene.spheres]),
-                   moving=any(s.motion is not None and s.motion.amplitude > 0 for s in scene.spheres))
+                   np.cumsum([0] + [len(k) for k in keys]).astype(np.int32),
+                   f32([key.time for k in keys for key in k]), f32([key.translate for k in keys for key in k]),
+                   moving=any((s.motion is not None and s.motion.amplitude > 0) or len(s.keys) > 1
+                              for s in scene.spheres))
 
 
 def _wind_faces(meshes, offsets) -> WindFaces:

@@ -204,7 +204,8 @@ class MoveSpheres:
     def run(self, state: DeviceState) -> None:
         s = self.model.sphere_motion
         launch(motion.move_spheres, state.sphere_center.shape[0], state,
-               inputs=[state.clock, self.model.h, s.center, s.amplitude, s.frequency, s.phase],
+               inputs=[state.clock, self.model.h, s.center, s.key_start, s.key_time, s.key_offset, s.amplitude,
+                       s.frequency, s.phase],
                outputs=[state.sphere_center, state.sphere_velocity])
 
 

@@ -114,7 +114,7 @@ def build_plan(model: DeviceModel, state: DeviceState, implicit_settings: Implic
     elif rigid is not None:
         passes.append(Collide(model, rigid))
     if driven_pins or model.sphere_motion is not None or model.mesh_animation or \
-            (model.wind is not None and model.wind.turbulence > 0):
+            (model.wind is not None and (model.wind.turbulence > 0 or model.wind.key_time.shape[0] > 1)):
         passes.append(AdvanceClock())
     return Plan(tuple(passes), model.h, chosen, implicit, lists, projection)
 

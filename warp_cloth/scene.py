@@ -406,33 +406,6 @@ class Ground:
 
 
 @dataclass(frozen=True)
-class Sphere:
-    """A rigid sphere collider, static or moving by ``motion`` about ``center``. ``spin`` turns it about
-    its centre: the axis [x, y, z] scaled to degrees a second (the right-hand rule); friction then acts
-    against the cloth's speed relative to the sphere's surface there, so a spinning sphere carries what
-    rests on it round."""
-
-    name: str = "sphere"
-    center: Vec3 = (0.0, 0.0, 0.0)
-    radius: float = 1.0
-    friction: float = 0.0
-    motion: Oscillation | None = None
-    spin: Vec3 = (0.0, 0.0, 0.0)
-
-    def __post_init__(self) -> None:
-        check_fields(self)
-        check_identifier(self.name, "name")
-        _within_extent(self.center, "center")
-        _positive(self.radius, "radius")
-        _within_extent(self.radius, "radius")
-        _non_negative(self.friction, "friction")
-
-    def angular_velocity(self) -> Vec3:
-        """``spin`` in radians a second."""
-        return (math.radians(self.spin[0]), math.radians(self.spin[1]), math.radians(self.spin[2]))
-
-
-@dataclass(frozen=True)
 class TransformKey:
     """Where a keyed collider is at ``time`` (seconds): turned by ``rotate`` (degrees about X, then Y, then
     Z, about the mesh's own origin), then moved by ``translate``."""
@@ -445,6 +418,56 @@ class TransformKey:
         check_fields(self)
         _non_negative(self.time, "time")
         _within_extent(self.translate, "translate")
+
+
+def _check_key_times(keys: tuple[TransformKey, ...]) -> None:
+    for k in range(1, len(keys)):
+        _require(keys[k].time > keys[k - 1].time, f"keys[{k}].time",
+                 f"times in increasing order (after keys[{k - 1}]'s {keys[k - 1].time:g} s)", keys[k].time)
+
+
+@dataclass(frozen=True)
+class Sphere:
+    """A rigid sphere collider, static or moving about ``center``: along ``keys`` (``[[sphere.keys]]``:
+    translations from ``center`` at times, interpolated linearly in between, held before the first and
+    after the last), plus the oscillation ``motion``. ``spin`` turns it about its centre: the axis
+    [x, y, z] scaled to degrees a second (the right-hand rule); friction then acts against the cloth's
+    speed relative to the sphere's surface there, so a spinning sphere carries what rests on it round."""
+
+    name: str = "sphere"
+    center: Vec3 = (0.0, 0.0, 0.0)
+    radius: float = 1.0
+    friction: float = 0.0
+    motion: Oscillation | None = None
+    spin: Vec3 = (0.0, 0.0, 0.0)
+    keys: tuple[TransformKey, ...] = ()
+
+    def __post_init__(self) -> None:
+        check_fields(self)
+        check_identifier(self.name, "name")
+        _within_extent(self.center, "center")
+        _positive(self.radius, "radius")
+        _within_extent(self.radius, "radius")
+        _non_negative(self.friction, "friction")
+        _check_key_times(self.keys)
+        for k, key in enumerate(self.keys):
+            _require(key.rotate == (0.0, 0.0, 0.0), f"keys[{k}].rotate",
+                     "no rotation on a sphere's key (a sphere turns by spin)", list(key.rotate))
+
+    def keyed_offset(self, t: float) -> Vec3:
+        """Where ``keys`` have moved the sphere from ``center`` at ``t`` seconds."""
+        if not self.keys:
+            return (0.0, 0.0, 0.0)
+        after = next((k for k, key in enumerate(self.keys) if key.time > t), len(self.keys))
+        if after in (0, len(self.keys)):
+            return self.keys[min(after, len(self.keys) - 1)].translate
+        a, b = self.keys[after - 1], self.keys[after]
+        w = (t - a.time) / (b.time - a.time)
+        return tuple(p + w * (q - p) for p, q in zip(a.translate, b.translate))
+
+    def angular_velocity(self) -> Vec3:
+        """``spin`` in radians a second."""
+        return (math.radians(self.spin[0]), math.radians(self.spin[1]), math.radians(self.spin[2]))
 
 
 @dataclass(frozen=True)
@@ -470,10 +493,7 @@ class MeshCollider:
         _within_extent(self.thickness, "thickness")
         _non_negative(self.friction, "friction")
         _within_extent(float(abs(self.surface().points).max()), "mesh")
-        for k in range(1, len(self.keys)):
-            _require(self.keys[k].time > self.keys[k - 1].time, f"keys[{k}].time",
-                     f"times in increasing order (after keys[{k - 1}]'s {self.keys[k - 1].time:g} s)",
-                     self.keys[k].time)
+        _check_key_times(self.keys)
         _require(not (self.keys and self.surface().key_points is not None), "keys",
                  "no keys on a mesh its USD file already animates", has_got=False)
 
@@ -483,11 +503,26 @@ class MeshCollider:
 
 
 @dataclass(frozen=True)
+class WindKey:
+    """The wind's velocity (m/s) at ``time`` (seconds)."""
+
+    time: float = 0.0
+    velocity: Vec3 = (0.0, 0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        check_fields(self)
+        _non_negative(self.time, "time")
+        _within_extent(self.velocity, "velocity")
+
+
+@dataclass(frozen=True)
 class Wind:
-    """Air moving at ``velocity`` (m/s), acting on every face of every cloth through aerodynamic drag
-    (``drag``: the coefficient of the pressure across a face) and lift (``lift``: across the flow, for a
-    face tilted to it), in air of ``air_density`` (kg/m^3); ``turbulence`` adds noise of that fraction of
-    the wind's speed, varying over ``scale`` metres and seconds (kernels/wind.py has the formulas)."""
+    """Air moving at ``velocity`` (m/s), or along ``keys`` (``[[wind.keys]]``: velocities at times,
+    interpolated linearly in between, held before the first and after the last), acting on every face of
+    every cloth through aerodynamic drag (``drag``: the coefficient of the pressure across a face) and lift
+    (``lift``: across the flow, for a face tilted to it), in air of ``air_density`` (kg/m^3);
+    ``turbulence`` adds noise of that fraction of the wind's speed, varying over ``scale`` metres and
+    seconds (kernels/wind.py has the formulas)."""
 
     velocity: Vec3 = (0.0, 0.0, 0.0)
     turbulence: float = 0.0
@@ -495,10 +530,14 @@ class Wind:
     air_density: float = 1.2
     drag: float = 1.0
     lift: float = 0.3
+    keys: tuple[WindKey, ...] = ()
 
     def __post_init__(self) -> None:
         check_fields(self)
         _within_extent(self.velocity, "velocity")
+        _check_key_times(self.keys)
+        _require(not (self.keys and self.velocity != (0.0, 0.0, 0.0)), "velocity",
+                 "a velocity or keys, not both", list(self.velocity))
         _non_negative(self.turbulence, "turbulence")
         _positive(self.scale, "scale")
         _non_negative(self.air_density, "air_density")
