@@ -7,7 +7,12 @@
 - table.obj: a closed round table, a cylinder of 0.6 m radius from the floor to 0.9 m in 48 sides (quads),
   its top and bottom fans of triangles, every face outward;
 - turntable.usda: a USD shot at 24 fps, Y-up, in metres: the same kind of cylinder, 0.8 m in radius and
-  0.6 m high, under an Xform keyed to turn once about +Y from frame 0 to frame 96.
+  0.6 m high, under an Xform keyed to turn once about +Y from frame 0 to frame 96;
+- cape.usda: a USD shot at 24 fps, Y-up, in metres: a character's body (a closed elliptic cylinder from
+  the hips to the shoulders, 0.4 x 0.24 m across) under an Xform keyed to walk 1.6 m along -Z in 2 s
+  (speeding up over the first half second, slowing down over the last), then turn a quarter turn left in
+  the next 2 s (likewise); behind its back a cape, a 0.56 x 0.9 m quad mesh of
+  20 x 30 cells with UVs, whose top row is the point subset "collar".
 """
 
 import argparse
@@ -94,6 +99,62 @@ def write_turntable(path: str) -> None:
     stage.GetRootLayer().Save()
 
 
+def elliptic_body(half_width: float, half_depth: float, bottom: float, top: float, sides: int, rings: int):
+    """A closed elliptic cylinder about +Y, its sides in ``rings`` bands of quads, capped by fans."""
+    points = [(half_width * math.cos(2 * math.pi * i / sides), bottom + (top - bottom) * k / rings,
+               -half_depth * math.sin(2 * math.pi * i / sides)) for k in range(rings + 1) for i in range(sides)]
+    points += [(0.0, bottom, 0.0), (0.0, top, 0.0)]
+    low, high = len(points) - 2, len(points) - 1
+    faces = []
+    for k in range(rings):
+        for i in range(sides):
+            j = (i + 1) % sides
+            faces.append((k * sides + i, k * sides + j, (k + 1) * sides + j, (k + 1) * sides + i))
+    for i in range(sides):
+        j = (i + 1) % sides
+        faces.append((rings * sides + i, rings * sides + j, high))
+        faces.append((j, i, low))
+    return points, faces
+
+
+def write_cape(path: str) -> None:
+    from pxr import Gf, Sdf, Usd, UsdGeom, Vt
+
+    stage = Usd.Stage.CreateNew(path)
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
+    UsdGeom.SetStageMetersPerUnit(stage, 1.0)
+    stage.SetTimeCodesPerSecond(24.0)
+    stage.SetStartTimeCode(0)
+    stage.SetEndTimeCode(96)
+    stage.GetRootLayer().documentation = "A cape on a character that walks, then turns (tools/make_scene_meshes.py)"
+    world = UsdGeom.Xform.Define(stage, "/World")
+    stage.SetDefaultPrim(world.GetPrim())
+    character = UsdGeom.Xform.Define(stage, "/World/Character")
+    walk, turn = character.AddTranslateOp(), character.AddRotateYOp()
+    for frame, z in ((0, 0.0), (12, -0.2), (36, -1.4), (48, -1.6)):  # speeding up, walking, slowing down
+        walk.Set(Gf.Vec3d(0.0, 0.0, z), frame)
+    for frame, angle in ((0, 0.0), (48, 0.0), (60, 15.0), (84, 75.0), (96, 90.0)):
+        turn.Set(angle, frame)
+    points, faces = elliptic_body(0.2, 0.12, 0.9, 1.5, 32, 6)
+    body = UsdGeom.Mesh.Define(stage, "/World/Character/Body")
+    body.CreatePointsAttr([Gf.Vec3f(*p) for p in points])
+    body.CreateFaceVertexCountsAttr([len(f) for f in faces])
+    body.CreateFaceVertexIndicesAttr([i for f in faces for i in f])
+    columns, rows = 20, 30
+    width, length, top, back = 0.56, 0.9, 1.48, 0.15
+    cape = UsdGeom.Mesh.Define(stage, "/World/Cape")
+    cape.CreatePointsAttr([Gf.Vec3f(width * (i / columns - 0.5), top - length * k / rows, back)
+                           for k in range(rows + 1) for i in range(columns + 1)])
+    cape.CreateFaceVertexCountsAttr([4] * (columns * rows))
+    cape.CreateFaceVertexIndicesAttr([v for k in range(rows) for i in range(columns)
+                                      for v in (k * (columns + 1) + i, (k + 1) * (columns + 1) + i,
+                                                (k + 1) * (columns + 1) + i + 1, k * (columns + 1) + i + 1)])
+    st = UsdGeom.PrimvarsAPI(cape).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.vertex)
+    st.Set(Vt.Vec2fArray([Gf.Vec2f(i / columns, 1.0 - k / rows) for k in range(rows + 1) for i in range(columns + 1)]))
+    UsdGeom.Subset.CreateGeomSubset(cape, "collar", UsdGeom.Tokens.point, Vt.IntArray(list(range(columns + 1))))
+    stage.GetRootLayer().Save()
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("folder")
@@ -103,6 +164,7 @@ def main() -> None:
     points, faces = table(0.6, 0.9, 48)
     write_obj(f"{args.folder}/table.obj", "A round table of radius 0.6 m, 0.9 m high, in 48 sides", points, faces)
     write_turntable(f"{args.folder}/turntable.usda")
+    write_cape(f"{args.folder}/cape.usda")
 
 
 if __name__ == "__main__":
