@@ -257,6 +257,24 @@ def test_pins_by_a_usd_group_a_subset_or_a_primvar(tmp_path):
         cloth = wc.Cloth.from_mesh(path, prim="/World/Shirt", pins=(wc.Pin(group=group),))
         sim = wc.Simulator(wc.Scene(cloths=(cloth,)), device="cpu")
         assert sorted(sim.model.pins.index.tolist()) == expected, group
-    with pytest.raises(wc.SceneError, match=r"pins\[0\].group: expected the name of a GeomSubset or point primvar "
-                                            r"of the cloth's mesh \(collar, pin_weight, sleeve\)"):
+    with pytest.raises(wc.SceneError, match=r"pins\[0\].group: expected the name of a group of the cloth's mesh "
+                                            r"\(a USD GeomSubset or point primvar, an OBJ g group: collar, pin_weight, "
+                                            r"sleeve\)"):
         wc.Simulator(wc.Scene(cloths=(wc.Cloth.from_mesh(path, pins=(wc.Pin(group="hem"),)),)), device="cpu")
+
+
+@pytest.mark.parametrize("fast", [True, False])
+def test_pins_by_an_obj_group(tmp_path, fast):
+    """``g`` statements name the faces after them; a group's vertices are those faces' (the bulk reader and
+    the line by line one, which a comment line sends the file to, alike)."""
+    points = [(x, y, 0.0) for y in range(3) for x in range(3)]
+    faces = ["f 1 2 5 4", "f 2 3 6 5", "f 4 5 8 7", "f 5 6 9 8"]
+    lines = [f"v {x} {y} {z}" for x, y, z in points] + ([] if fast else ["# groups"])
+    lines += ["g body", faces[0], faces[1], "g collar hem", faces[2], "g collar", faces[3]]
+    path = tmp_path / "groups.obj"
+    path.write_text("\n".join(lines) + "\n")
+    groups = wc.Cloth.from_mesh(path).surface().groups
+    assert {name: v.tolist() for name, v in groups.items()} == \
+        {"body": [0, 1, 2, 3, 4, 5], "collar": [3, 4, 5, 6, 7, 8], "hem": [3, 4, 6, 7]}
+    cloth = wc.Cloth.from_mesh(path, pins=(wc.Pin(group="hem"),))
+    assert sorted(wc.Simulator(wc.Scene(cloths=(cloth,)), device="cpu").model.pins.index.tolist()) == [3, 4, 6, 7]

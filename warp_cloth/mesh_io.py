@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import functools
 import math
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -20,6 +21,7 @@ from .errors import SceneError
 
 USD_SUFFIXES = (".usd", ".usda", ".usdc")
 MESH_SUFFIXES = (".obj", *USD_SUFFIXES)
+SAMPLED_VERTEX_BYTES = 48  # an animated mesh's vertex at one sample: read, then placed in the world (float64)
 
 
 @dataclass(frozen=True)
@@ -93,14 +95,17 @@ def _read_obj(path: Path, where: str) -> SurfaceMesh:
 def _read_obj_fast(lines: list[str]) -> SurfaceMesh | None:
     """The common OBJ, parsed in bulk: ``v x y z``, ``vt u v`` and ``f`` lines whose corners all have one
     form (``i``, ``i/t``, ``i/t/n`` or ``i//n``), positive indices in range, no comments or other statements
-    but ``vn``, ``o``, ``g``, ``s``, ``usemtl``, ``mtllib``. None for anything else: the line by line reader
-    then parses it, or says which line it cannot."""
+    but ``vn``, ``o``, ``g`` (groups), ``s``, ``usemtl``, ``mtllib``. None for anything else: the line by
+    line reader then parses it, or says which line it cannot."""
     kinds: dict[str, list[str]] = {"v ": [], "vt": [], "f ": []}
+    group_marks: list[tuple[int, list[str]]] = []
     for line in lines:
         head = line[:2]
         if head in kinds:
             kinds[head].append(line)
-        elif line.strip() and line.split(None, 1)[0] not in ("vn", "o", "g", "s", "usemtl", "mtllib"):
+        elif head == "g " or line.rstrip() == "g":
+            group_marks.append((len(kinds["f "]), line.split()[1:]))
+        elif line.strip() and line.split(None, 1)[0] not in ("vn", "o", "s", "usemtl", "mtllib"):
             return None
     face_lines = kinds["f "]
     try:
@@ -132,7 +137,8 @@ def _read_obj_fast(lines: list[str]) -> SurfaceMesh | None:
         if uv_index.min() < 0 or uv_index.max() >= len(kinds["vt"]):
             return None
         uvs = texture.reshape(-1, 2)[uv_index]
-    return SurfaceMesh(points.reshape(-1, 3), counts, corners, uvs, None, ())
+    return SurfaceMesh(points.reshape(-1, 3), counts, corners, uvs, None, (),
+                       groups=_obj_groups(group_marks, counts, corners))
 
 
 def _read_obj_lines(lines: list[str], where: str) -> SurfaceMesh:
@@ -141,6 +147,7 @@ def _read_obj_lines(lines: list[str], where: str) -> SurfaceMesh:
     counts: list[int] = []
     corners: list[int] = []
     corner_uvs: list[int] = []  # -1 where a corner has none
+    group_marks: list[tuple[int, list[str]]] = []
     for number, line in enumerate(lines, start=1):
         words = line.split("#", 1)[0].split()
         if not words:
@@ -159,6 +166,8 @@ def _read_obj_lines(lines: list[str], where: str) -> SurfaceMesh:
                     corners.append(_obj_index(refs[0], len(points)))
                     has_uv = len(refs) > 1 and refs[1] != ""
                     corner_uvs.append(_obj_index(refs[1], len(texture)) if has_uv else -1)
+            elif words[0] == "g":
+                group_marks.append((len(counts), words[1:]))
             elif words[0] in ("l", "p"):
                 raise ValueError("lines and points are not a surface")
         except (ValueError, IndexError) as exc:
@@ -167,8 +176,21 @@ def _read_obj_lines(lines: list[str], where: str) -> SurfaceMesh:
     uvs = None
     if texture and corner_uvs and min(corner_uvs) >= 0:
         uvs = np.asarray(texture, dtype=np.float64)[np.asarray(corner_uvs)]
-    return SurfaceMesh(np.asarray(points, dtype=np.float64).reshape(-1, 3), np.asarray(counts, dtype=np.int64),
-                       np.asarray(corners, dtype=np.int64), uvs, None, ())
+    counts_array, corners_array = np.asarray(counts, dtype=np.int64), np.asarray(corners, dtype=np.int64)
+    return SurfaceMesh(np.asarray(points, dtype=np.float64).reshape(-1, 3), counts_array, corners_array, uvs, None,
+                       (), groups=_obj_groups(group_marks, counts_array, corners_array))
+
+
+def _obj_groups(marks: list[tuple[int, list[str]]], counts: np.ndarray, corners: np.ndarray) -> dict[str, np.ndarray]:
+    """The vertices of each OBJ group: ``marks`` are the ``g`` statements, each with the number of faces
+    before it and the names it makes current for the faces after it (until the next)."""
+    starts = np.concatenate([[0], np.cumsum(counts)])
+    members: dict[str, list[np.ndarray]] = {}
+    for k, (first, names) in enumerate(marks):
+        last = marks[k + 1][0] if k + 1 < len(marks) else len(counts)
+        for name in names:
+            members.setdefault(name, []).append(corners[starts[first]:starts[last]])
+    return {name: np.unique(np.concatenate(parts)) for name, parts in members.items()}
 
 
 def _obj_index(word: str, count: int) -> int:
@@ -225,6 +247,12 @@ def _read_usd(path: Path, prim_path: str | None, where: str) -> SurfaceMesh:
     key_times, key_points = None, None
     codes = _animation_codes(prim, mesh)
     if codes:
+        need = len(codes) * len(local) * SAMPLED_VERTEX_BYTES
+        free = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+        if need > free:
+            raise SceneError("mesh", f"an animation that fits in memory: {len(local)} points at {len(codes)} time "
+                                     f"codes need about {need / 2**30:.1f} GiB, {free / 2**30:.1f} GiB is free",
+                             has_got=False, source=where)
         frames = []
         for code in codes:
             points = np.asarray(mesh.GetPointsAttr().Get(code) or [], dtype=np.float64).reshape(-1, 3)

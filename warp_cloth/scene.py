@@ -175,8 +175,8 @@ class Pin:
 
     Selected by index (on a grid ``x + (nx + 1) y``), named corners and edges of the grid (left/right is
     the first grid direction, bottom/top the second), a world-space box around the initial pose, or the
-    ``group`` of a USD mesh cloth: a ``GeomSubset`` of its points or faces, or a primvar on its points that
-    is non-zero where they belong.
+    ``group`` of a mesh cloth: in USD a ``GeomSubset`` of its points or faces, or a primvar on its points
+    that is non-zero where they belong; in OBJ a ``g`` group (the vertices of its faces).
     """
 
     indices: tuple[int, ...] = ()
@@ -315,7 +315,7 @@ class Cloth:
 
     def _check_grid(self) -> None:
         for p, pin in enumerate(self.pins):
-            _require(pin.group is None, f"pins[{p}].group", "no group on a grid cloth (groups are a USD mesh's)",
+            _require(pin.group is None, f"pins[{p}].group", "no group on a grid cloth (groups are a mesh's)",
                      pin.group)
         nx, ny = self.resolution
         _require(nx >= 1 and ny >= 1, "resolution", "[nx, ny] quads, each >= 1", list(self.resolution))
