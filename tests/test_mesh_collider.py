@@ -11,6 +11,7 @@ import pytest
 from pxr import Usd, UsdGeom
 
 import warp_cloth as wc
+from warp_cloth import mesh_io, simulator
 from conftest import run_cli_in_process
 
 
@@ -245,3 +246,25 @@ def test_collider_keys_must_run_forward_in_time(tmp_path):
     with pytest.raises(wc.SceneError, match=r"keys\[1\].time: expected times in increasing order"):
         wc.MeshCollider(mesh=wc.MeshSource(str(tmp_path / "box.obj")),
                         keys=(wc.TransformKey(1.0), wc.TransformKey(0.5)))
+
+
+def test_a_collider_too_large_for_memory_is_refused_in_one_line(tmp_path, monkeypatch):
+    box_obj(tmp_path / "box.obj", (-1, -1, -1), (1, 0, 1))
+    (tmp_path / "scene.toml").write_text('[[cloth]]\norigin = [0.0, 2.0, 0.0]\n[[collider]]\nmesh = "box.obj"\n')
+    monkeypatch.setattr(simulator, "COLLIDER_BYTES_PER_TRIANGLE", 1 << 40)  # as if it had a billion triangles
+    code, _, err = run_cli_in_process("run", "scene.toml", "--out", "out", cwd=tmp_path)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "collider: expected a scene that fits in memory: 121 particles and the mesh colliders need about" in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_an_animation_too_long_for_memory_is_refused_before_it_is_sampled(tmp_path, monkeypatch):
+    animated_box_shot(tmp_path / "shot.usda", rise=0.5)
+    (tmp_path / "scene.toml").write_text('[[cloth]]\norigin = [0.0, 2.0, 0.0]\n[[collider]]\n'
+                                         'mesh = { file = "shot.usda", prim = "/World/Mover/Box" }\n')
+    monkeypatch.setattr(mesh_io, "SAMPLED_VERTEX_BYTES", 1 << 40)
+    code, _, err = run_cli_in_process("run", "scene.toml", "--out", "out", cwd=tmp_path)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "collider[0].mesh: expected an animation that fits in memory: 8 points at 25 time codes need about" in err
+    assert "shot.usda at /World/Mover/Box" in err
+    assert not (tmp_path / "out").exists()

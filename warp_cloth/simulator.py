@@ -38,6 +38,12 @@ HOST_BYTES_PER_PARTICLE = 900
 DEVICE_BYTES_PER_PARTICLE = 320
 IMPLICIT_DEVICE_BYTES_PER_PARTICLE = 100  # CG vectors and the preconditioner's blocks
 COLLISION_DEVICE_BYTES_PER_PARTICLE = 320  # neighbour lists, spatial hash buckets, contact state
+# A mesh collider: its triangles' indices and BVH nodes, its vertices' points and velocities, and for an
+# animated one its samples (float64 on the host as read, float32 on the device).
+COLLIDER_BYTES_PER_TRIANGLE = 96
+COLLIDER_BYTES_PER_VERTEX = 24
+HOST_BYTES_PER_SAMPLED_VERTEX = 36
+DEVICE_BYTES_PER_SAMPLED_VERTEX = 12
 
 # Passes over the particles in one frame (substeps x the passes of a substep). Ctrl-C stops a run only
 # between frames, and a captured frame holds every launch (about 0.4 kB and 50 us of capture each on the
@@ -89,6 +95,23 @@ def resolve_device(device: str | None) -> wp.context.Device:
         raise SceneError("device", "'cpu', 'cuda' or 'cuda:N' of an existing GPU", name) from None
 
 
+def collider_bytes(scene: Scene) -> tuple[int, int]:
+    """(host, device) bytes the scene's mesh colliders take beyond what reading them took."""
+    host = device = 0
+    for collider in scene.colliders:
+        surface = collider.surface()
+        samples = 0
+        if surface.key_points is not None:
+            samples = len(surface.key_times)
+        elif collider.keys:
+            samples = len(collider.keys) + int((collider.keys[-1].time - collider.keys[0].time) * scene.simulation.fps) + 1
+        vertices = len(surface.points)
+        host += samples * vertices * HOST_BYTES_PER_SAMPLED_VERTEX
+        device += (len(surface.triangles()) * COLLIDER_BYTES_PER_TRIANGLE + vertices * COLLIDER_BYTES_PER_VERTEX
+                   + samples * vertices * DEVICE_BYTES_PER_SAMPLED_VERTEX)
+    return host, device
+
+
 def check_memory(scene: Scene, device: wp.context.Device) -> None:
     """Refuse a scene that cannot fit, before any large allocation."""
     n = sum(c.particle_count for c in scene.cloths)
@@ -96,16 +119,19 @@ def check_memory(scene: Scene, device: wp.context.Device) -> None:
     device_bytes = (DEVICE_BYTES_PER_PARTICLE
                     + (IMPLICIT_DEVICE_BYTES_PER_PARTICLE if scene.simulation.integrator == "implicit" else 0)
                     + (COLLISION_DEVICE_BYTES_PER_PARTICLE if scene.collision is not None else 0))
-    need = n * HOST_BYTES_PER_PARTICLE + (n * device_bytes if device.is_cpu else 0)
+    collider_host, collider_device = collider_bytes(scene)
+    what = f"{n} particles" + (" and the mesh colliders" if scene.colliders else "")
+    key = "collider" if collider_host + collider_device > n * (HOST_BYTES_PER_PARTICLE + device_bytes) else "cloth"
+    need = n * HOST_BYTES_PER_PARTICLE + collider_host + ((n * device_bytes + collider_device) if device.is_cpu else 0)
     if need > host_free:
-        raise SceneError("cloth", f"a scene that fits in memory: {n} particles need about {need / 2**30:.1f} GiB "
-                                  f"of host memory, {host_free / 2**30:.1f} GiB is free", has_got=False)
+        raise SceneError(key, f"a scene that fits in memory: {what} need about {need / 2**30:.1f} GiB of host "
+                              f"memory, {host_free / 2**30:.1f} GiB is free", has_got=False)
     if device.is_cuda:
         free = device.free_memory
-        need = n * device_bytes
+        need = n * device_bytes + collider_device
         if need > free:
-            raise SceneError("cloth", f"a scene that fits on {device.name}: {n} particles need about "
-                                      f"{need / 2**30:.1f} GiB, {free / 2**30:.1f} GiB is free", has_got=False)
+            raise SceneError(key, f"a scene that fits on {device.name}: {what} need about {need / 2**30:.1f} GiB, "
+                                  f"{free / 2**30:.1f} GiB is free", has_got=False)
 
 
 def check_work(scene: Scene, substeps: int) -> None:
