@@ -95,31 +95,46 @@ def pinned_velocity_change(index: wp.array(dtype=int), amplitude: wp.array(dtype
     dv[i] = oscillation_velocity(clock_time(clock, h), amplitude[p], frequency[p], phase[p]) - v[i]
 
 
+@wp.func
+def keyed_point_velocity(t: float, key_times: wp.array(dtype=float), keys: wp.array2d(dtype=wp.vec3),
+                         j: int) -> wp.vec3:
+    """The velocity of point ``j`` of a keyed point set at ``t``: between the two keys around it, zero before
+    the first key and after the last."""
+    last = key_times.shape[0] - 1
+    k = key_segment(t, key_times, 0, last)
+    if k == last or t <= key_times[0]:
+        return wp.vec3(0.0)
+    return (keys[k + 1, j] - keys[k, j]) / (key_times[k + 1] - key_times[k])
+
+
+@wp.func
+def keyed_point(t: float, key_times: wp.array(dtype=float), keys: wp.array2d(dtype=wp.vec3), j: int) -> wp.vec3:
+    """Point ``j`` of a keyed point set at ``t``: linearly between the two keys around it, held at the first
+    before it and at the last after it."""
+    k = key_segment(t, key_times, 0, key_times.shape[0] - 1)
+    return keys[k, j] + wp.max(t - key_times[k], 0.0) * keyed_point_velocity(t, key_times, keys, j)
+
+
 @wp.kernel
 def place_keyed_points(clock: wp.array(dtype=int), h: float, key_times: wp.array(dtype=float),
                        keys: wp.array2d(dtype=wp.vec3), points: wp.array(dtype=wp.vec3),
                        velocities: wp.array(dtype=wp.vec3)):
-    """An animated mesh's vertex where its keys put it at the end of the substep, linearly between the two
-    keys around that time, with the velocity between them; before the first key and after the last it
-    holds still there."""
+    """An animated mesh's vertex where its keys put it at the end of the substep, with its velocity."""
     j = wp.tid()
     t = clock_time(clock, h)
-    last = key_times.shape[0] - 1
-    if t <= key_times[0]:
-        points[j] = keys[0, j]
-        velocities[j] = wp.vec3(0.0)
-        return
-    if t >= key_times[last]:
-        points[j] = keys[last, j]
-        velocities[j] = wp.vec3(0.0)
-        return
-    k = int(0)
-    while key_times[k + 1] < t:
-        k += 1
-    span = key_times[k + 1] - key_times[k]
-    step = keys[k + 1, j] - keys[k, j]
-    points[j] = keys[k, j] + ((t - key_times[k]) / span) * step
-    velocities[j] = step / span
+    points[j] = keyed_point(t, key_times, keys, j)
+    velocities[j] = keyed_point_velocity(t, key_times, keys, j)
+
+
+@wp.kernel
+def place_keyed_particles(clock: wp.array(dtype=int), h: float, key_times: wp.array(dtype=float),
+                          keys: wp.array2d(dtype=wp.vec3), index: wp.array(dtype=int), x: wp.array(dtype=wp.vec3),
+                          v: wp.array(dtype=wp.vec3)):
+    """Keyed pinned particles where their keys put them at the end of the substep, with their velocity."""
+    j = wp.tid()
+    t = clock_time(clock, h)
+    x[index[j]] = keyed_point(t, key_times, keys, j)
+    v[index[j]] = keyed_point_velocity(t, key_times, keys, j)
 
 
 @wp.func

@@ -268,3 +268,88 @@ def test_an_animation_too_long_for_memory_is_refused_before_it_is_sampled(tmp_pa
     assert "collider[0].mesh: expected an animation that fits in memory: 8 points at 25 time codes need about" in err
     assert "shot.usda at /World/Mover/Box" in err
     assert not (tmp_path / "out").exists()
+
+
+def pinned_positions_each_frame(scene: wc.Scene, frames: int) -> tuple[np.ndarray, list[np.ndarray]]:
+    sim = wc.Simulator(scene, device="cpu")
+    index = sim.model.pin_animations[0].index
+    start = sim.positions()[index].astype(np.float64)
+    seen = []
+    for _ in range(frames):
+        sim.step()
+        seen.append(sim.positions()[index].astype(np.float64))
+    return start, seen
+
+
+def test_keyed_pins_carry_their_particles_turned_about_their_centre():
+    keys = (wc.TransformKey(time=0.0), wc.TransformKey(time=1.0, translate=(1.0, 0.5, 0.0), rotate=(0.0, 90.0, 0.0)))
+    cloth = wc.Cloth(resolution=(6, 6), size=(1.2, 1.2), orientation="vertical", density=0.2,
+                     limit=wc.Limit(0.1, 0.1), structural=wc.SpringKind(15.0, 0.02),
+                     shear=wc.SpringKind(15.0, 0.02), pins=(wc.Pin(edges=("top",), keys=keys),))
+    scene = wc.Scene(cloths=(cloth,), simulation=wc.Simulation(fps=24, frames=30, integrator="symplectic",
+                                                               limit_solve="converged"))
+    start, seen = pinned_positions_each_frame(scene, 30)
+    centre = start.mean(axis=0)
+    for frame, placed in enumerate(seen, start=1):
+        share = min(frame / 24.0, 1.0)
+        a = math.radians(90.0 * share)
+        turn = np.array([[math.cos(a), 0.0, math.sin(a)], [0.0, 1.0, 0.0], [-math.sin(a), 0.0, math.cos(a)]])
+        expected = (start - centre) @ turn.T + centre + share * np.array([1.0, 0.5, 0.0])
+        np.testing.assert_allclose(placed, expected, atol=1e-5, err_msg=f"frame {frame}")
+
+
+def rig_shot(path: Path) -> Path:
+    """A Z-up stage in centimetres: a 1 m quad strip hanging from its top edge (the subset "grip"), and a
+    rig's hand keyed to move 50 cm along +X and turn 90 degrees about +Z (up) in 1 s."""
+    stage = Usd.Stage.CreateNew(str(path))
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
+    UsdGeom.SetStageMetersPerUnit(stage, 0.01)
+    stage.SetTimeCodesPerSecond(24.0)
+    sheet = UsdGeom.Mesh.Define(stage, "/World/Sheet")
+    sheet.CreatePointsAttr([(x, 0.0, z) for z in (100.0, 150.0, 200.0) for x in (0.0, 50.0, 100.0)])
+    sheet.CreateFaceVertexCountsAttr([4] * 4)
+    sheet.CreateFaceVertexIndicesAttr([0, 1, 4, 3, 1, 2, 5, 4, 3, 4, 7, 6, 4, 5, 8, 7])
+    UsdGeom.Subset.CreateGeomSubset(sheet, "grip", UsdGeom.Tokens.point, [6, 7, 8])
+    hand = UsdGeom.Xform.Define(stage, "/World/Rig/Hand")
+    hand.AddTranslateOp().Set((0.0, 0.0, 200.0))
+    move, turn = hand.AddTranslateOp(opSuffix="move"), hand.AddRotateZOp()
+    move.Set((0.0, 0.0, 0.0), 0.0)
+    move.Set((50.0, 0.0, 0.0), 24.0)
+    turn.Set(0.0, 0.0)
+    turn.Set(90.0, 24.0)
+    stage.Save()
+    return path
+
+
+def test_pins_on_a_usd_transform_follow_it_in_the_simulations_units_and_axes(tmp_path):
+    shot = rig_shot(tmp_path / "rig.usda")
+    cloth = wc.Cloth.from_mesh(shot, prim="/World/Sheet", density=0.2, limit=wc.Limit(0.1, 0.1),
+                               structural=wc.SpringKind(15.0, 0.02), shear=wc.SpringKind(15.0, 0.02),
+                               pins=(wc.Pin(group="grip", target="/World/Rig/Hand"),))
+    scene = wc.Scene(cloths=(cloth,), simulation=wc.Simulation(fps=24, frames=24, integrator="symplectic",
+                                                               limit_solve="converged"))
+    start, seen = pinned_positions_each_frame(scene, 24)
+    stage = Usd.Stage.Open(str(shot))
+    hand = UsdGeom.Xformable(stage.GetPrimAtPath("/World/Rig/Hand"))
+    grip_cm = np.array([(x, 0.0, 200.0) for x in (0.0, 50.0, 100.0)])
+    at_start = np.linalg.inv(np.asarray(hand.ComputeLocalToWorldTransform(0.0)))
+    for frame in (6, 12, 24):
+        moved = np.c_[grip_cm, np.ones(3)] @ at_start @ np.asarray(hand.ComputeLocalToWorldTransform(frame))
+        expected = np.stack([moved[:, 0], moved[:, 2], -moved[:, 1]], axis=1) * 0.01  # Z-up cm as Y-up metres
+        np.testing.assert_allclose(seen[frame - 1], expected, atol=1e-5, err_msg=f"frame {frame}")
+    np.testing.assert_allclose(seen[23][0], [0.5, 2.0, 0.0], atol=1e-5)  # the hand's own point, moved 0.5 m
+
+
+@pytest.mark.parametrize("cloth, target, expected", [
+    ("[[cloth]]", "/World/Rig/Hand", "cloth[0].pins[0].target: expected the name of a [[collider]] (a prim path is "
+                                     "for a cloth from a USD file)"),
+    ('[[cloth]]\nmesh = { file = "rig.usda", prim = "/World/Sheet" }', "/World/Nothing",
+     "cloth[0].pins[0].target: expected the path of a transformable prim"),
+])
+def test_a_bad_transform_target_is_refused_in_one_line(tmp_path, cloth, target, expected):
+    rig_shot(tmp_path / "rig.usda")
+    pin = '[[cloth.pins]]\nindices = [0]\n' + f'target = "{target}"\n'
+    (tmp_path / "scene.toml").write_text(f"{cloth}\n{pin}")
+    code, _, err = run_cli_in_process("run", "scene.toml", "--out", "out", cwd=tmp_path)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and expected in err, err
+    assert not (tmp_path / "out").exists()

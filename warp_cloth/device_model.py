@@ -45,6 +45,14 @@ class PinTarget:
 
 
 @dataclass(frozen=True)
+class KeyedPins:
+    """Pinned particles carried along sampled positions (see ``model.PinAnimation``)."""
+    index: wp.array
+    key_times: wp.array
+    keys: wp.array  # (k, m) vec3
+
+
+@dataclass(frozen=True)
 class PinMotion:
     """Pinned particles and their oscillations (zero amplitude for fixed pins)."""
     index: wp.array
@@ -140,6 +148,8 @@ class DeviceModel:
             upload(model.pins.amplitude, wp.vec3, device), upload(model.pins.frequency, float, device),
             upload(model.pins.phase, float, device), model.pins.moving)
         self.pin_targets: tuple[PinTarget, ...] = ()
+        self.keyed_pins = tuple(KeyedPins(upload(a.index, int, device), upload(a.key_times, float, device),
+                                          upload(a.key_points, wp.vec3, device)) for a in model.pin_animations)
         spheres = model.spheres
         self.sphere_count = 0 if spheres is None else len(spheres.center)
         self.sphere_start = None if spheres is None else spheres.initial_center  # host: the state starts there

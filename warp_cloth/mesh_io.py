@@ -245,7 +245,7 @@ def _read_usd(path: Path, prim_path: str | None, where: str) -> SurfaceMesh:
     if z_up:
         notes.append(f"{where}: Z-up stage turned Y-up (the simulation's gravity is -Y)")
     key_times, key_points = None, None
-    codes = _animation_codes(prim, mesh)
+    codes = _animation_codes(prim, set(mesh.GetPointsAttr().GetTimeSamples()))
     if codes:
         need = len(codes) * len(local) * SAMPLED_VERTEX_BYTES
         free = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
@@ -294,14 +294,15 @@ def _usd_groups(mesh, counts: np.ndarray, indices: np.ndarray, n: int, time) -> 
     return groups
 
 
-def _animation_codes(prim, mesh) -> list[float]:
-    """The time codes to sample an animated mesh at: those at which its points or a transform above it
-    are keyed, and every whole one between (USD interpolates a keyed rotation's angle, while the
-    simulation interpolates points linearly between samples: between keys a quarter turn apart, points
-    would cut the corner by 30%, between frames by 0.06%). None for a static mesh."""
+def _animation_codes(prim, codes: set[float]) -> list[float]:
+    """The time codes to sample an animated prim at: ``codes`` (its points' keys, for a mesh) and those at
+    which a transform of it or above it is keyed, and every whole one between (USD interpolates a keyed
+    rotation's angle, while the simulation interpolates points linearly between samples: between keys a
+    quarter turn apart, points would cut the corner by 30%, between frames by 0.06%). None for a static
+    prim."""
     from pxr import UsdGeom
 
-    codes = set(mesh.GetPointsAttr().GetTimeSamples())
+    codes = set(codes)
     node = prim
     while node and not node.IsPseudoRoot():
         xformable = UsdGeom.Xformable(node)
@@ -317,6 +318,37 @@ def _animation_codes(prim, mesh) -> list[float]:
 
 
 Z_UP_TO_Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])  # (x, y, z) -> (x, z, -y)
+
+
+def load_transform_motion(file: str | Path, prim_path: str) -> tuple[np.ndarray, np.ndarray] | None:
+    """How a USD prim's world transform moves what starts with it: (times in seconds, (k, 4, 4) matrices
+    in USD's row-vector convention taking a point of the simulation's world at time 0 to where the
+    transform carries it then), sampled as an animated mesh is; None for a prim that does not move."""
+    from pxr import Usd, UsdGeom
+
+    where = f"{file} at {prim_path}"
+    try:
+        stage = Usd.Stage.Open(str(file))
+    except Exception as exc:  # pxr raises its own Tf.ErrorException for unreadable layers
+        raise SceneError("target", f"a USD file that opens ({str(exc).strip().splitlines()[-1]})", has_got=False,
+                         source=where) from None
+    prim = stage.GetPrimAtPath(prim_path)
+    if not prim or not prim.IsA(UsdGeom.Xformable):
+        raise SceneError("target", "the path of a transformable prim (an Xform, a mesh) in the cloth's USD file",
+                         prim_path, source=str(file))
+    codes = _animation_codes(prim, set())
+    if not codes:
+        return None
+    to_simulation = np.eye(4)
+    to_simulation[:3, :3] = UsdGeom.GetStageMetersPerUnit(stage) * (
+        Z_UP_TO_Y_UP.T if UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z else np.eye(3))
+
+    def world(code) -> np.ndarray:
+        return np.asarray(UsdGeom.XformCache(code).GetLocalToWorldTransform(prim), dtype=np.float64)
+
+    start = np.linalg.inv(to_simulation) @ np.linalg.inv(world(Usd.TimeCode(0.0)))
+    matrices = np.stack([start @ world(Usd.TimeCode(code)) @ to_simulation for code in codes])
+    return np.asarray(codes, dtype=np.float64) / stage.GetTimeCodesPerSecond(), matrices
 
 
 def _usd_uvs(mesh, counts: np.ndarray, indices: np.ndarray, time) -> np.ndarray | None:

@@ -63,6 +63,14 @@ class Pins:
 
 
 @dataclass(frozen=True)
+class PinAnimation:
+    """Pinned particles carried along sampled positions: their keys or a USD prim's transform."""
+    index: np.ndarray  # (m,) int32 particle
+    key_times: np.ndarray  # (k,) seconds
+    key_points: np.ndarray  # (k, m, 3) float32 where they are then
+
+
+@dataclass(frozen=True)
 class StrainLimits:
     """Limited (structural and shear) springs as incidence lists with allowed length ranges, and each
     particle's long-range attachment: the nearest pin of its cloth (-1: none) and how far from it the
@@ -150,6 +158,7 @@ class Model:
     hierarchy: Hierarchy | None = None  # coarser levels of the strain limits, for the multilevel solve
     mesh_colliders: MeshColliders | None = None
     wind_faces: WindFaces | None = None
+    pin_animations: tuple[PinAnimation, ...] = ()
 
     @property
     def particle_count(self) -> int:
@@ -179,13 +188,17 @@ def build_model(scene: Scene) -> Model:
         omega = 2.0 * np.pi * pins.frequency[:, None]
         positions[pins.index] = pins.anchor + pins.amplitude * np.sin(pins.phase)[:, None]
         velocities[pins.index] = pins.amplitude * omega * np.cos(pins.phase)[:, None]
+    pin_animations = _pin_animations(scene, meshes, offsets, selections)
+    for animation in pin_animations:  # they start where their first sample has them
+        positions[animation.index] = animation.key_points[0]
     springs = _springs(scene, meshes, offsets, n)
     limits = _limits(springs, n, _attachments(scene, offsets, selections), _long_range(scene, meshes, offsets))
     edges, edge_rest = _edges(meshes, offsets)
     hierarchy = _hierarchy(springs, masses, inv_mass, scene, offsets) if scene.simulation.limit_multilevel else None
     return Model(meshes, tuple(offsets), positions, velocities, masses, inv_mass, cloth_id, springs, limits,
                  pins, _spheres(scene), _contacts(scene, meshes), edges, edge_rest, hierarchy,
-                 _mesh_colliders(scene), _wind_faces(meshes, offsets) if scene.wind is not None else None)
+                 _mesh_colliders(scene), _wind_faces(meshes, offsets) if scene.wind is not None else None,
+                 pin_animations)
 
 
 def _hierarchy(springs: Springs | None, masses: np.ndarray, inv_mass: np.ndarray, scene: Scene,
@@ -407,6 +420,29 @@ def _pins(scene: Scene, meshes, offsets, selections: list[list[np.ndarray]]) -> 
     return Pins(idx, positions[idx].astype(np.float32), amplitude_all,
                 np.concatenate(frequency).astype(np.float32), np.concatenate(phase).astype(np.float32),
                 moving=bool(np.any(amplitude_all != 0.0)), target=np.concatenate(target))
+
+
+def _pin_animations(scene: Scene, meshes, offsets, selections: list[list[np.ndarray]]) -> tuple[PinAnimation, ...]:
+    """Pins carried along keys (turned about their particles' centre) or by a USD prim's transform."""
+    animations = []
+    for c, (cloth, chosen_per_pin) in enumerate(zip(scene.cloths, selections)):
+        for pin, chosen in zip(cloth.pins, chosen_per_pin):
+            start = meshes[c].positions[chosen]
+            if pin.keys:
+                centre = start.mean(axis=0)
+                times, placed = keyed_points(start - centre, pin.keys, scene.simulation.fps)
+                placed = placed + centre
+            elif pin.target is not None and pin.target.startswith("/"):
+                motion = cloth.target_motion(pin)
+                if motion is None:
+                    continue  # a prim that does not move: fixed pins
+                times, matrices = motion
+                placed = np.einsum("pi,kij->kpj", start, matrices[:, :3, :3]) + matrices[:, None, 3, :3]
+            else:
+                continue
+            animations.append(PinAnimation((chosen + offsets[c]).astype(np.int32), times,
+                                           placed.astype(np.float32)))
+    return tuple(animations)
 
 
 def _spheres(scene: Scene) -> Spheres | None:

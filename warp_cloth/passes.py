@@ -193,6 +193,22 @@ class FollowTargets:
                    inputs=[t.mesh.id, t.index, t.face, t.bary, t.offset], outputs=[state.x, state.v])
 
 
+class FollowKeys:
+    """Puts pinned particles carried along keys (or a USD prim's transform) where they are at the end of
+    the substep, with their velocity."""
+
+    name = "pins:follow keys"
+
+    def __init__(self, model: DeviceModel) -> None:
+        self.model = model
+
+    def run(self, state: DeviceState) -> None:
+        for pins in self.model.keyed_pins:
+            launch(motion.place_keyed_particles, pins.index.shape[0], state,
+                   inputs=[state.clock, self.model.h, pins.key_times, pins.keys, pins.index],
+                   outputs=[state.x, state.v])
+
+
 class MoveSpheres:
     """Puts moving spheres where their motion has them at the end of the substep, with its velocity."""
 

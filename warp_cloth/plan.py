@@ -13,8 +13,8 @@ from .device_model import DeviceModel
 from .implicit import BackwardEuler
 from .limit_solve import ConvergedProjection
 from .neighbour_lists import LIST_THREADS_BY_SIZE, NeighbourLists
-from .passes import (AdvanceClock, Collide, ContactStart, DrivePins, FollowTargets, MoveMeshColliders, MoveSpheres,
-                     Pass, WindForces, contact_start_args, contact_velocities, explicit_step,
+from .passes import (AdvanceClock, Collide, ContactStart, DrivePins, FollowKeys, FollowTargets, MoveMeshColliders,
+                     MoveSpheres, Pass, WindForces, contact_start_args, contact_velocities, explicit_step,
                      limit_and_separation_pass, limit_pass, separation_pass)
 from .scene import ImplicitSolver
 from .state import DeviceState
@@ -69,7 +69,7 @@ def build_plan(model: DeviceModel, state: DeviceState, implicit_settings: Implic
     chosen = threads_per_particle(model.particle_count, model.device) if threads is None else threads
     rigid = model.colliders(state.sphere_center, state.sphere_velocity) if model.has_colliders else None
     oscillating_pins = model.pins is not None and model.pins.moving
-    driven_pins = oscillating_pins or bool(model.pin_targets)
+    driven_pins = oscillating_pins or bool(model.pin_targets) or bool(model.keyed_pins)
     converged = model.limit_solve == "converged"
     passes: list[Pass] = []
     if model.sphere_motion is not None:
@@ -94,6 +94,8 @@ def build_plan(model: DeviceModel, state: DeviceState, implicit_settings: Implic
         passes.append(DrivePins(model))
     if model.pin_targets:
         passes.append(FollowTargets(model))
+    if model.keyed_pins:
+        passes.append(FollowKeys(model))
     if start is not None:
         if not start_in_step:
             passes.append(ContactStart(start))

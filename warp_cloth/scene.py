@@ -169,9 +169,12 @@ class Box:
 
 @dataclass(frozen=True)
 class Pin:
-    """Particles held in place, driven by an oscillation about their initial position, or carried by a
-    ``target``: the named mesh collider, each pinned particle held where it started relative to the
-    collider's nearest face (a cape pinned to a moving character).
+    """Particles held in place, driven by an oscillation about their initial position, carried along
+    ``keys`` (``[[cloth.pins.keys]]``: turned by ``rotate`` about where the pinned particles' centre
+    starts, then moved by ``translate``, interpolated linearly between keys), or carried by a ``target``:
+    the named mesh collider, each pinned particle held where it started relative to the collider's nearest
+    face (a cape pinned to a moving character); or, for a cloth from a USD file, the path of a prim of that
+    file (``"/World/Rig/Hand"``), whose world transform's motion carries the pinned particles.
 
     Selected by index (on a grid ``x + (nx + 1) y``), named corners and edges of the grid (left/right is
     the first grid direction, bottom/top the second), a world-space box around the initial pose, or the
@@ -186,6 +189,7 @@ class Pin:
     group: str | None = None
     motion: Oscillation | None = None
     target: str | None = None
+    keys: tuple[TransformKey, ...] = ()
 
     def __post_init__(self) -> None:
         check_fields(self)
@@ -195,6 +199,9 @@ class Pin:
                  "at least one of indices, corners, edges, region, group", "none")
         _require(self.motion is None or self.target is None, "target", "either a motion or a target, not both",
                  self.target)
+        _require(not (self.keys and (self.motion is not None or self.target is not None)), "keys",
+                 "keys, a motion or a target, only one of them", has_got=False)
+        _check_key_times(self.keys)
 
 
 @dataclass(frozen=True)
@@ -335,6 +342,21 @@ class Cloth:
         """A mesh cloth's checked mesh (``mesh_io.SurfaceMesh``, read once per file version); its errors
         name this cloth's ``mesh`` key."""
         return _surface_of(self.mesh)
+
+    def usd_file(self) -> str | None:
+        """The USD file the cloth's mesh comes from (None: a grid, an OBJ)."""
+        from .mesh_io import USD_SUFFIXES
+
+        if self.mesh is None or not self.mesh.file.lower().endswith(USD_SUFFIXES):
+            return None
+        return self.mesh.file
+
+    def target_motion(self, pin: "Pin"):
+        """For a pin whose target is a prim path: ``mesh_io.load_transform_motion`` of that prim in the
+        cloth's USD file (None where it does not move)."""
+        from .mesh_io import load_transform_motion
+
+        return load_transform_motion(self.usd_file(), pin.target)
 
     def shortest_edge(self) -> float:
         """The shortest rest length of an edge (a grid's shorter cell side)."""
@@ -771,9 +793,18 @@ class Scene:
         colliders = [c.name for c in self.colliders]
         for c, cloth in enumerate(self.cloths):
             for p, pin in enumerate(cloth.pins):
-                _require(pin.target is None or pin.target in colliders, f"cloth[{c}].pins[{p}].target",
-                         "the name of a [[collider]] (" + (", ".join(colliders) or "the scene has none") + ")",
-                         pin.target)
+                key = f"cloth[{c}].pins[{p}].target"
+                if pin.target is not None and pin.target.startswith("/"):
+                    _require(cloth.usd_file() is not None, key, "the name of a [[collider]] (a prim path is for "
+                             "a cloth from a USD file)", pin.target)
+                    try:
+                        cloth.target_motion(pin)
+                    except SceneError as exc:
+                        raise SceneError(key, exc.expected, exc.got, exc.source, exc.has_got) from None
+                    continue
+                _require(pin.target is None or pin.target in colliders, key,
+                         "the name of a [[collider]] (" + (", ".join(colliders) or "the scene has none") + ")"
+                         + ", or for a cloth from a USD file a prim's path", pin.target)
 
     def _check_motion_in_bounds(self) -> None:
         """Start-up speeds and forces that the device holds in float32 and the blow-up guard accepts."""
