@@ -270,8 +270,8 @@ def test_an_animation_too_long_for_memory_is_refused_before_it_is_sampled(tmp_pa
     assert not (tmp_path / "out").exists()
 
 
-def pinned_positions_each_frame(scene: wc.Scene, frames: int) -> tuple[np.ndarray, list[np.ndarray]]:
-    sim = wc.Simulator(scene, device="cpu")
+def pinned_positions_each_frame(scene: wc.Scene, frames: int, device="cpu") -> tuple[np.ndarray, list[np.ndarray]]:
+    sim = wc.Simulator(scene, device=device)
     index = sim.model.pin_animations[0].index
     start = sim.positions()[index].astype(np.float64)
     seen = []
@@ -281,14 +281,15 @@ def pinned_positions_each_frame(scene: wc.Scene, frames: int) -> tuple[np.ndarra
     return start, seen
 
 
-def test_keyed_pins_carry_their_particles_turned_about_their_centre():
+@pytest.mark.parametrize("device", ["cpu", pytest.param("cuda", marks=pytest.mark.cuda)])
+def test_keyed_pins_carry_their_particles_turned_about_their_centre(device):
     keys = (wc.TransformKey(time=0.0), wc.TransformKey(time=1.0, translate=(1.0, 0.5, 0.0), rotate=(0.0, 90.0, 0.0)))
     cloth = wc.Cloth(resolution=(6, 6), size=(1.2, 1.2), orientation="vertical", density=0.2,
                      limit=wc.Limit(0.1, 0.1), structural=wc.SpringKind(15.0, 0.02),
                      shear=wc.SpringKind(15.0, 0.02), pins=(wc.Pin(edges=("top",), keys=keys),))
     scene = wc.Scene(cloths=(cloth,), simulation=wc.Simulation(fps=24, frames=30, integrator="symplectic",
                                                                limit_solve="converged"))
-    start, seen = pinned_positions_each_frame(scene, 30)
+    start, seen = pinned_positions_each_frame(scene, 30, device)
     centre = start.mean(axis=0)
     for frame, placed in enumerate(seen, start=1):
         share = min(frame / 24.0, 1.0)

@@ -107,9 +107,11 @@ def keyed_sphere_scene(keys: tuple[wc.TransformKey, ...]) -> wc.Scene:
                     simulation=wc.Simulation(fps=24, frames=36, integrator="symplectic", limit_solve="converged"))
 
 
-def test_keyed_sphere_follows_its_keys_and_carries_the_cloth():
+@pytest.mark.parametrize("device", ["cpu", pytest.param("cuda", marks=pytest.mark.cuda)])
+def test_keyed_sphere_follows_its_keys_and_carries_the_cloth(device):
     keys = (wc.TransformKey(time=0.1), wc.TransformKey(time=0.9, translate=(0.0, 0.4, 0.0)))
-    moved, still = wc.Simulator(keyed_sphere_scene(keys)), wc.Simulator(keyed_sphere_scene(()))
+    moved = wc.Simulator(keyed_sphere_scene(keys), device=device)
+    still = wc.Simulator(keyed_sphere_scene(()), device=device)
     for frame in range(1, 37):
         moved.step()
         still.step()

@@ -69,13 +69,14 @@ def test_gusts_are_the_same_on_every_run_and_vary_over_the_sheet():
     assert np.ptp(runs[0][:, 2]) > 10 * np.ptp(calm.positions()[:, 2])  # the noise bends the sheet
 
 
-def test_keyed_wind_rising_then_held_blows_the_sheet_as_the_drag_law_integrates():
+@pytest.mark.parametrize("device", ["cpu", pytest.param("cuda", marks=pytest.mark.cuda)])
+def test_keyed_wind_rising_then_held_blows_the_sheet_as_the_drag_law_integrates(device):
     """Wind keyed from still at 0.25 s to SPEED at 0.75 s, then held: the sheet's speed over 1.5 s follows
     dv/dt = k (u(t) - v) |u(t) - v|, integrated here by RK4."""
     keys = (wc.WindKey(0.25, (0.0, 0.0, 0.0)), wc.WindKey(0.75, (0.0, 0.0, SPEED)))
     scene = sheet_in_wind()
     scene = dataclasses.replace(scene, wind=dataclasses.replace(scene.wind, velocity=(0.0, 0.0, 0.0), keys=keys))
-    sim = wc.Simulator(scene, device="cpu")
+    sim = wc.Simulator(scene, device=device)
     k = AIR * DRAG / (2.0 * DENSITY)
 
     def dv_dt(t: float, v: float) -> float:
