@@ -76,8 +76,9 @@ def write_obj(path: str, title: str, points, faces, uv_radius: float | None = No
         out.writelines("f " + " ".join(f"{i + 1}/{i + 1}" for i in face) + "\n" for face in faces)
 
 
-def write_turntable(path: str) -> None:
-    from pxr import Gf, Usd, UsdGeom
+def new_shot(path: str, documentation: str):
+    """A USD stage of 96 frames at 24 fps, Y-up, in metres, with /World its default prim."""
+    from pxr import Usd, UsdGeom
 
     stage = Usd.Stage.CreateNew(path)
     UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
@@ -85,17 +86,30 @@ def write_turntable(path: str) -> None:
     stage.SetTimeCodesPerSecond(24.0)
     stage.SetStartTimeCode(0)
     stage.SetEndTimeCode(96)
-    stage.GetRootLayer().documentation = "A turntable that turns once in 4 s (tools/make_scene_meshes.py)"
+    stage.GetRootLayer().documentation = f"{documentation} (tools/make_scene_meshes.py)"
     world = UsdGeom.Xform.Define(stage, "/World")
     stage.SetDefaultPrim(world.GetPrim())
-    turn = UsdGeom.Xform.Define(stage, "/World/Turntable").AddRotateYOp()
-    turn.Set(0.0, 0)
-    turn.Set(360.0, 96)
-    points, faces = table(0.8, 0.6, 48)
-    mesh = UsdGeom.Mesh.Define(stage, "/World/Turntable/Top")
+    return stage
+
+
+def define_mesh(stage, path: str, points, faces):
+    from pxr import Gf, UsdGeom
+
+    mesh = UsdGeom.Mesh.Define(stage, path)
     mesh.CreatePointsAttr([Gf.Vec3f(*p) for p in points])
     mesh.CreateFaceVertexCountsAttr([len(f) for f in faces])
     mesh.CreateFaceVertexIndicesAttr([i for f in faces for i in f])
+    return mesh
+
+
+def write_turntable(path: str) -> None:
+    from pxr import UsdGeom
+
+    stage = new_shot(path, "A turntable that turns once in 4 s")
+    turn = UsdGeom.Xform.Define(stage, "/World/Turntable").AddRotateYOp()
+    turn.Set(0.0, 0)
+    turn.Set(360.0, 96)
+    define_mesh(stage, "/World/Turntable/Top", *table(0.8, 0.6, 48))
     stage.GetRootLayer().Save()
 
 
@@ -118,28 +132,16 @@ def elliptic_body(half_width: float, half_depth: float, bottom: float, top: floa
 
 
 def write_cape(path: str) -> None:
-    from pxr import Gf, Sdf, Usd, UsdGeom, Vt
+    from pxr import Gf, Sdf, UsdGeom, Vt
 
-    stage = Usd.Stage.CreateNew(path)
-    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
-    UsdGeom.SetStageMetersPerUnit(stage, 1.0)
-    stage.SetTimeCodesPerSecond(24.0)
-    stage.SetStartTimeCode(0)
-    stage.SetEndTimeCode(96)
-    stage.GetRootLayer().documentation = "A cape on a character that walks, then turns (tools/make_scene_meshes.py)"
-    world = UsdGeom.Xform.Define(stage, "/World")
-    stage.SetDefaultPrim(world.GetPrim())
+    stage = new_shot(path, "A cape on a character that walks, then turns")
     character = UsdGeom.Xform.Define(stage, "/World/Character")
     walk, turn = character.AddTranslateOp(), character.AddRotateYOp()
     for frame, z in ((0, 0.0), (12, -0.2), (36, -1.4), (48, -1.6)):  # speeding up, walking, slowing down
         walk.Set(Gf.Vec3d(0.0, 0.0, z), frame)
     for frame, angle in ((0, 0.0), (48, 0.0), (60, 15.0), (84, 75.0), (96, 90.0)):
         turn.Set(angle, frame)
-    points, faces = elliptic_body(0.2, 0.12, 0.9, 1.5, 32, 6)
-    body = UsdGeom.Mesh.Define(stage, "/World/Character/Body")
-    body.CreatePointsAttr([Gf.Vec3f(*p) for p in points])
-    body.CreateFaceVertexCountsAttr([len(f) for f in faces])
-    body.CreateFaceVertexIndicesAttr([i for f in faces for i in f])
+    define_mesh(stage, "/World/Character/Body", *elliptic_body(0.2, 0.12, 0.9, 1.5, 32, 6))
     columns, rows = 20, 30
     width, length, top, back = 0.56, 0.9, 1.48, 0.15
     cape = UsdGeom.Mesh.Define(stage, "/World/Cape")
