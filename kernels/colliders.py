@@ -7,7 +7,7 @@ removed, and friction takes tangential speed relative to the collider in proport
 taken away (Coulomb), so a cloth sliding on the ground decelerates at mu g.
 
 All of a scene's colliders travel in one ``RigidColliders`` and act through ``collide_particle``, which
-runs each kind in turn on one particle alone, so that the passes that move particles can end with them
+runs each kind of the particle's world (see warp_cloth/model.py's ``Worlds``) in turn on one particle alone, so that the passes that move particles can end with them
 instead of launching another kernel. A new collider kind is its fields here (filled in by
 warp_cloth/device_model.py, or the state where it moves), one ``collide_<kind>`` function of the form
 below, and its line in ``collide_particle``.
@@ -25,9 +25,12 @@ wp.set_module_options({"fast_math": True})  # as the gathering kernels (see gath
 
 @wp.struct
 class RigidColliders:
-    ground: int  # 1 when the scene has a ground plane
-    ground_height: float
-    ground_friction: float
+    world: wp.array(dtype=int)  # (n,) each particle's world
+    ground: wp.array(dtype=int)  # (worlds,) 1 where the world has a ground plane
+    ground_height: wp.array(dtype=float)
+    ground_friction: wp.array(dtype=float)
+    sphere_start: wp.array(dtype=int)  # (worlds + 1,) world w's spheres are sphere_start[w] to [w + 1] - 1
+    mesh_start: wp.array(dtype=int)  # (worlds + 1,) likewise its meshes
     center: wp.array(dtype=wp.vec3)  # spheres (none: empty arrays); centres and velocities are state
     velocity: wp.array(dtype=wp.vec3)
     radius: wp.array(dtype=float)
@@ -57,19 +60,20 @@ def contact_velocity(v: wp.vec3, collider_velocity: wp.vec3, normal: wp.vec3, pu
 
 
 @wp.func
-def collide_ground(p: wp.vec3, vel: wp.vec3, hit: int, colliders: RigidColliders, h: float):
-    if colliders.ground != 0 and p[1] < colliders.ground_height:
-        depth = colliders.ground_height - p[1]
-        p = wp.vec3(p[0], colliders.ground_height, p[2])
+def collide_ground(w: int, p: wp.vec3, vel: wp.vec3, hit: int, colliders: RigidColliders, h: float):
+    height = colliders.ground_height[w]
+    if colliders.ground[w] != 0 and p[1] < height:
+        depth = height - p[1]
+        p = wp.vec3(p[0], height, p[2])
         up = wp.vec3(0.0, 1.0, 0.0)
-        vel = contact_velocity(vel + up * (depth / h), wp.vec3(0.0), up, depth / h, colliders.ground_friction)
+        vel = contact_velocity(vel + up * (depth / h), wp.vec3(0.0), up, depth / h, colliders.ground_friction[w])
         hit = 1
     return p, vel, hit
 
 
 @wp.func
-def collide_spheres(p: wp.vec3, vel: wp.vec3, hit: int, colliders: RigidColliders, h: float):
-    for s in range(colliders.center.shape[0]):
+def collide_spheres(w: int, p: wp.vec3, vel: wp.vec3, hit: int, colliders: RigidColliders, h: float):
+    for s in range(colliders.sphere_start[w], colliders.sphere_start[w + 1]):
         d = p - colliders.center[s]
         dist = wp.length(d)
         if dist < colliders.radius[s]:
@@ -87,12 +91,12 @@ def collide_spheres(p: wp.vec3, vel: wp.vec3, hit: int, colliders: RigidCollider
 
 
 @wp.func
-def collide_meshes(p: wp.vec3, vel: wp.vec3, hit: int, colliders: RigidColliders, h: float):
+def collide_meshes(w: int, p: wp.vec3, vel: wp.vec3, hit: int, colliders: RigidColliders, h: float):
     """Each mesh keeps the particle ``thickness`` off the side its nearest face faces: a particle closer,
     or behind that face (inside a closed mesh), is put at that distance along the direction from the
     nearest surface point (a face's normal, or out from an edge or corner); friction acts against the
     speed relative to the surface there (its vertices' velocities, zero for a static mesh)."""
-    for m in range(colliders.meshes.shape[0]):
+    for m in range(colliders.mesh_start[w], colliders.mesh_start[w + 1]):
         mesh = colliders.meshes[m]
         thickness = colliders.mesh_thickness[m]
         query = wp.mesh_query_point_sign_normal(mesh, p, thickness + colliders.mesh_reach)
@@ -114,13 +118,16 @@ def collide_meshes(p: wp.vec3, vel: wp.vec3, hit: int, colliders: RigidColliders
 
 
 @wp.func
-def collide_particle(p: wp.vec3, vel: wp.vec3, colliders: RigidColliders, h: float):
-    """A free particle's position and velocity after every collider kind in turn; and 1 if any of them
-    touched it."""
+def collide_particle(i: int, p: wp.vec3, vel: wp.vec3, colliders: RigidColliders, h: float):
+    """Free particle i's position and velocity after every collider kind of its world in turn; and 1 if
+    any of them touched it."""
     hit = int(0)
-    p, vel, hit = collide_ground(p, vel, hit, colliders, h)
-    p, vel, hit = collide_spheres(p, vel, hit, colliders, h)
-    p, vel, hit = collide_meshes(p, vel, hit, colliders, h)
+    if colliders.world.shape[0] == 0:  # no colliders
+        return p, vel, hit
+    w = colliders.world[i]
+    p, vel, hit = collide_ground(w, p, vel, hit, colliders, h)
+    p, vel, hit = collide_spheres(w, p, vel, hit, colliders, h)
+    p, vel, hit = collide_meshes(w, p, vel, hit, colliders, h)
     return p, vel, hit
 
 
@@ -140,7 +147,7 @@ def mark_resting(i: int, hit: int, resting: wp.array(dtype=int), read_bit: int):
 def collide_and_mark(i: int, p: wp.vec3, vel: wp.vec3, colliders: RigidColliders, h: float,
                      resting: wp.array(dtype=int), read_bit: int):
     """``collide_particle``, then ``mark_resting``."""
-    p, vel, hit = collide_particle(p, vel, colliders, h)
+    p, vel, hit = collide_particle(i, p, vel, colliders, h)
     mark_resting(i, hit, resting, read_bit)
     return p, vel
 
@@ -152,7 +159,7 @@ def collide(colliders: RigidColliders, h: float, inv_mass: wp.array(dtype=float)
     i = wp.tid()
     if inv_mass[i] == 0.0:
         return
-    p, vel, hit = collide_particle(x[i], v[i], colliders, h)
+    p, vel, hit = collide_particle(i, x[i], v[i], colliders, h)
     x[i] = p
     v[i] = vel
 

@@ -11,7 +11,8 @@ import warp as wp
 
 @wp.struct
 class ExternalForces:
-    gravity: wp.vec3  # m/s^2
+    gravity: wp.array(dtype=wp.vec3)  # (worlds,) m/s^2
+    world: wp.array(dtype=int)  # (n,) each particle's world
     drag: float  # 1/s: air drag on the particle's velocity
     wind: wp.array(dtype=wp.vec3)  # (n,) each particle's wind acceleration this substep (wind.py); empty: none
 
@@ -20,7 +21,7 @@ class ExternalForces:
 def external_acceleration(forces: ExternalForces, i: int, x: wp.vec3, v: wp.vec3) -> wp.vec3:
     """The acceleration of particle i, at x with velocity v, from the external forces (the wind's taken
     as it was at the substep's start: explicit in both integrators)."""
-    a = forces.gravity - forces.drag * v
+    a = forces.gravity[forces.world[i]] - forces.drag * v
     if forces.wind.shape[0] > 0:
         a = a + forces.wind[i]
     return a

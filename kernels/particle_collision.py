@@ -33,6 +33,7 @@ class Contacts:
 @wp.struct
 class PairRules:
     """Which pairs may collide, and how far apart candidates may be."""
+    world: wp.array(dtype=int)  # (n,) each particle's: particles of different worlds never collide
     cloth_id: wp.array(dtype=int)
     self_collision: int
     between_cloths: int
@@ -61,6 +62,8 @@ def may_collide(rules: PairRules, i: int, j: int) -> bool:
     """Whether the pair i-j is one the scene asks to collide. Rest-adjacent particles of a cloth (that share
     a face: on a grid, neighbours with diagonals) are skipped only where that cloth's strain limit cannot
     keep them apart by itself."""
+    if rules.world[i] != rules.world[j]:
+        return False
     ci = rules.cloth_id[i]
     if ci != rules.cloth_id[j]:
         return rules.between_cloths != 0

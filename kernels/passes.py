@@ -87,7 +87,7 @@ def start_contacts(start: ContactStartArgs, i: int, p: wp.vec3, vel: wp.vec3):
     hit = int(0)
     v_before = vel
     if start.inv_mass[i] != 0.0:
-        p, vel, hit = collide_particle(p, vel, start.colliders, start.h)
+        p, vel, hit = collide_particle(i, p, vel, start.colliders, start.h)
     begin_contact(i, p, v_before, hit, start.contacts, start.lists, start.v_start, start.rebuild_distance)
     return p, vel
 
@@ -294,7 +294,7 @@ def chebyshev_step_and_colliders(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=w
         return
     xi = x[i]
     xn = chebyshev_extrapolation(i, x, omega, x_start, x_before)
-    p, vel, hit = collide_particle(xn, v[i] + (xn - xi) / h, colliders, h)
+    p, vel, hit = collide_particle(i, xn, v[i] + (xn - xi) / h, colliders, h)
     x[i] = p
     v[i] = vel
 
@@ -349,7 +349,7 @@ def level_pass(first: int, offsets: wp.array(dtype=int), other: wp.array(dtype=i
             c, out = limit_correction(xi, wi, x[j], inv_mass[j], bounds[0], bounds[1])
             total = total + wp.vec4(c[0], c[1], c[2], float(out))
         xi = xi + mean_of(total)
-        xi, unused_velocity, unused_hit = collide_particle(xi, wp.vec3(0.0), colliders, h)
+        xi, unused_velocity, unused_hit = collide_particle(i, xi, wp.vec3(0.0), colliders, h)
     x_out[i] = xi
 
 
@@ -413,7 +413,7 @@ def sorted_candidates(contacts: Contacts, rules: PairRules, lists: ListState, gr
     stamp = stamp_of(lists.epoch[0])
     count = int(0)
     for k in range(27):
-        bucket = neighbour_bucket(center, k, grid.mask)
+        bucket = neighbour_bucket(center, rules.world[i], k, grid.mask)
         for s in range(wp.min(count_in(grid.bucket_size[bucket], stamp), grid.capacity)):
             count = add_candidate(contacts, rules, lists, i, grid.bucket_items[bucket * grid.capacity + s], x, count)
     contacts.counts[i] = sort_and_drop_repeats(contacts.neighbors, i * contacts.max_neighbors, count)
@@ -451,8 +451,8 @@ def gather_neighbors_kernel(threads: int) -> wp.Kernel:
                 center = cell_of(x[i], grid.inv_cell)
                 stamp = stamp_of(lists.epoch[0])
                 for k in range(slot, 27, wp.static(threads)):
-                    bucket = neighbour_bucket(center, k, grid.mask)
-                    if first_visit(center, k, bucket, grid.mask):
+                    bucket = neighbour_bucket(center, rules.world[i], k, grid.mask)
+                    if first_visit(center, rules.world[i], k, bucket, grid.mask):
                         for s in range(wp.min(count_in(grid.bucket_size[bucket], stamp), grid.capacity)):
                             j = grid.bucket_items[bucket * grid.capacity + s]
                             if is_candidate(contacts, rules, i, j, x):

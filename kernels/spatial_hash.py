@@ -5,6 +5,8 @@ runs of 8 buckets, so that the 27 cells around a point lie in at most 8 runs of 
 scattered places (a table of 4M particles' buckets outgrows a GPU's L2 cache). A query visits the 27
 cells around a point; points from other cells in a bucket are candidates like any other (callers test the
 distance), and a bucket that two of the 27 cells share is visited at the first of them (``first_visit``).
+Each world of a batch (warp_cloth/batch.py) hashes its cells apart from the others' (its number mixed into
+the hash), so that worlds simulated in one place do not crowd each other's buckets.
 
 A bucket's size is stamped with the epoch of the table it belongs to (the caller counts epochs up), so a
 new table needs no clearing: a bucket whose stamp is not the current epoch's is empty. Stamps keep the
@@ -20,27 +22,27 @@ def cell_of(p: wp.vec3, inv_width: float) -> wp.vec3i:
 
 
 @wp.func
-def bucket_of(cell: wp.vec3i, mask: int) -> int:
-    """The cell's bucket: its 2 x 2 x 2 block's run of 8 (``mask`` + 1, the table size, a power of two of
-    at least 8), then its place in the block."""
+def bucket_of(cell: wp.vec3i, world: int, mask: int) -> int:
+    """The cell's bucket in ``world``: its 2 x 2 x 2 block's run of 8 (``mask`` + 1, the table size, a power
+    of two of at least 8), then its place in the block."""
     h = (wp.uint32(cell[0] >> 1) * wp.uint32(73856093)) ^ (wp.uint32(cell[1] >> 1) * wp.uint32(19349663)) ^ (
-        wp.uint32(cell[2] >> 1) * wp.uint32(83492791))
+        wp.uint32(cell[2] >> 1) * wp.uint32(83492791)) ^ (wp.uint32(world) * wp.uint32(2654435761))
     within = (cell[0] & 1) | ((cell[1] & 1) << 1) | ((cell[2] & 1) << 2)
     return int(h & wp.uint32(mask >> 3)) * 8 + within
 
 
 @wp.func
-def neighbour_bucket(center: wp.vec3i, k: int, mask: int) -> int:
-    """The bucket of the k-th (0..26) cell of the 3x3x3 block around ``center``."""
-    return bucket_of(center + wp.vec3i(k % 3 - 1, (k / 3) % 3 - 1, k / 9 - 1), mask)
+def neighbour_bucket(center: wp.vec3i, world: int, k: int, mask: int) -> int:
+    """The bucket of the k-th (0..26) cell of the 3x3x3 block around ``center`` in ``world``."""
+    return bucket_of(center + wp.vec3i(k % 3 - 1, (k / 3) % 3 - 1, k / 9 - 1), world, mask)
 
 
 @wp.func
-def first_visit(center: wp.vec3i, k: int, bucket: int, mask: int) -> bool:
+def first_visit(center: wp.vec3i, world: int, k: int, bucket: int, mask: int) -> bool:
     """Whether no cell before the k-th of the 27 around ``center`` hashes to ``bucket`` (so that a query
     visits each bucket once)."""
     for earlier in range(k):
-        if neighbour_bucket(center, earlier, mask) == bucket:
+        if neighbour_bucket(center, world, earlier, mask) == bucket:
             return False
     return True
 
@@ -79,14 +81,14 @@ def claim_slot(bucket_size: wp.array(dtype=int), bucket: int, stamp: int, capaci
 
 
 @wp.kernel
-def insert_points(x: wp.array(dtype=wp.vec3), inv_width: float, mask: int, capacity: int, epoch: wp.array(dtype=int),
-                  rebuild: wp.array(dtype=int), bucket_size: wp.array(dtype=int), bucket_items: wp.array(dtype=int),
-                  overflow: wp.array(dtype=int)):
+def insert_points(x: wp.array(dtype=wp.vec3), world: wp.array(dtype=int), inv_width: float, mask: int, capacity: int,
+                  epoch: wp.array(dtype=int), rebuild: wp.array(dtype=int), bucket_size: wp.array(dtype=int),
+                  bucket_items: wp.array(dtype=int), overflow: wp.array(dtype=int)):
     """Fills the table of the current epoch, where ``rebuild`` is set (else does nothing)."""
     if rebuild[0] == 0:
         return
     i = wp.tid()
-    bucket = bucket_of(cell_of(x[i], inv_width), mask)
+    bucket = bucket_of(cell_of(x[i], inv_width), world[i], mask)
     slot = claim_slot(bucket_size, bucket, stamp_of(epoch[0]), capacity)
     if slot >= 0:
         bucket_items[bucket * capacity + slot] = i

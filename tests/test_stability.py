@@ -130,13 +130,14 @@ def test_guard_flags_the_last_substep_of_a_long_frame_in_its_own_slot(device):
 
 
 def test_guard_never_writes_past_its_flags():
-    flags = wp.zeros(4, dtype=int, device="cpu")
-    status = flags[:3]  # a frame of three substeps, with an element after it that must stay untouched
+    flags = wp.zeros((4, 1), dtype=int, device="cpu")
+    status = flags[:3]  # a frame of three substeps, with a row after it that must stay untouched
     x = wp.array([[0.0, 0.0, 0.0]], dtype=wp.vec3, device="cpu")
     v = wp.array([[float("nan"), 0.0, 0.0]], dtype=wp.vec3, device="cpu")
+    world = wp.zeros(1, dtype=int, device="cpu")
     for substep in (2, 3, 7):  # the last, and two past the end
-        wp.launch(guard.check_state, dim=1, inputs=[x, v, 1.0, substep], outputs=[status], device="cpu")
-    assert flags.numpy().tolist() == [0, 0, guard.NOT_FINITE, 0]
+        wp.launch(guard.check_state, dim=1, inputs=[x, v, world, 1.0, substep], outputs=[status], device="cpu")
+    assert flags.numpy().ravel().tolist() == [0, 0, guard.NOT_FINITE, 0]
 
 
 @pytest.mark.parametrize("device, graph", [("cpu", True), ("cpu", False),

@@ -17,7 +17,7 @@ from warp_cloth.kernels.particle_collision import Contacts, PairRules
 from warp_cloth.kernels.springs import Springs
 from warp_cloth.kernels.wind import Wind
 
-from .model import Model
+from .model import Model, Worlds
 from .scene import Collision, Scene, WindKey
 
 
@@ -130,8 +130,12 @@ class DeviceModel:
         self.inv_mass = upload(model.inv_mass, float, device)
         self.mass = upload(model.masses, float, device) if simulation.integrator == "implicit" else None
         self.free_particles = max(1, int(np.count_nonzero(model.inv_mass)))
+        worlds = model.worlds if model.worlds is not None else Worlds.of_scene(scene)
+        self.world_count = worlds.count
+        self.particle_world = upload(model.particle_world, int, device)
         self.forces = ExternalForces()
-        self.forces.gravity = wp.vec3(*simulation.gravity)
+        self.forces.gravity = upload(worlds.gravity, wp.vec3, device)
+        self.forces.world = self.particle_world
         self.forces.drag = simulation.drag
         self.wind = self._wind(model, scene.wind)
         self.forces.wind = wp.zeros(n if self.wind is not None else 0, dtype=wp.vec3, device=device)
@@ -158,7 +162,9 @@ class DeviceModel:
             upload(spheres.key_time, float, device), upload(spheres.key_offset, wp.vec3, device),
             upload(spheres.amplitude, wp.vec3, device),
             upload(spheres.frequency, float, device), upload(spheres.phase, float, device))
-        self.ground = scene.ground
+        self._ground = (upload(worlds.ground, int, device), upload(worlds.ground_height, float, device),
+                        upload(worlds.ground_friction, float, device))
+        self._collider_starts = (upload(worlds.sphere_start, int, device), upload(worlds.mesh_start, int, device))
         self._sphere_radius = upload(spheres.radius if spheres is not None else np.zeros(0), float, device)
         self._sphere_friction = upload(spheres.friction if spheres is not None else np.zeros(0), float, device)
         self._sphere_spin = upload(spheres.angular_velocity if spheres is not None else np.zeros((0, 3)), wp.vec3,
@@ -166,7 +172,7 @@ class DeviceModel:
         self.mesh_animation: tuple[MeshAnimation, ...] = ()
         self._meshes, self._mesh_ids, self._mesh_thickness, self._mesh_friction = self._mesh_colliders(model)
         self._mesh_reach = float(model.edge_rest.max()) if len(model.edge_rest) else 0.0
-        self.has_colliders = scene.ground is not None or spheres is not None or model.mesh_colliders is not None
+        self.has_colliders = bool(worlds.ground.any()) or spheres is not None or model.mesh_colliders is not None
         if model.pins is not None and (model.pins.target >= 0).any():
             self.pin_targets = self._pin_targets(model)
         self.contacts = None if model.contacts is None else self._contacts(model, scene.collision)
@@ -217,6 +223,7 @@ class DeviceModel:
 
     def _contacts(self, model: Model, settings: Collision) -> ParticleContacts:
         device, contacts, rules = self.device, model.contacts, PairRules()
+        rules.world = self.particle_world
         rules.cloth_id = upload(model.cloth_id, int, device)
         rules.self_collision = int(settings.self_collision)
         rules.between_cloths = int(settings.between_cloths)
@@ -308,9 +315,9 @@ class DeviceModel:
         """The scene's rigid colliders as the kernels take them, spheres where ``center`` and ``velocity``
         (the state's) have them."""
         colliders = RigidColliders()
-        colliders.ground = int(self.ground is not None)
-        colliders.ground_height = self.ground.height if self.ground is not None else 0.0
-        colliders.ground_friction = self.ground.friction if self.ground is not None else 0.0
+        colliders.world = self.particle_world
+        colliders.ground, colliders.ground_height, colliders.ground_friction = self._ground
+        colliders.sphere_start, colliders.mesh_start = self._collider_starts
         colliders.center, colliders.velocity = center, velocity
         colliders.radius, colliders.friction = self._sphere_radius, self._sphere_friction
         colliders.angular_velocity = self._sphere_spin
@@ -325,8 +332,9 @@ class DeviceModel:
 def no_colliders(device) -> RigidColliders:
     """No collider: for the passes that do not end with them."""
     colliders = RigidColliders()
-    colliders.ground = 0
-    colliders.ground_height = colliders.ground_friction = 0.0
+    colliders.world = colliders.ground = colliders.sphere_start = colliders.mesh_start = wp.zeros(0, dtype=int,
+                                                                                                   device=device)
+    colliders.ground_height = colliders.ground_friction = wp.zeros(0, dtype=float, device=device)
     colliders.center = colliders.velocity = colliders.angular_velocity = wp.zeros(0, dtype=wp.vec3, device=device)
     colliders.radius = colliders.friction = wp.zeros(0, dtype=float, device=device)
     colliders.meshes = wp.zeros(0, dtype=wp.uint64, device=device)

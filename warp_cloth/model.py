@@ -63,6 +63,33 @@ class Pins:
 
 
 @dataclass(frozen=True)
+class Worlds:
+    """Independent scenes sharing the particle buffer (see warp_cloth/batch.py; a scene alone is one world):
+    what each world has of its own beyond its cloths. Spheres and mesh colliders are in world order."""
+    cloth_world: np.ndarray  # (cloths,) int32
+    gravity: np.ndarray  # (w, 3) float32 m/s^2
+    ground: np.ndarray  # (w,) int32: 1 where the world has a ground plane
+    ground_height: np.ndarray  # (w,) float32
+    ground_friction: np.ndarray  # (w,) float32
+    sphere_start: np.ndarray  # (w + 1,) int32: world w's spheres are sphere_start[w] to [w + 1] - 1
+    mesh_start: np.ndarray  # (w + 1,) int32: likewise its mesh colliders
+
+    @classmethod
+    def of_scene(cls, scene: Scene) -> "Worlds":
+        ground = scene.ground
+        return cls(np.zeros(len(scene.cloths), dtype=np.int32), np.asarray([scene.simulation.gravity], dtype=np.float32),
+                   np.asarray([ground is not None], dtype=np.int32),
+                   np.asarray([ground.height if ground is not None else 0.0], dtype=np.float32),
+                   np.asarray([ground.friction if ground is not None else 0.0], dtype=np.float32),
+                   np.asarray([0, len(scene.spheres)], dtype=np.int32),
+                   np.asarray([0, len(scene.colliders)], dtype=np.int32))
+
+    @property
+    def count(self) -> int:
+        return len(self.gravity)
+
+
+@dataclass(frozen=True)
 class PinAnimation:
     """Pinned particles carried along sampled positions: their keys or a USD prim's transform."""
     index: np.ndarray  # (m,) int32 particle
@@ -159,6 +186,14 @@ class Model:
     mesh_colliders: MeshColliders | None = None
     wind_faces: WindFaces | None = None
     pin_animations: tuple[PinAnimation, ...] = ()
+    worlds: Worlds | None = None  # None: the scene is one world (``Worlds.of_scene``)
+
+    @property
+    def particle_world(self) -> np.ndarray:
+        """(n,) int32 each particle's world."""
+        if self.worlds is None:
+            return np.zeros(self.particle_count, dtype=np.int32)
+        return self.worlds.cloth_world[self.cloth_id]
 
     @property
     def particle_count(self) -> int:
@@ -168,7 +203,8 @@ class Model:
         return slice(self.offsets[c], self.offsets[c + 1])
 
 
-def build_model(scene: Scene) -> Model:
+def build_model(scene: Scene, worlds: Worlds | None = None) -> Model:
+    """The scene's arrays; ``worlds``: where the scene packs several (see warp_cloth/batch.py)."""
     meshes = tuple(build_grid(c) if c.mesh is None else build_mesh_cloth(c) for c in scene.cloths)
     offsets = [0]
     for g in meshes:
@@ -198,7 +234,7 @@ def build_model(scene: Scene) -> Model:
     return Model(meshes, tuple(offsets), positions, velocities, masses, inv_mass, cloth_id, springs, limits,
                  pins, _spheres(scene), _contacts(scene, meshes), edges, edge_rest, hierarchy,
                  _mesh_colliders(scene), _wind_faces(meshes, offsets) if scene.wind is not None else None,
-                 pin_animations)
+                 pin_animations, worlds)
 
 
 def _hierarchy(springs: Springs | None, masses: np.ndarray, inv_mass: np.ndarray, scene: Scene,

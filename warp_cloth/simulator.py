@@ -20,7 +20,7 @@ from warp_cloth.kernels import guard
 
 from .checkpoint import Checkpoint, load_checkpoint, restore, save_checkpoint
 from .errors import SceneError, UnstableSimulation
-from .model import Model, build_model
+from .model import Model, Worlds, build_model
 from .output import RunOutcome
 from .progress import Progress, SlowStepNotice
 from .device_model import DeviceModel
@@ -202,14 +202,14 @@ class Simulator:
     SYNC_SECONDS = 2.0  # how often ``run`` has its writers make their frames safe on disk
 
     def __init__(self, scene: Scene, device: str | None = None, graph: bool = True,
-                 threads_per_particle: int | None = None) -> None:
+                 threads_per_particle: int | None = None, worlds: Worlds | None = None) -> None:
         self.device = resolve_device(device)
         allowed = (1,) if self.device.is_cpu else (1, 2, 4, 8, 16, 32, 64)
         if threads_per_particle is not None and threads_per_particle not in allowed:
             raise ValueError(f"threads_per_particle must be None or a power of two up to 64 (1 on the CPU), "
                              f"got {threads_per_particle!r}")
         check_memory(scene, self.device)
-        self.model: Model = build_model(scene)
+        self.model: Model = build_model(scene, worlds)
         # The step, chosen here where the scene sets none: from now on the scene is the one with that step.
         self.scene, self.step_choice = resolve_step(scene, self.model)
         check_work(self.scene, self.step_choice.substeps)
@@ -228,10 +228,12 @@ class Simulator:
         # One flag per substep of a frame, set by the blow-up guard (see kernels/guard.py), in two slots
         # that alternate by frame, so that a frame can run while the one before it is checked. On a GPU
         # each frame ends by copying its slot to pinned host memory, and an event says when it is there.
-        self._guard_status = wp.zeros((2, self.substeps_per_frame), dtype=int, device=self.device)
+        flags = (2, self.substeps_per_frame, self.device_model.world_count)
+        self._guard_status = wp.zeros(flags, dtype=int, device=self.device)
         if self.device.is_cuda:
-            self._guard_host = wp.zeros((2, self.substeps_per_frame), dtype=int, device="cpu", pinned=True)
+            self._guard_host = wp.zeros(flags, dtype=int, device="cpu", pinned=True)
             self._frame_done = [wp.Event(self.device), wp.Event(self.device)]
+        self.stopped_worlds: dict[int, UnstableSimulation] = {}  # of a batch: each world stopped, and why
         self._refuse_initial_overlap()
         self._refuse_start_inside_colliders()
         check_pins_within_reach(self.scene, self.model)
@@ -256,32 +258,41 @@ class Simulator:
         scene = self.scene
         cells = np.array([c.shortest_edge() for c in scene.cloths])
         allowed = self.INITIAL_COLLIDER_DEPTH_LIMIT * cells[self.model.cloth_id]
-        depths = []  # (depth of each particle, collider)
-        if scene.ground is not None:
-            depths.append((scene.ground.height - x[:, 1], "the ground"))
+        worlds = self.model.worlds if self.model.worlds is not None else Worlds.of_scene(scene)
+        world = self.model.particle_world
+        # A collider is checked against its own world's particles only: each world's are contiguous.
+        world_start = np.searchsorted(world, np.arange(worlds.count + 1))
+        depths = []  # (the first particle, the depths from it on, collider)
+        if worlds.ground.any():
+            depths.append((0, np.where(worlds.ground[world] != 0, worlds.ground_height[world] - x[:, 1], -np.inf),
+                           "the ground"))
+        sphere_world = np.repeat(np.arange(worlds.count), np.diff(worlds.sphere_start))
         if self.model.spheres is not None:
             spheres = self.model.spheres
             for s, sphere in enumerate(scene.spheres):
                 if sphere.motion is not None and sphere.motion.amplitude > 0 and sphere.motion.frequency > 0:
                     continue
-                distance = np.linalg.norm(x - spheres.initial_center[s].astype(np.float64), axis=1)
-                depths.append((float(spheres.radius[s]) - distance, f"sphere[{s}] '{sphere.name}'"))
+                first, end = world_start[sphere_world[s]], world_start[sphere_world[s] + 1]
+                distance = np.linalg.norm(x[first:end] - spheres.initial_center[s], axis=1)
+                depths.append((first, float(spheres.radius[s]) - distance, f"sphere[{s}] '{sphere.name}'"))
         if scene.colliders:
+            mesh_world = np.repeat(np.arange(worlds.count), np.diff(worlds.mesh_start))
             reach = float(np.ptp(x, axis=0).max()) + float(allowed.max())
             free = self.model.inv_mass > 0  # pins on a target start where they are attached, on its surface
             for k, (depth, collider) in enumerate(zip(self.device_model.depths_in_mesh_colliders(x, reach),
                                                       scene.colliders)):
-                depths.append((np.where(free, depth, 0.0), f"collider[{k}] '{collider.name}'"))
-        for depth, collider in depths:
-            deep = np.nonzero(depth > allowed)[0]
+                depths.append((0, np.where(free & (world == mesh_world[k]), depth, 0.0),
+                               f"collider[{k}] '{collider.name}'"))
+        for first, depth, collider in depths:
+            deep = np.nonzero(depth > allowed[first:first + len(depth)])[0]
             if len(deep) == 0:
                 continue
-            i = int(deep[np.argmax(depth[deep])])
+            i = first + int(deep[np.argmax(depth[deep])])
             c = int(self.model.cloth_id[i])
             raise SceneError(f"cloth[{c}]", f"a cloth that starts outside the static colliders: particle "
                                             f"{i - self.model.offsets[c]} of '{scene.cloths[c].name}' starts "
-                                            f"{depth[i]:.3g} m inside {collider} (at most {allowed[i]:.3g} m, half "
-                                            "a cell); move the cloth or the collider", has_got=False)
+                                            f"{depth[i - first]:.3g} m inside {collider} (at most {allowed[i]:.3g} m, "
+                                            "half a cell); move the cloth or the collider", has_got=False)
 
     @property
     def substeps_per_frame(self) -> int:
@@ -382,17 +393,40 @@ class Simulator:
         return self._graphs[key]
 
     def _check_frame(self, frame: int) -> None:
-        """Wait for frame ``frame``'s guard flags and raise ``UnstableSimulation`` if any is set."""
+        """Wait for frame ``frame``'s guard flags and raise ``UnstableSimulation`` if any is set; in a batch,
+        stop each world flagged instead (see ``_stop_world``), and raise only once every world has stopped."""
         slot = (frame - 1) % 2
         if self.device.is_cuda:
             wp.synchronize_event(self._frame_done[slot])
             status = self._guard_host.numpy()[slot]
         else:
             status = self._guard_status.numpy()[slot]
-        bad = np.nonzero(status)[0]
-        if len(bad) == 0:
+        if not status.any():
             return
-        first = int(bad[0])
+        if self.model.worlds is None:
+            raise self._unstable(frame, status[:, 0])
+        for w in np.nonzero(status.any(axis=0))[0].tolist():
+            if w not in self.stopped_worlds:
+                self.stopped_worlds[w] = self._unstable(frame, status[:, w])
+                self._stop_world(w)
+        if len(self.stopped_worlds) == self.device_model.world_count:
+            raise self.stopped_worlds[min(self.stopped_worlds, key=lambda w: self.stopped_worlds[w].frame)]
+
+    def _stop_world(self, w: int) -> None:
+        """A batch's world that blew up is put back where it started, at rest, and held there (its particles
+        pinned), so that the others go on; its frames after ``stopped_worlds[w].frame - 1`` are not valid."""
+        world = self.model.particle_world == w
+        inv_mass = self.device_model.inv_mass.numpy()
+        inv_mass[world] = 0.0
+        self.device_model.inv_mass.assign(inv_mass)
+        for array, start in ((self.state.x, self.model.positions), (self.state.v, np.zeros_like(self.model.positions))):
+            values = array.numpy()
+            values[world] = start[world]
+            array.assign(values)
+
+    def _unstable(self, frame: int, status: np.ndarray) -> UnstableSimulation:
+        """What a frame whose substeps have the guard's ``status`` flags says of its blow-up."""
+        first = int(np.nonzero(status)[0][0])
         sim = self.scene.simulation
         if status[first] == guard.NOT_FINITE:
             reason = "positions or velocities are no longer finite"
@@ -404,7 +438,7 @@ class Simulator:
         else:
             advice = (f"Try a smaller step than h = {self.dt:.4g} s (--dt or --substeps) or the implicit integrator "
                       f"(--integrator implicit); frames up to {frame - 1} are valid.")
-        raise UnstableSimulation(frame, first + 1, reason, advice)
+        return UnstableSimulation(frame, first + 1, reason, advice)
 
     def prepare(self) -> None:
         """Compile and load the kernels of a frame now (Warp builds a kernel module at its first launch:
@@ -522,7 +556,8 @@ class Simulator:
         for k in range(self.substeps_per_frame):
             self.plan.run_substep(self.state)
             wp.launch(guard.check_state, dim=self.model.particle_count,
-                      inputs=[self.state.x, self.state.v, self.scene.simulation.max_speed, k],
+                      inputs=[self.state.x, self.state.v, self.device_model.particle_world,
+                              self.scene.simulation.max_speed, k],
                       outputs=[status], device=self.device)
         if self.device.is_cuda:
             wp.copy(self._guard_host[slot], status)
