@@ -52,9 +52,13 @@ def test_run_output_options(tmp_path):
 def test_readme_python_example_runs(tmp_path, monkeypatch):
     text = (REPO / "README.md").read_text()
     example = re.search(r"## From Python\n\n```python\n(.*?)```", text, re.S).group(1)
+    batch = re.search(r"### Many scenes at once: a batch of worlds\n\n```python\n(.*?)```", text, re.S).group(1)
     monkeypatch.chdir(tmp_path)
-    exec(compile(example, "README.md", "exec"), {})
+    names: dict = {}
+    exec(compile(example, "README.md", "exec"), names)
     assert (tmp_path / "out" / "hanging_1s.usdc").is_file()
+    exec(compile(batch, "README.md", "exec"), names)  # goes on from the first example's scene
+    assert names["batch"].frame == 24 and names["batch"].world_count == 3
 
 
 def test_readme_starts_with_the_install_and_test_commands():

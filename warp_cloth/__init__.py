@@ -17,6 +17,7 @@ from .scene import (Box, Cloth, Collision, Ground, ImplicitSolver, Limit, MeshCo
                     Output, Pin, Scene, Simulation, Sphere, SpringKind, TransformKey, Wind, WindKey)
 
 if TYPE_CHECKING:
+    from .batch import Batch
     from .scene_file import builtin_scene_names, load_scene, scene_from_dict
     from .simulator import RunSummary, Simulator
     from .stability import UnstableStepWarning
@@ -26,6 +27,7 @@ if TYPE_CHECKING:
 # Imported at first use: they load numpy, Warp and USD (seconds on a first run), which the command line
 # does only once it can answer Ctrl-C with one line instead of a traceback.
 _IMPORTED_AT_FIRST_USE = {
+    "Batch": "batch",
     "builtin_scene_names": "scene_file", "load_scene": "scene_file", "scene_from_dict": "scene_file",
     "RunSummary": "simulator", "Simulator": "simulator", "PolyWriter": "writers", "UsdWriter": "writers",
     "CheckpointWriter": "writers",
@@ -35,7 +37,7 @@ _IMPORTED_AT_FIRST_USE = {
 __version__ = "0.1.0"
 
 __all__ = [
-    "Box", "CheckpointWriter", "Cloth", "Collision", "Ground", "ImplicitSolver", "Limit", "MeshCollider", "MeshSource",
+    "Batch", "Box", "CheckpointWriter", "Cloth", "Collision", "Ground", "ImplicitSolver", "Limit", "MeshCollider", "MeshSource",
     "Oscillation", "Output",
     "Pin", "PolyWriter", "RunSummary", "Scene", "SceneError", "Simulation", "Simulator", "Sphere", "SpringKind",
     "StrainMonitor", "StrainReport", "TransformKey", "Wind", "WindKey",

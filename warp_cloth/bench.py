@@ -37,6 +37,7 @@ from .scene_file import load_scene
 from .cli import EXIT_BAD_INPUT
 from .errors import SceneError, UnstableSimulation
 from .newton_compare import SPHERE_CENTER, SPHERE_RADIUS, SWING_DEGREES, swung_origin
+from .batch import Batch
 from .simulator import Simulator, resolve_device
 from .stability import UnstableStepWarning
 from .strain import StrainMonitor, StrainReport
@@ -94,6 +95,14 @@ class Case:
     outputs: bool = False
     fresh: bool = True  # each repeat starts from t = 0 (else frames continue on one warmed simulator)
     threads_per_particle: int | None = None  # the Simulator's (None: chosen by size)
+    worlds: int = 1  # copies of the scene stepped together as the worlds of one batch
+
+
+def simulator_for(case: Case, device: str) -> Simulator:
+    """The case's simulator: of its scene, or of the batch of its copies (through ``Batch``'s simulator)."""
+    if case.worlds == 1:
+        return Simulator(case.scene, device=device, threads_per_particle=case.threads_per_particle)
+    return Batch([case.scene] * case.worlds, device=device, threads_per_particle=case.threads_per_particle).simulator
 
 
 @dataclass(frozen=True)
@@ -307,6 +316,16 @@ def mesh_cases(device: str) -> list[Case]:
     return cases
 
 
+def world_cases(device: str) -> list[Case]:
+    """The matrix's self-collision cloth at 32^2 as the worlds of one batch, against one cloth of as many
+    particles with the same effects."""
+    counts, single = ([4, 16], 128) if device == "cpu" else ([64, 1024, 4096], 1024)
+    frames = matrix_frames(32, device)
+    cases = [Case(f"self {single}^2, one cloth", matrix_scene("self", single, "symplectic"), frames, fresh=False)]
+    return cases + [Case(f"self 32^2 x {k} worlds", matrix_scene("self", 32, "symplectic"), frames, fresh=False,
+                         worlds=k) for k in counts]
+
+
 @dataclass(frozen=True)
 class Suite:
     cases: Callable[[str], list[Case]]  # of the device ("cpu" or "cuda")
@@ -332,6 +351,9 @@ SUITES = {
     "meshes": Suite(mesh_cases, "the matrix's sphere cloth as a grid and read back from OBJ files of its quads and "
                                 "of its triangles, then with its sphere a mesh collider of 100k triangles (64^2 on "
                                 "the CPU, 256^2 and 1024^2 on a GPU)"),
+    "worlds": Suite(world_cases, "the matrix's self-collision cloth at 32^2 as 4 and 16 worlds of one batch on the "
+                                 "CPU (64, 1024 and 4096 on a GPU), against one 128^2 cloth (1024^2 on a GPU) with "
+                                 "the same effects"),
 }
 
 
@@ -346,7 +368,7 @@ def suites_help() -> str:
 
 
 def time_case(case: Case, device: str, repeats: int) -> Result:
-    warm = Simulator(case.scene, device=device, threads_per_particle=case.threads_per_particle)
+    warm = simulator_for(case, device)
     result = lambda seconds, stable=True: Result(  # noqa: E731
         case.name, str(warm.device), warm.model.particle_count, warm.substeps_per_frame, case.frames, case.outputs,
         seconds, stable)
@@ -354,8 +376,7 @@ def time_case(case: Case, device: str, repeats: int) -> Result:
         warm.run(2)  # compiles kernels, captures graphs
         seconds = []
         for _ in range(repeats):
-            sim = (Simulator(case.scene, device=device, threads_per_particle=case.threads_per_particle)
-                   if case.fresh else warm)
+            sim = simulator_for(case, device) if case.fresh else warm
             with tempfile.TemporaryDirectory() as tmp:
                 writers = [UsdWriter(Path(tmp) / "run.usdc"), PolyWriter(Path(tmp) / "poly")] if case.outputs else []
                 wp.synchronize_device(sim.device)
@@ -388,7 +409,7 @@ def seconds_of_runs(sim: Simulator, frames: int, repeats: int) -> list[float]:
 def strain_over(case: Case, device: str, frames: int) -> StrainReport:
     """Edge strain over every frame of a run of the case as the timed runs made it (those go unmeasured:
     measuring every frame waits for each), from t = 0."""
-    sim = Simulator(case.scene, device=device, threads_per_particle=case.threads_per_particle)
+    sim = simulator_for(case, device)
     monitor = StrainMonitor()
     sim.run(frames, writers=[monitor])
     return monitor.report()

@@ -1,0 +1,96 @@
+"""Worlds: scenes packed into one batch step as they do alone (the same frames, to rounding), never touch
+each other, and a batch refuses scenes that cannot share a step."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+import warp_cloth as wc
+
+SOFT = dict(structural=wc.SpringKind(15.0, 0.02), shear=wc.SpringKind(15.0, 0.02),
+            bend=wc.SpringKind(5.0, 0.01, "compression", "compression"), limit=wc.Limit(0.1, 0.1), density=0.2)
+COLLISION = wc.Collision(self_collision=True)
+
+
+def simulation(**changes) -> wc.Simulation:
+    settings = dict(fps=24, frames=24, substeps=40, integrator="symplectic", limit_solve="fixed")
+    return wc.Simulation(**(settings | changes))
+
+
+def three_worlds() -> list[wc.Scene]:
+    """Different cloths, sizes, colliders, grounds and gravity, all in the same place: world 1's hanging
+    cloth passes through where world 0's sphere and cloth are."""
+    return [
+        wc.Scene(name="drape", cloths=(wc.Cloth(resolution=(12, 12), size=(1.2, 1.2), orientation="horizontal",
+                                                origin=(-0.6, 0.6, 0.6), **SOFT),),
+                 spheres=(wc.Sphere(radius=0.4, friction=0.3),), ground=wc.Ground(height=-0.5, friction=0.4),
+                 collision=COLLISION, simulation=simulation()),
+        wc.Scene(name="hang", cloths=(wc.Cloth(resolution=(8, 6), size=(1.0, 0.8), orientation="vertical",
+                                               origin=(-0.5, 0.0, 0.0),
+                                               pins=(wc.Pin(corners=("top-left", "top-right")),), **SOFT),),
+                 collision=COLLISION, simulation=simulation(gravity=(0.0, -5.0, 0.0))),
+        wc.Scene(name="fall", cloths=(wc.Cloth(resolution=(10, 10), size=(1.0, 1.0), orientation="horizontal",
+                                               origin=(-0.5, 0.3, 0.5), rotation=(20.0, 0.0, 0.0), **SOFT),
+                                      wc.Cloth(name="second", resolution=(6, 6), size=(0.6, 0.6),
+                                               orientation="horizontal", origin=(-0.3, 0.6, 0.3), **SOFT)),
+                 ground=wc.Ground(height=0.0, friction=0.8), collision=COLLISION, simulation=simulation()),
+    ]
+
+
+@pytest.mark.parametrize("device", ["cpu", pytest.param("cuda", marks=pytest.mark.cuda)])
+def test_each_world_of_a_batch_moves_as_its_scene_alone(device):
+    scenes = three_worlds()
+    batch = wc.Batch(scenes, device=device)
+    alone = [wc.Simulator(scene, device=device) for scene in scenes]
+    for _ in range(24):
+        batch.step()
+        for sim in alone:
+            sim.step()
+    for w, sim in enumerate(alone):
+        np.testing.assert_allclose(batch.positions(w), sim.positions(), atol=1e-6, err_msg=f"world {w}")
+        np.testing.assert_allclose(batch.velocities(w), sim.velocities(), atol=1e-5, err_msg=f"world {w}")
+    # Each world meets its own colliders only: the hanging cloth of world 1 passes through world 0's sphere
+    # (radius 0.4 at the origin), and world 2's cloths rest on their own ground.
+    assert np.linalg.norm(batch.positions(1), axis=1).min() < 0.3
+    assert batch.positions(2)[:, 1].min() >= -1e-6
+
+
+def test_a_batch_refuses_scenes_that_cannot_share_a_step():
+    scenes = three_worlds()
+    scenes[2] = dataclasses.replace(scenes[2], simulation=simulation(substeps=41))
+    with pytest.raises(wc.SceneError, match=r"scenes\[2\].simulation.substeps: expected the same as scenes\[0\]'s"):
+        wc.Batch(scenes, device="cpu")
+    scenes[2] = dataclasses.replace(scenes[2], simulation=simulation(), collision=None)
+    with pytest.raises(wc.SceneError, match=r"scenes\[2\].collision: expected the same as scenes\[0\]'s"):
+        wc.Batch(scenes, device="cpu")
+    with pytest.raises(wc.SceneError, match="scenes: expected at least one scene"):
+        wc.Batch([], device="cpu")
+    with pytest.raises(IndexError):
+        wc.Batch(three_worlds()[:1], device="cpu").positions(1)
+
+
+@pytest.mark.parametrize("device", ["cpu", pytest.param("cuda", marks=pytest.mark.cuda)])
+def test_a_world_that_blows_up_is_stopped_and_the_others_go_on(device):
+    scenes = three_worlds()
+    stiff = wc.SpringKind(1e6, 0.02)  # far past what the shared step holds: it blows up within frames
+    scenes[1] = dataclasses.replace(scenes[1], cloths=(dataclasses.replace(scenes[1].cloths[0], structural=stiff),))
+    with pytest.warns(wc.UnstableStepWarning):
+        batch = wc.Batch(scenes, device=device)
+    alone = [wc.Simulator(scenes[w], device=device) for w in (0, 2)]
+    start = batch.positions(1).copy()
+    for _ in range(24):
+        batch.step()
+        for sim in alone:
+            sim.step()
+    assert list(batch.stopped_worlds) == [1]
+    assert batch.stopped_worlds[1].frame <= 3  # found within frames, as a scene alone would be
+    np.testing.assert_array_equal(batch.positions(1), start)  # put back and held where it started
+    for w, sim in zip((0, 2), alone):
+        np.testing.assert_allclose(batch.positions(w), sim.positions(), atol=1e-6, err_msg=f"world {w}")
+
+
+def test_a_batch_of_implicit_scenes_is_refused():
+    scenes = [dataclasses.replace(s, simulation=simulation(integrator="implicit")) for s in three_worlds()]
+    with pytest.raises(wc.SceneError, match=r"scenes\[0\].simulation.integrator: expected explicit or symplectic"):
+        wc.Batch(scenes, device="cpu")
