@@ -294,8 +294,9 @@ def deepest_overlap(contacts: Contacts, i: int, x: wp.array(dtype=wp.vec3)) -> f
 
 
 @wp.kernel
-def closest_contact_ratio(x: wp.array(dtype=wp.vec3), contacts: Contacts, ratio: wp.array(dtype=float)):
-    """Diagnostic: the smallest distance / contact distance over the pairs of freshly made lists."""
+def closest_contact_ratio(x: wp.array(dtype=wp.vec3), contacts: Contacts, world: wp.array(dtype=int),
+                          ratio: wp.array(dtype=float)):
+    """Diagnostic: each world's smallest distance / contact distance over the pairs of freshly made lists."""
     i = wp.tid()
     xi = x[i]
     smallest = float(1.0e30)
@@ -303,4 +304,4 @@ def closest_contact_ratio(x: wp.array(dtype=wp.vec3), contacts: Contacts, ratio:
         j = contacts.neighbors[i * contacts.max_neighbors + k]
         smallest = wp.min(smallest, wp.length(xi - x[j]) / contact_distance(contacts.radius[i], contacts.radius[j],
                                                                           contacts.separation))
-    wp.atomic_min(ratio, 0, smallest)
+    wp.atomic_min(ratio, world[i], smallest)

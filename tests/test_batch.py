@@ -4,6 +4,7 @@ each other, and a batch refuses scenes that cannot share a step."""
 import dataclasses
 
 import numpy as np
+from pxr import Usd, UsdGeom
 import pytest
 
 import warp_cloth as wc
@@ -94,3 +95,28 @@ def test_a_batch_of_implicit_scenes_is_refused():
     scenes = [dataclasses.replace(s, simulation=simulation(integrator="implicit")) for s in three_worlds()]
     with pytest.raises(wc.SceneError, match=r"scenes\[0\].simulation.integrator: expected explicit or symplectic"):
         wc.Batch(scenes, device="cpu")
+
+
+def test_each_world_writes_its_own_outputs_and_a_stopped_world_keeps_its_frames_as_failed(tmp_path):
+    scenes = three_worlds()
+    stiff = wc.SpringKind(1e6, 0.02)
+    scenes[1] = dataclasses.replace(scenes[1], cloths=(dataclasses.replace(scenes[1].cloths[0], structural=stiff),))
+    with pytest.warns(wc.UnstableStepWarning):
+        batch = wc.Batch(scenes, device="cpu")
+    writers = {w: [wc.UsdWriter(tmp_path / f"world{w}.usdc"), wc.PolyWriter(tmp_path / f"world{w}")] for w in range(3)}
+    summary = batch.run(6, writers=writers)
+    assert summary.frames == 6 and list(batch.stopped_worlds) == [1]
+    alone = wc.Simulator(scenes[2], device="cpu")
+    alone.run(6, writers=[wc.UsdWriter(tmp_path / "alone2.usdc")])
+    for name, expected_frames in (("world0", 6), ("world2", 6)):
+        stage = Usd.Stage.Open(str(tmp_path / f"{name}.usdc"))
+        points = UsdGeom.Mesh(stage.GetPrimAtPath("/World/cloth")).GetPointsAttr()  # the scene's own names
+        assert points.GetTimeSamples() == [float(f) for f in range(expected_frames + 1)]
+    stages = [Usd.Stage.Open(str(tmp_path / name)) for name in ("world2.usdc", "alone2.usdc")]
+    ours, theirs = (UsdGeom.Mesh(stage.GetPrimAtPath("/World/second")).GetPointsAttr().Get(6) for stage in stages)
+    np.testing.assert_allclose(np.asarray(ours), np.asarray(theirs), atol=1e-6)
+    assert len(list((tmp_path / "world2").glob("*.poly"))) == 2 * 7  # two cloths, frames 0 to 6
+    # World 1 blew up in frame 1: its frame 0 is kept under the failed name, nothing in place.
+    assert not (tmp_path / "world1.usdc").exists()
+    failed = Usd.Stage.Open(str(tmp_path / "world1.failed.usdc"))
+    assert UsdGeom.Mesh(failed.GetPrimAtPath("/World/cloth")).GetPointsAttr().GetTimeSamples() == [0.0]

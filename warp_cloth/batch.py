@@ -17,7 +17,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from .errors import SceneError, UnstableSimulation
-from .model import Worlds
+from .model import Model, Worlds, build_model
+from .output import RunOutcome
 from .scene import Scene
 from .simulator import RunSummary, Simulator
 
@@ -117,6 +118,7 @@ class Batch:
         offsets = np.asarray(self.simulator.model.offsets)
         first_cloth = np.searchsorted(worlds.cloth_world, np.arange(len(self.scenes) + 1))
         self._starts = offsets[first_cloth]
+        self._views: dict[int, WorldView] = {}
 
     @property
     def world_count(self) -> int:
@@ -139,11 +141,111 @@ class Batch:
     def step(self) -> None:
         self.simulator.step()
 
-    def run(self, frames: int, progress: bool = False) -> RunSummary:
-        return self.simulator.run(frames, progress=progress)
+    def run(self, frames: int, writers: dict[int, list] | None = None, progress: bool = False) -> RunSummary:
+        """Simulate ``frames`` frames; ``writers``: each world's own (``UsdWriter``, ``PolyWriter``, ...), by
+        world. A world that blows up has its writers abandoned there, as a run alone that fails (its frames
+        kept under the failed names), while the others' go on."""
+        chosen = [WorldWriters(self, writers)] if writers else []
+        return self.simulator.run(frames, writers=chosen, progress=progress)
+
+    def view(self, w: int) -> "WorldView":
+        """World ``w`` as its writers see it (made once)."""
+        if w not in self._views:
+            self._views[w] = WorldView(self, w)
+        return self._views[w]
+
+    def closest_contacts(self) -> np.ndarray | None:
+        """Each world's closest approach of colliding particles, as a fraction of their contact distance
+        (1e30 where a world has no pair listed; None without particle collision)."""
+        return self.simulator.closest_contacts()
 
     def positions(self, w: int) -> np.ndarray:
         return self.simulator.positions()[self.world_slice(w)]
 
     def velocities(self, w: int) -> np.ndarray:
         return self.simulator.velocities()[self.world_slice(w)]
+
+
+class WorldView:
+    """One world of a batch as a writer sees a simulator: its own scene (its names, its colliders), its own
+    model's arrays (the faces and collider keys the writers read), and its particles' state now."""
+
+    def __init__(self, batch: Batch, w: int) -> None:
+        self.batch, self.world = batch, w
+        self.scene = batch.scenes[w]
+        self.model: Model = build_model(self.scene)
+        self.device = batch.simulator.device
+        spheres = batch.worlds.sphere_start
+        self._spheres = slice(int(spheres[w]), int(spheres[w + 1]))
+
+    @property
+    def frame(self) -> int:
+        return self.batch.frame
+
+    def positions(self) -> np.ndarray:
+        return self.batch.positions(self.world)
+
+    def velocities(self) -> np.ndarray:
+        return self.batch.velocities(self.world)
+
+    def cloth_positions(self, cloth: int, positions: np.ndarray | None = None) -> np.ndarray:
+        return (self.positions() if positions is None else positions)[self.model.cloth_slice(cloth)]
+
+    def sphere_centers(self) -> np.ndarray:
+        return self.batch.simulator.sphere_centers()[self._spheres]
+
+
+class WorldWriters:
+    """The frame writer a batch runs with: each world's writers, handed that world's view. A world that is
+    stopped has its writers abandoned at the first frame it did not make, as a failed run's."""
+
+    def __init__(self, batch: Batch, writers: dict[int, list]) -> None:
+        self.batch = batch
+        self.writers = {w: list(ws) for w, ws in writers.items() if ws}
+        self.ended: set[int] = set()
+
+    def _live(self):
+        for w, writers in self.writers.items():
+            if w not in self.ended:
+                yield w, self.batch.view(w), writers
+
+    def begin(self, sim) -> None:
+        for _, view, writers in self._live():
+            for writer in writers:
+                writer.begin(view)
+
+    def write_frame(self, sim, frame: int) -> None:
+        for w, view, writers in list(self._live()):
+            stopped = self.batch.stopped_worlds.get(w)
+            if stopped is not None:
+                self._end(w, view, writers, RunOutcome(interrupted=False, error=stopped), frame - 1)
+                continue
+            for writer in writers:
+                writer.write_frame(view, frame)
+
+    def sync(self, sim) -> None:
+        for _, view, writers in self._live():
+            for writer in writers:
+                if hasattr(writer, "sync"):
+                    writer.sync(view)
+
+    def finish(self, sim, frames_written: int) -> None:
+        for w, view, writers in list(self._live()):
+            for writer in writers:
+                writer.finish(view, frames_written)
+            self.ended.add(w)
+
+    def abandon(self, sim, frames_written: int, outcome: RunOutcome) -> None:
+        for w, view, writers in list(self._live()):
+            self._end(w, view, writers, outcome, frames_written)
+
+    def _end(self, w: int, view: WorldView, writers: list, outcome: RunOutcome, frames_written: int) -> None:
+        self.ended.add(w)
+        for writer in writers:
+            if hasattr(writer, "abandon"):
+                writer.abandon(view, frames_written, outcome)
+
+    @property
+    def outputs(self) -> list:
+        return [path for writers in self.writers.values() for writer in writers
+                for path in getattr(writer, "outputs", [])]

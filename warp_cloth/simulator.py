@@ -333,7 +333,14 @@ class Simulator:
         """The closest approach of two particles that may collide, as a fraction of their contact distance
         (1.0 or more: no pair overlaps; None without particle collision). It waits for the device and
         remakes the candidate lists from the current positions."""
-        return None if self.plan.lists is None else self.plan.lists.closest_contact(self.state.x)
+        contacts = self.closest_contacts()
+        return None if contacts is None else float(contacts.min())
+
+    def closest_contacts(self) -> np.ndarray | None:
+        """``closest_contact`` of each world (see ``Batch``; a scene alone is one)."""
+        if self.plan.lists is None:
+            return None
+        return self.plan.lists.closest_contacts(self.state.x, self.device_model.world_count)
 
     def solver_stats(self) -> "SolveStats | None":
         """The worst figures of the substeps since the last call (reading them waits for the device): the
