@@ -37,7 +37,8 @@ _IMPORTED_AT_FIRST_USE = {
 __version__ = "0.1.0"
 
 __all__ = [
-    "Batch", "Box", "CheckpointWriter", "Cloth", "Collision", "Ground", "ImplicitSolver", "Limit", "MeshCollider", "MeshSource",
+    "Batch", "Box", "CheckpointWriter", "Cloth", "Collision", "Ground", "ImplicitSolver", "Limit", "MeshCollider",
+    "MeshSource",
     "Oscillation", "Output",
     "Pin", "PolyWriter", "RunSummary", "Scene", "SceneError", "Simulation", "Simulator", "Sphere", "SpringKind",
     "StrainMonitor", "StrainReport", "TransformKey", "Wind", "WindKey",

@@ -137,7 +137,8 @@ def pinned_indices(cloth: Cloth, pin: Pin, positions: np.ndarray | None, key: st
     if pin.group is not None:
         groups = cloth.surface().groups
         if pin.group not in groups:
-            raise SceneError(f"{key}.group", "the name of a group of the cloth's mesh (a USD GeomSubset or point primvar, an OBJ g group: "
+            raise SceneError(f"{key}.group", "the name of a group of the cloth's mesh (a USD GeomSubset or point "
+                             "primvar, an OBJ g group: "
                              + (", ".join(sorted(groups)) or "it has none") + ")", pin.group)
         chosen.append(groups[pin.group])
     if pin.region is not None:

@@ -77,7 +77,8 @@ class Worlds:
     @classmethod
     def of_scene(cls, scene: Scene) -> "Worlds":
         ground = scene.ground
-        return cls(np.zeros(len(scene.cloths), dtype=np.int32), np.asarray([scene.simulation.gravity], dtype=np.float32),
+        return cls(np.zeros(len(scene.cloths), dtype=np.int32),
+                   np.asarray([scene.simulation.gravity], dtype=np.float32),
                    np.asarray([ground is not None], dtype=np.int32),
                    np.asarray([ground.height if ground is not None else 0.0], dtype=np.float32),
                    np.asarray([ground.friction if ground is not None else 0.0], dtype=np.float32),

@@ -61,7 +61,8 @@ class NeighbourLists:
     def _remake_if_asked(self, x: wp.array) -> None:
         if self.use_hash:
             wp.launch(spatial_hash.insert_points, dim=self.n,
-                      inputs=[x, self.rules.world, self.grid.inv_cell, self.grid.mask, self.grid.capacity, self.lists.epoch, self.rebuild],
+                      inputs=[x, self.rules.world, self.grid.inv_cell, self.grid.mask, self.grid.capacity,
+                              self.lists.epoch, self.rebuild],
                       outputs=[self.grid.bucket_size, self.grid.bucket_items, self.lists.overflow], device=x.device)
             launch_gather_neighbors(self.threads, x, [self.contacts, self.rules, self.lists, self.grid, self.unsorted,
                                                       self.appended])

@@ -62,10 +62,11 @@ class Plan:
 def build_plan(model: DeviceModel, state: DeviceState, implicit_settings: ImplicitSolver,
                threads: int | None = None) -> Plan:
     """The substep, in order: moving spheres and animated mesh colliders to the substep's end (nothing
-    before the colliders reads them); the wind's forces; integration; driven pins; then, with particle collision, the contacts' start (in the explicit
-    step where nothing comes between), the candidate lists, the projection passes and the contact
-    velocities; without it, the strain limit's passes or the colliders alone; the clock last, where
-    something moves with it. ``threads``: per particle on the gathering passes (None: by size)."""
+    before the colliders reads them); the wind's forces; integration; driven pins (oscillating, on
+    colliders, on keys); then, with particle collision, the contacts' start (in the explicit step where
+    nothing comes between), the candidate lists, the projection passes and the contact velocities; without
+    it, the strain limit's passes or the colliders alone; the clock last, where something moves with it.
+    ``threads``: per particle on the gathering passes (None: by size)."""
     chosen = threads_per_particle(model.particle_count, model.device) if threads is None else threads
     rigid = model.colliders(state.sphere_center, state.sphere_velocity) if model.has_colliders else None
     oscillating_pins = model.pins is not None and model.pins.moving
