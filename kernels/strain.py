@@ -20,3 +20,17 @@ def measure_edges(x: wp.array(dtype=wp.vec3), edges: wp.array(dtype=wp.vec2i), r
         wp.atomic_max(worst, slot, 1, -strain)
     bin = wp.clamp(int(wp.floor((strain - low) * bins_per_unit)), 0, histogram.shape[0] - 1)
     wp.atomic_add(histogram, bin, 1)
+
+
+@wp.kernel
+def worst_by_world(x: wp.array(dtype=wp.vec3), edges: wp.array(dtype=wp.vec2i), rest: wp.array(dtype=float),
+                   edge_world: wp.array(dtype=int), worst: wp.array2d(dtype=float)):
+    """worst[w] becomes the largest (stretch, compression) of world w's edges so far, both as positive
+    fractions (kept over every frame measured: the caller never clears it)."""
+    e = wp.tid()
+    pair = edges[e]
+    strain = wp.length(x[pair[0]] - x[pair[1]]) / rest[e] - 1.0
+    if strain > 0.0:
+        wp.atomic_max(worst, edge_world[e], 0, strain)
+    else:
+        wp.atomic_max(worst, edge_world[e], 1, -strain)

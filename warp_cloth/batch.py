@@ -22,19 +22,16 @@ from .output import RunOutcome
 from .scene import Scene
 from .simulator import RunSummary, Simulator
 
-def _shared_simulation(simulation) -> dict:
-    """A scene's simulation settings but those each world has of its own (gravity) or a run sets (frames)."""
-    fields = dataclasses.asdict(simulation)
-    fields.pop("gravity")
-    fields.pop("frames")
-    return fields
-
-
-def _first_difference(a: dict, b: dict, prefix: str) -> str | None:
-    for key in a:
-        if a[key] != b[key]:
-            return f"{prefix}.{key}"
-    return None
+def shared_settings(scene: Scene) -> dict[str, object]:
+    """What the worlds of a batch share, by key (``simulation.substeps``, ``collision``, ...): every
+    setting of the scene's ``[simulation]`` but gravity (each world's own) and frames (the run's), and its
+    ``[collision]``, ``[implicit]`` and ``[wind]`` tables whole."""
+    shared = {f"simulation.{k}": v for k, v in dataclasses.asdict(scene.simulation).items()
+              if k not in ("gravity", "frames")}
+    for table in ("collision", "implicit", "wind"):
+        settings = getattr(scene, table)
+        shared[table] = None if settings is None else dataclasses.asdict(settings)
+    return shared
 
 
 def _renamed(name: str, world: int) -> str:
@@ -47,20 +44,17 @@ def pack(scenes: Sequence[Scene]) -> tuple[Scene, Worlds]:
     if not scenes:
         raise SceneError("scenes", "at least one scene", 0)
     first = scenes[0]
-    if first.simulation.integrator == "implicit":  # its CG's scalars are sums over every particle
+    if first.simulation.integrator == "implicit" and len(scenes) > 1:  # its CG's sums run over every particle
         raise SceneError("scenes[0].simulation.integrator", "explicit or symplectic in a batch (the implicit step's "
                          "solve would couple the worlds; run implicit scenes alone)", "implicit")
-    shared = _shared_simulation(first.simulation)
+    shared = shared_settings(first)
     for w, scene in enumerate(scenes[1:], start=1):
-        for key, mine, theirs in (("simulation", _shared_simulation(scene.simulation), shared),
-                                  ("collision", _as_dict(scene.collision), _as_dict(first.collision)),
-                                  ("implicit", _as_dict(scene.implicit), _as_dict(first.implicit)),
-                                  ("wind", _as_dict(scene.wind), _as_dict(first.wind))):
-            differs = _first_difference(mine, theirs, key) if mine.keys() == theirs.keys() else key
-            if differs is not None:
-                raise SceneError(f"scenes[{w}].{differs}", "the same as scenes[0]'s: a batch's worlds share their "
-                                 "step, solves, collision and wind settings (batch them apart, or make them equal)",
-                                 has_got=False)
+        mine = shared_settings(scene)
+        differs = next((key for key in shared if mine[key] != shared[key]), None)
+        if differs is not None:
+            raise SceneError(f"scenes[{w}].{differs}", "the same as scenes[0]'s: a batch's worlds share their "
+                             "step, solves, collision and wind settings (batch them apart, or make them equal)",
+                             has_got=False)
     cloths, spheres, colliders = [], [], []
     cloth_world, sphere_start, mesh_start = [], [0], [0]
     for w, scene in enumerate(scenes):
@@ -85,10 +79,6 @@ def pack(scenes: Sequence[Scene]) -> tuple[Scene, Worlds]:
     return packed, worlds
 
 
-def _as_dict(settings) -> dict:
-    return {} if settings is None else dataclasses.asdict(settings)
-
-
 class Batch:
     """Scenes (worlds) stepped together on one device: one particle buffer, one launch per pass for all.
 
@@ -97,8 +87,8 @@ class Batch:
     is refused: batch them apart). Where the scenes set no step, the batch takes the finest any of its
     cloths needs, which may be finer than a world alone would take. A converged strain solve runs until
     every world is within tolerance, so a world may take more passes than alone: its frames then differ
-    from its scene's alone within that tolerance; a fixed solve gives them to rounding. The implicit
-    integrator is refused (its solve's sums run over every world).
+    from its scene's alone within that tolerance; a fixed solve gives them to rounding. An implicit
+    scene is refused but in a batch of its own (its solve's sums run over every world).
 
     A world that blows up is stopped (put back where it started, at rest, and held) and the others go on:
     ``stopped_worlds`` holds each such world's ``UnstableSimulation`` (its frame and cause); its frames from
@@ -141,12 +131,14 @@ class Batch:
     def step(self) -> None:
         self.simulator.step()
 
-    def run(self, frames: int, writers: dict[int, list] | None = None, progress: bool = False) -> RunSummary:
+    def run(self, frames: int, writers: dict[int, list] | None = None, progress: bool = False,
+            monitors: Sequence = ()) -> RunSummary:
         """Simulate ``frames`` frames; ``writers``: each world's own (``UsdWriter``, ``PolyWriter``, ...), by
         world. A world that blows up has its writers abandoned there, as a run alone that fails (its frames
-        kept under the failed names), while the others' go on."""
+        kept under the failed names), while the others' go on. ``monitors``: writers of the whole batch
+        (``strain.WorldStrain``)."""
         chosen = [WorldWriters(self, writers)] if writers else []
-        return self.simulator.run(frames, writers=chosen, progress=progress)
+        return self.simulator.run(frames, writers=[*chosen, *monitors], progress=progress)
 
     def view(self, w: int) -> "WorldView":
         """World ``w`` as its writers see it (made once)."""

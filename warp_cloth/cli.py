@@ -74,6 +74,8 @@ def _parser() -> argparse.ArgumentParser:
                         add_help=False)
     commands.add_parser("study", help="what accuracy costs in time: error against a reference and wall time "
                                       "per integrator, step and resolution (see 'study --help')", add_help=False)
+    commands.add_parser("sweep", help="run variants of a scene (--set KEY=V1,V2,...) as the worlds of batches, "
+                                      "with a table of outcomes (see 'sweep --help')", add_help=False)
     return parser
 
 
@@ -387,6 +389,10 @@ def _main(argv: list[str] | None) -> int:
         from .study import main as study_main
 
         return study_main(rest)
+    if args.command == "sweep":
+        from .sweep import main as sweep_main
+
+        return sweep_main(rest)
     if rest:
         _parser().error(f"unrecognized arguments: {' '.join(rest)}")
     try:

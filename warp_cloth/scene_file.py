@@ -51,6 +51,16 @@ def resolve_scene_path(name_or_path: str | Path) -> Path:
 def load_scene(name_or_path: str | Path) -> Scene:
     """Load a built-in scene by name, or a scene file by path. Without a ``name`` key the scene is named
     after the file, its characters other than ASCII letters, digits, '_' and '-' made '_'."""
+    data, path = load_scene_data(name_or_path)
+    try:
+        return scene_from_dict(data)
+    except SceneError as exc:
+        raise exc.in_file(str(path)) from None
+
+
+def load_scene_data(name_or_path: str | Path) -> tuple[dict[str, Any], Path]:
+    """A scene file's plain data as ``scene_from_dict`` takes it (named, its mesh paths made absolute), and
+    the file it came from."""
     path = resolve_scene_path(name_or_path)
     try:
         with open(path, "rb") as handle:
@@ -68,11 +78,8 @@ def load_scene(name_or_path: str | Path) -> Scene:
         raise SceneError("", f"a readable file ({exc.strerror})", has_got=False, source=str(path)) from None
     if "name" not in data:
         data["name"] = file_name_from(path.stem)
-    _mesh_paths_from(path.parent, data)
-    try:
-        return scene_from_dict(data)
-    except SceneError as exc:
-        raise exc.in_file(str(path)) from None
+    _mesh_paths_from(path.parent.absolute(), data)
+    return data, path
 
 
 def _mesh_paths_from(folder: Path, data: dict[str, Any]) -> None:

@@ -124,3 +124,35 @@ def beyond_fraction(counts: np.ndarray, bound: float) -> float:
     lower = upper - 1.0 / BINS_PER_UNIT
     total = counts.sum()
     return float(counts[(lower >= bound) | (upper <= -bound)].sum() / total) if total else 0.0
+
+
+class WorldStrain:
+    """A frame writer that keeps each world's worst edge stretch and compression over every frame it is
+    given, on the device (for a batch's worlds, see warp_cloth/batch.py; a scene alone is one world);
+    ``worst()`` reads them back, (worlds, 2)."""
+
+    def load_kernels(self, sim) -> None:
+        wp.load_module(strain_kernels, device=sim.device)
+
+    def begin(self, sim) -> None:
+        model, device = sim.model, sim.device
+        self.edges = wp.array(model.edges, dtype=wp.vec2i, device=device)
+        self.rest = wp.array(model.edge_rest, dtype=float, device=device)
+        self.edge_world = wp.array(model.particle_world[model.edges[:, 0]] if len(model.edges) else
+                                   np.zeros(0, dtype=np.int32), dtype=int, device=device)
+        self.worst_strain = wp.zeros((sim.device_model.world_count, 2), dtype=float, device=device)
+
+    def write_frame(self, sim, frame: int) -> None:
+        if self.edges.shape[0] > 0:
+            wp.launch(strain_kernels.worst_by_world, dim=self.edges.shape[0],
+                      inputs=[sim.state.x, self.edges, self.rest, self.edge_world], outputs=[self.worst_strain],
+                      device=sim.device)
+
+    def finish(self, sim, frames_written: int) -> None:
+        pass
+
+    def abandon(self, sim, frames_written: int, outcome) -> None:
+        pass
+
+    def worst(self) -> np.ndarray:
+        return self.worst_strain.numpy()

@@ -1,0 +1,141 @@
+"""``warp-cloth sweep``: the product of --set values run as the worlds of batches, a table whose figures are
+those of each variant run alone, each variant once across interrupted and resumed sweeps, bad input
+refused in one line."""
+
+import json
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import warp_cloth as wc
+from conftest import run_cli_in_process
+from warp_cloth.sweep import file_stem
+
+SCENE = """
+name = "sheet"
+[simulation]
+fps = 24
+frames = 6
+substeps = 30
+integrator = "symplectic"
+limit_solve = "fixed"
+
+[ground]
+height = 0.0
+
+[[cloth]]
+resolution = [8, 8]
+size = [1.0, 1.0]
+orientation = "horizontal"
+origin = [-0.5, 0.3, 0.5]
+rotation = [25.0, 0.0, 0.0]
+density = 0.2
+limit = { stretch = 0.1, compression = 0.1 }
+structural = { stiffness = 15.0, damping = 0.02 }
+shear = { stiffness = 15.0, damping = 0.02 }
+bend = { stiffness = 5.0, damping = 0.01, acts = "compression", damping_acts = "compression" }
+"""
+
+
+def rows_of(folder: Path) -> list[dict]:
+    return [json.loads(line) for line in (folder / "results.jsonl").read_text().splitlines()]
+
+
+def test_a_sweep_runs_the_product_and_its_table_holds_each_variant_as_run_alone(tmp_path):
+    (tmp_path / "sheet.toml").write_text(SCENE)
+    code, out, err = run_cli_in_process("sweep", "sheet.toml", "--set", "cloth.bend.stiffness=1,10",
+                                        "--set", "simulation.gravity=[0.0, -9.81, 0.0],[0.0, -3.0, 0.0]",
+                                        "--out", "swept", cwd=tmp_path)
+    assert code == 0, err
+    assert "sweep sheet: 4 variants (0 done before) in 1 batches" in out.splitlines()[-1]
+    rows = rows_of(tmp_path / "swept")
+    assert sorted(r["variant"] for r in rows) == sorted(
+        f"cloth.bend.stiffness={k} simulation.gravity={g}" for k in (1, 10)
+        for g in ("[0.0, -9.81, 0.0]", "[0.0, -3.0, 0.0]"))
+    table = (tmp_path / "swept" / "results.csv").read_text().splitlines()
+    assert table[0].startswith("cloth.bend.stiffness,simulation.gravity,variant,stretch,compression")
+    assert len(table) == 5
+    base = wc.load_scene(tmp_path / "sheet.toml")
+    for row in rows:
+        stiffness, gravity = row["settings"]["cloth.bend.stiffness"], row["settings"]["simulation.gravity"]
+        cloth = base.cloths[0]
+        scene = wc.Scene(name="alone", cloths=(wc.Cloth(**{**cloth.__dict__, "bend": wc.SpringKind(
+            float(stiffness), 0.01, "compression", "compression")}),), ground=base.ground,
+            simulation=wc.Simulation(**{**base.simulation.__dict__, "gravity": tuple(gravity)}))
+        sim = wc.Simulator(scene, device="cpu")
+        monitor = wc.StrainMonitor()
+        sim.run(6, writers=[monitor])
+        report = monitor.report()
+        assert row["stretch"] == pytest.approx(report.stretch, abs=1e-6)
+        assert row["compression"] == pytest.approx(report.compression, abs=1e-6)
+        v, m = sim.velocities().astype(np.float64), sim.model.masses.astype(np.float64)
+        assert row["kinetic_energy"] == pytest.approx(0.5 * np.sum(m * np.sum(v * v, axis=1)), rel=1e-5)
+        assert row["unstable_frame"] is None and row["batch_worlds"] == 4
+        assert Path(tmp_path / row["usd"]).name == f"{file_stem(tuple(row['settings'].items()))}.usdc"
+        assert (tmp_path / row["usd"]).is_file()
+
+
+def test_a_sweep_started_again_runs_only_what_its_table_lacks(tmp_path):
+    (tmp_path / "sheet.toml").write_text(SCENE)
+    assert run_cli_in_process("sweep", "sheet.toml", "--set", "cloth.density=0.1,0.2", "--out", "s",
+                              "--no-usd", cwd=tmp_path)[0] == 0
+    code, out, err = run_cli_in_process("sweep", "sheet.toml", "--set", "cloth.density=0.1,0.2,0.3", "--out", "s",
+                                        "--no-usd", cwd=tmp_path)
+    assert code == 0, err
+    assert "3 variants (2 done before) in 1 batches" in out
+    assert sorted(r["settings"]["cloth.density"] for r in rows_of(tmp_path / "s")) == [0.1, 0.2, 0.3]
+
+
+def test_an_interrupted_sweep_resumed_completes_each_variant_once(tmp_path):
+    slow = SCENE.replace("frames = 6", "frames = 240").replace("resolution = [8, 8]", "resolution = [24, 24]")
+    (tmp_path / "sheet.toml").write_text(slow)  # seconds a variant: time to stop the sweep after the first
+    args = [sys.executable, "-m", "warp_cloth", "sweep", "sheet.toml", "--set", "cloth.density=0.1,0.15,0.2,0.25",
+            "--worlds", "1", "--out", "s"]
+    process = subprocess.Popen(args, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    results = tmp_path / "s" / "results.jsonl"
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and not (results.exists() and results.read_text().strip()):
+        time.sleep(0.05)
+    process.send_signal(signal.SIGINT)
+    process.communicate(timeout=120)
+    first = rows_of(tmp_path / "s")
+    assert 1 <= len(first) < 4  # stopped part way
+    resumed = subprocess.run(args, cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert resumed.returncode == 0, resumed.stderr
+    assert f"4 variants ({len(first)} done before)" in resumed.stdout
+    rows = rows_of(tmp_path / "s")
+    assert sorted(r["settings"]["cloth.density"] for r in rows) == [0.1, 0.15, 0.2, 0.25]  # each once
+
+
+@pytest.mark.parametrize("sets, expected", [
+    (["cloth.bend.stiffnes=1,2"], "bend.stiffnes"),
+    (["cloth.density=light"], "cloth[0].density"),
+    (["cloth.density=0.1:0.2"], "cloth[0].density: expected a number, got '0.1:0.2'"),  # a range needs --random
+    (["cloth.density"], "--set: expected KEY=V1,V2,..."),
+    (["cloth[3].density=1"], "--set cloth[3].density: expected an index below 1 for cloth"),
+])
+def test_bad_sweep_input_is_one_line_and_nothing_is_written(tmp_path, sets, expected):
+    (tmp_path / "sheet.toml").write_text(SCENE)
+    args = [a for s in sets for a in ("--set", s)]
+    code, out, err = run_cli_in_process("sweep", "sheet.toml", *args, "--out", "s", cwd=tmp_path)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and expected in err, err
+    assert not (tmp_path / "s").exists()
+
+
+def test_random_variants_draw_from_the_ranges_and_lists_the_same_way_for_a_seed(tmp_path):
+    (tmp_path / "sheet.toml").write_text(SCENE)
+    drawn = []
+    for out in ("a", "b"):
+        code, _, err = run_cli_in_process("sweep", "sheet.toml", "--set", "cloth.density=0.1:0.3",
+                                          "--set", "cloth.bend.stiffness=1,5", "--random", "5", "--seed", "3",
+                                          "--no-usd", "--out", out, cwd=tmp_path)
+        assert code == 0, err
+        drawn.append(sorted((r["settings"]["cloth.density"], r["settings"]["cloth.bend.stiffness"])
+                            for r in rows_of(tmp_path / out)))
+    assert drawn[0] == drawn[1] and len(drawn[0]) == 5
+    assert all(0.1 <= d <= 0.3 and k in (1, 5) for d, k in drawn[0])

@@ -1,0 +1,367 @@
+"""``warp-cloth sweep``: many variants of a scene, packed as the worlds of batches, with a table of outcomes.
+
+    warp-cloth sweep drape --set cloth.bend.stiffness=1,5,10 --set simulation.integrator=symplectic,implicit
+    warp-cloth sweep drape --set cloth.density=0.1:0.4 --random 64 --seed 7
+
+A ``--set KEY=V1,V2,...`` names a key of the scene file by its path (``cloth.bend.stiffness`` sets it on
+every cloth, ``cloth[1].bend.stiffness`` on the second) and its values, each a TOML value (a bare word is
+a string); the sweep runs the cartesian product. With ``--random N``, ``KEY=LOW:HIGH`` draws a number
+uniformly in the range and a list draws one of its values, N times from ``--seed``.
+
+Variants that can share a step (see ``batch.pack``) run together as the worlds of one batch, at most
+``--worlds`` at a time; the rest (an implicit one, one with its own step) run in batches of their own. Each
+writes its USD, named by its settings, into the output folder, and one row of ``results.jsonl`` as its batch
+ends: its settings, its worst edge stretch and compression over every frame, its kinetic energy and closest
+contact at the end, the frame it blew up in if it did, and the wall time. ``results.csv`` holds the same
+table. A sweep started again over the same folder skips the variants the table already has, so an
+interrupted sweep goes on where it stopped, and nothing is computed twice.
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import csv
+import hashlib
+import itertools
+import json
+import os
+import re
+import sys
+import time
+import tomllib
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .errors import SceneError
+from .progress import Progress
+
+EXIT_BAD_INPUT = 2
+DEFAULT_WORLDS = 1024
+RESULTS = "results.jsonl"
+TABLE = "results.csv"
+COLUMNS = ("variant", "settings", "stretch", "compression", "kinetic_energy", "closest_contact", "unstable_frame",
+           "batch_worlds", "batch_seconds", "usd")
+
+
+@dataclass(frozen=True)
+class SweepKey:
+    """A ``--set``: the key's path and its values (or, for ``--random``, a range)."""
+    path: str
+    values: tuple[Any, ...] = ()
+    low: float | None = None
+    high: float | None = None
+
+
+def _value(text: str) -> Any:
+    """A TOML value, or the text itself where it is none (a bare word: a string)."""
+    try:
+        return tomllib.loads(f"v = {text}")["v"]
+    except tomllib.TOMLDecodeError:
+        return text
+
+
+def _split_values(text: str) -> list[str]:
+    """Values separated by commas outside brackets and quotes (``[1, 2],[3, 4]`` is two arrays)."""
+    parts, depth, quote, current = [], 0, "", ""
+    for ch in text:
+        if quote:
+            quote = "" if ch == quote else quote
+        elif ch in "\"'":
+            quote = ch
+        elif ch in "[{":
+            depth += 1
+        elif ch in "]}":
+            depth -= 1
+        elif ch == "," and depth == 0:
+            parts.append(current)
+            current = ""
+            continue
+        current += ch
+    return [*parts, current]
+
+
+def parse_set(text: str, random: bool) -> SweepKey:
+    key, sep, values = text.partition("=")
+    if not sep or not key or not values:
+        raise SceneError("--set", "KEY=V1,V2,... (or KEY=LOW:HIGH with --random)", text, source="command line")
+    if random and re.fullmatch(r"[^,:\[\]]+:[^,:\[\]]+", values):
+        low, high = (_value(v) for v in values.split(":"))
+        if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in (low, high)) or low > high:
+            raise SceneError(f"--set {key}", "a range LOW:HIGH of two numbers, LOW <= HIGH", values,
+                             source="command line")
+        return SweepKey(key, low=float(low), high=float(high))
+    return SweepKey(key, tuple(_value(v) for v in _split_values(values)))
+
+
+def settings_of(keys: Sequence[SweepKey], random: int | None, seed: int) -> list[tuple[tuple[str, Any], ...]]:
+    """Each variant's settings, (key, value) in the order the keys were given."""
+    if random is None:
+        product = itertools.product(*[[(k.path, v) for v in k.values] for k in keys])
+        return [tuple(p) for p in product]
+    rng = np.random.default_rng(seed)
+    variants = []
+    for _ in range(random):
+        variants.append(tuple((k.path, float(rng.uniform(k.low, k.high)) if k.low is not None
+                               else k.values[int(rng.integers(len(k.values)))]) for k in keys))
+    return variants
+
+
+_STEP = re.compile(r"([A-Za-z_][A-Za-z0-9_]*)(?:\[(\d+)\])?$")
+
+
+def with_setting(data: dict[str, Any], path: str, value: Any) -> dict[str, Any]:
+    """``data`` (a scene file's) with ``path`` set to ``value``: an array of tables without an index is
+    set in each of its tables; a table on the way that is not there is made (the scene's checks then
+    refuse a key that does not exist)."""
+    data = copy.deepcopy(data)
+    steps = path.split(".")
+    targets = [data]
+    for depth, step in enumerate(steps):
+        match = _STEP.match(step)
+        if match is None:
+            raise SceneError(f"--set {path}", "a key path of names, each maybe with an [index]", step,
+                             source="command line")
+        name, index = match.group(1), match.group(2)
+        last = depth == len(steps) - 1
+        following = []
+        for target in targets:
+            if not isinstance(target, dict):
+                raise SceneError(f"--set {path}", f"a path through tables ({'.'.join(steps[:depth])} is not one)",
+                                 has_got=False, source="command line")
+            if last and index is None:
+                target[name] = value
+                continue
+            item = target.setdefault(name, {} if index is None else [])
+            if isinstance(item, list):
+                chosen = item if index is None else item[int(index):int(index) + 1]
+                if index is not None and not chosen:
+                    raise SceneError(f"--set {path}", f"an index below {len(item)} for {name}", int(index),
+                                     source="command line")
+                if last:
+                    item[int(index)] = value
+                following += chosen
+            else:
+                following.append(item)
+        targets = following
+    return data
+
+
+def describe(settings: tuple[tuple[str, Any], ...]) -> str:
+    return " ".join(f"{k}={json.dumps(v) if not isinstance(v, str) else v}" for k, v in settings)
+
+
+def file_stem(settings: tuple[tuple[str, Any], ...]) -> str:
+    """A file name for a variant, from its settings: readable where short, with a hash that keeps it unique."""
+    text = describe(settings)
+    readable = re.sub(r"[^A-Za-z0-9._=-]+", "_", text.replace(" ", "__"))[:80]
+    return f"{readable}-{hashlib.sha1(text.encode()).hexdigest()[:8]}"
+
+
+@dataclass(frozen=True)
+class Variant:
+    settings: tuple[tuple[str, Any], ...]
+    data: dict[str, Any]
+
+    @property
+    def name(self) -> str:
+        return describe(self.settings)
+
+
+def build_variants(base: dict[str, Any], settings: list[tuple[tuple[str, Any], ...]], frames: int | None):
+    """Each variant's scene, checked (a bad value is refused before anything runs, naming the variant)."""
+    from .scene_file import scene_from_dict
+
+    variants, scenes = [], []
+    for chosen in settings:
+        data = base
+        for path, value in chosen:
+            data = with_setting(data, path, value)
+        if frames is not None:
+            data = with_setting(data, "simulation.frames", frames)
+        try:
+            scene = scene_from_dict(data)
+        except SceneError as exc:
+            raise SceneError(exc.key, exc.expected, exc.got, source=f"variant {describe(chosen)}",
+                             has_got=exc.has_got) from None
+        variants.append(Variant(chosen, data))
+        scenes.append(scene)
+    return variants, scenes
+
+
+def batches(scenes: list, most: int) -> list[list[int]]:
+    """The variants' indices in batches: those that can share a step together, ``most`` at a time."""
+    from .batch import shared_settings
+
+    groups: dict[str, list[int]] = {}
+    for k, scene in enumerate(scenes):
+        alone = scene.simulation.integrator == "implicit"
+        groups.setdefault(f"alone {k}" if alone else json.dumps(shared_settings(scene), sort_keys=True,
+                                                                default=str), []).append(k)
+    return [members[i:i + most] for members in groups.values() for i in range(0, len(members), most)]
+
+
+def run_batch(variants: list[Variant], out: Path, device: str | None, usd: bool) -> list[dict[str, Any]]:
+    """Run one batch of variants and give their rows (what a cluster's task runs, too)."""
+    import warnings
+
+    from .batch import Batch
+    from .scene_file import scene_from_dict
+    from .stability import UnstableStepWarning
+    from .strain import WorldStrain
+    from .writers import UsdWriter
+
+    scenes = [scene_from_dict(v.data) for v in variants]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UnstableStepWarning)  # a step past its bound: the table says if it blew up
+        batch = Batch(scenes, device=device)
+    paths = {w: out / f"{file_stem(v.settings)}.usdc" for w, v in enumerate(variants)} if usd else {}
+    for path in paths.values():
+        path.with_name(f"{path.stem}.incomplete.usdc").unlink(missing_ok=True)  # a killed attempt's, of this sweep
+    strain = WorldStrain()
+    frames = scenes[0].simulation.frames
+    started = time.perf_counter()
+    try:
+        batch.run(frames, writers={w: [UsdWriter(p)] for w, p in paths.items()}, monitors=[strain])
+    except Exception as exc:  # every world stopped: the table says where each blew up
+        from .errors import UnstableSimulation
+
+        if not isinstance(exc, UnstableSimulation):
+            raise
+    seconds = time.perf_counter() - started
+    worst = strain.worst()
+    contacts = batch.closest_contacts()
+    masses = batch.simulator.model.masses.astype(np.float64)
+    rows = []
+    for w, variant in enumerate(variants):
+        part = batch.world_slice(w)
+        v = batch.velocities(w).astype(np.float64)
+        stopped = batch.stopped_worlds.get(w)
+        usd_path = paths.get(w)
+        if usd_path is not None and stopped is not None:
+            usd_path = usd_path.with_name(f"{usd_path.stem}.failed.usdc")
+        rows.append({"variant": variant.name, "settings": dict(variant.settings),
+                     "stretch": float(worst[w, 0]), "compression": float(worst[w, 1]),
+                     "kinetic_energy": float(0.5 * np.sum(masses[part] * np.sum(v * v, axis=1))),
+                     "closest_contact": None if contacts is None or contacts[w] >= 1e29 else float(contacts[w]),
+                     "unstable_frame": None if stopped is None else stopped.frame,
+                     "batch_worlds": len(variants), "batch_seconds": seconds,
+                     "usd": None if usd_path is None else str(usd_path)})
+    return rows
+
+
+def done_variants(out: Path) -> dict[str, dict[str, Any]]:
+    """The rows an earlier run of this sweep wrote, by variant."""
+    path = out / RESULTS
+    if not path.exists():
+        return {}
+    rows = {}
+    for line in path.read_text().splitlines():
+        try:
+            row = json.loads(line)
+        except json.JSONDecodeError:
+            continue  # a line cut short by a kill: its variant runs again
+        rows[row["variant"]] = row
+    return rows
+
+
+def append_rows(out: Path, rows: list[dict[str, Any]]) -> None:
+    with open(out / RESULTS, "a") as handle:
+        for row in rows:
+            handle.write(json.dumps(row) + "\n")
+        handle.flush()
+        os.fsync(handle.fileno())
+
+
+def write_table(out: Path, rows: list[dict[str, Any]]) -> None:
+    staging = out / f"{TABLE}.incomplete"
+    with open(staging, "w", newline="") as handle:
+        writer = csv.writer(handle)
+        keys = sorted({k for row in rows for k in row["settings"]})
+        writer.writerow([*keys, *[c for c in COLUMNS if c != "settings"]])
+        for row in rows:
+            writer.writerow([row["settings"].get(k, "") for k in keys] +
+                            ["" if row[c] is None else row[c] for c in COLUMNS if c != "settings"])
+    os.replace(staging, out / TABLE)
+
+
+def run_local(todo: list[list[Variant]], out: Path, device: str | None, usd: bool, bar: Progress) -> Iterator[list]:
+    for chunk in todo:
+        rows = run_batch(chunk, out, device, usd)
+        append_rows(out, rows)
+        yield rows
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="warp-cloth sweep", description=__doc__.split("\n\n")[0],
+                                     formatter_class=argparse.RawDescriptionHelpFormatter,
+                                     epilog="\n\n".join(__doc__.split("\n\n")[1:]))
+    parser.add_argument("scene", help="built-in scene name or path to a .toml file")
+    parser.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=V1,V2,...",
+                        help="a key and its values (repeat for more keys)")
+    parser.add_argument("--random", type=int, metavar="N", help="N variants drawn at random instead of the product")
+    parser.add_argument("--seed", type=int, default=0, help="the random draws' seed (default 0)")
+    parser.add_argument("--frames", type=int, help="frames of each variant (default: the scene's)")
+    parser.add_argument("--device", help="cpu, cuda or cuda:N (default: cuda if available, else cpu)")
+    parser.add_argument("--worlds", type=int, default=DEFAULT_WORLDS,
+                        help=f"most variants in one batch (default {DEFAULT_WORLDS})")
+    parser.add_argument("--out", type=Path, help="output folder (default: out/sweep-SCENE)")
+    parser.add_argument("--no-usd", action="store_true", help="write the table only, no USD per variant")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    from .scene_file import load_scene_data
+
+    import warp as wp
+
+    args = _parser().parse_args(argv)
+    wp.config.log_level = wp.LOG_ERROR  # Warp's messages of modules loaded are not for the command's user
+    try:
+        if not args.sets:
+            raise SceneError("--set", "at least one KEY=V1,V2,...", has_got=False, source="command line")
+        if args.random is not None and args.random < 1:
+            raise SceneError("--random", "a number of variants >= 1", args.random, source="command line")
+        if args.worlds < 1:
+            raise SceneError("--worlds", "a number of worlds >= 1", args.worlds, source="command line")
+        keys = [parse_set(text, args.random is not None) for text in args.sets]
+        settings = settings_of(keys, args.random, args.seed)
+        if not settings:
+            raise SceneError("--set", "values that make at least one variant", "none", source="command line")
+        base, _ = load_scene_data(args.scene)
+        variants, scenes = build_variants(base, settings, args.frames)
+    except SceneError as exc:
+        print(f"warp-cloth sweep: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    out = args.out or Path("out") / f"sweep-{scenes[0].name}"
+    out.mkdir(parents=True, exist_ok=True)
+    done = done_variants(out)
+    todo = [[variants[k] for k in chunk if variants[k].name not in done]
+            for chunk in batches(scenes, args.worlds)]
+    todo = [chunk for chunk in todo if chunk]
+    skipped = len(variants) - sum(len(c) for c in todo)
+    bar = Progress(len(variants), f"sweep {scenes[0].name}")
+    bar.update(skipped)
+    finished, unstable, started = skipped, 0, time.perf_counter()
+    try:
+        for rows in run_local(todo, out, args.device, not args.no_usd, bar):
+            finished += len(rows)
+            unstable += sum(row["unstable_frame"] is not None for row in rows)
+            bar.update(finished)
+    finally:
+        bar.close()
+        rows = list(done_variants(out).values())
+        if rows:
+            write_table(out, rows)
+    print(f"sweep {scenes[0].name}: {len(variants)} variants ({skipped} done before) in "
+          f"{len(todo)} batches, {time.perf_counter() - started:.1f} s; {unstable} blew up; "
+          f"wrote {out / TABLE} and {out / RESULTS}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
