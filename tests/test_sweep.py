@@ -2,7 +2,9 @@
 those of each variant run alone, each variant once across interrupted and resumed sweeps, bad input
 refused in one line."""
 
+import importlib.util
 import json
+import os
 import signal
 import subprocess
 import sys
@@ -139,3 +141,70 @@ def test_random_variants_draw_from_the_ranges_and_lists_the_same_way_for_a_seed(
                             for r in rows_of(tmp_path / out)))
     assert drawn[0] == drawn[1] and len(drawn[0]) == 5
     assert all(0.1 <= d <= 0.3 and k in (1, 5) for d, k in drawn[0])
+
+
+def ray_task_processes() -> list[int]:
+    """The processes running a sweep's batch as a Ray task (Ray titles them after the task)."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        try:
+            if entry.name.isdigit() and (entry / "cmdline").read_bytes().startswith(b"ray::run_batch"):
+                found.append(int(entry.name))
+        except OSError:
+            continue
+    return found
+
+
+needs_ray = pytest.mark.skipif(importlib.util.find_spec("ray") is None,
+                               reason="Ray (the cluster extra) is not installed")
+
+
+@needs_ray
+def test_a_sweep_on_a_local_ray_cluster_gives_the_table_a_local_sweep_gives(tmp_path):
+    (tmp_path / "sheet.toml").write_text(SCENE)
+    sets = ["--set", "cloth.density=0.1,0.2,0.3,0.4", "--set", "cloth.bend.stiffness=1,10", "--no-usd"]
+    assert run_cli_in_process("sweep", "sheet.toml", *sets, "--out", "here", cwd=tmp_path)[0] == 0
+    code, out, err = run_cli_in_process("sweep", "sheet.toml", *sets, "--out", "ray", "--worlds", "3",
+                                        "--cluster", "local", "--cluster-workers", "2", cwd=tmp_path)
+    assert code == 0, err
+    assert "8 variants (0 done before) in 3 batches" in out
+    here = {r["variant"]: r for r in rows_of(tmp_path / "here")}
+    there = rows_of(tmp_path / "ray")
+    assert sorted(r["variant"] for r in there) == sorted(here)
+    for row in there:  # the same figures (batched 3 at a time there, all 8 together here)
+        assert row["stretch"] == pytest.approx(here[row["variant"]]["stretch"], abs=1e-6)
+        assert row["kinetic_energy"] == pytest.approx(here[row["variant"]]["kinetic_energy"], rel=1e-5)
+
+
+@needs_ray
+def test_a_sweep_whose_ray_worker_is_killed_still_runs_each_variant_once(tmp_path):
+    slow = SCENE.replace("frames = 6", "frames = 120").replace("resolution = [8, 8]", "resolution = [20, 20]")
+    (tmp_path / "sheet.toml").write_text(slow)
+    args = [sys.executable, "-m", "warp_cloth", "sweep", "sheet.toml", "--set",
+            "cloth.density=0.1,0.12,0.14,0.16,0.18,0.2,0.22,0.24", "--worlds", "1", "--out", "s",
+            "--cluster", "local", "--cluster-workers", "2"]
+    process = subprocess.Popen(args, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    killed = None
+    deadline = time.monotonic() + 180
+    while killed is None and time.monotonic() < deadline and process.poll() is None:
+        running = ray_task_processes()
+        if running:
+            killed = running[0]
+            os.kill(killed, signal.SIGKILL)
+        time.sleep(0.05)
+    out, err = process.communicate(timeout=600)
+    assert killed is not None, "no Ray task was seen running"
+    assert process.returncode == 0, err
+    assert "8 variants (0 done before) in 8 batches" in out
+    densities = sorted(r["settings"]["cloth.density"] for r in rows_of(tmp_path / "s"))
+    assert densities == [0.1, 0.12, 0.14, 0.16, 0.18, 0.2, 0.22, 0.24]  # each once, the killed one run again
+    assert all((tmp_path / r["usd"]).is_file() for r in rows_of(tmp_path / "s"))
+
+
+def test_a_cluster_address_that_does_not_answer_is_refused_in_one_line(tmp_path):
+    (tmp_path / "sheet.toml").write_text(SCENE)
+    code, _, err = run_cli_in_process("sweep", "sheet.toml", "--set", "cloth.density=0.1", "--out", "s",
+                                      "--cluster", "127.0.0.1:1", cwd=tmp_path)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "--cluster: expected the address of a running Ray cluster, HOST:PORT, or local" in err
+    assert not (tmp_path / "s").exists()

@@ -15,6 +15,12 @@ ends: its settings, its worst edge stretch and compression over every frame, its
 contact at the end, the frame it blew up in if it did, and the wall time. ``results.csv`` holds the same
 table. A sweep started again over the same folder skips the variants the table already has, so an
 interrupted sweep goes on where it stopped, and nothing is computed twice.
+
+With ``--cluster ADDRESS`` (a running Ray cluster's, or ``local`` for one started on this machine with
+``--cluster-workers`` workers), each batch is a Ray task, on a GPU where the cluster has them (else on a
+CPU), retried on another worker if its worker is lost (``--retries``). The tasks write their USD files
+into the output folder, which every worker must reach (shared storage on a real cluster); the table is
+written here as their results come back. Ray is the ``cluster`` extra (``pip install 'warp-cloth[cluster]'``).
 """
 
 from __future__ import annotations
@@ -27,6 +33,7 @@ import itertools
 import json
 import os
 import re
+import socket
 import sys
 import time
 import tomllib
@@ -41,6 +48,7 @@ from .errors import SceneError
 from .progress import Progress
 
 EXIT_BAD_INPUT = 2
+EXIT_FAILED = 4
 DEFAULT_WORLDS = 1024
 RESULTS = "results.jsonl"
 TABLE = "results.csv"
@@ -289,11 +297,51 @@ def write_table(out: Path, rows: list[dict[str, Any]]) -> None:
     os.replace(staging, out / TABLE)
 
 
-def run_local(todo: list[list[Variant]], out: Path, device: str | None, usd: bool, bar: Progress) -> Iterator[list]:
+def run_local(todo: list[list[Variant]], out: Path, device: str | None, usd: bool) -> Iterator[list]:
     for chunk in todo:
         rows = run_batch(chunk, out, device, usd)
         append_rows(out, rows)
         yield rows
+
+
+def check_cluster_address(address: str) -> None:
+    """Refuse an address no Ray cluster answers at, in a few seconds rather than Ray's minute."""
+    if address == "local":
+        return
+    host, _, port = address.removeprefix("ray://").rpartition(":")
+    try:
+        with socket.create_connection((host or "127.0.0.1", int(port)), timeout=5):
+            pass
+    except (OSError, ValueError) as exc:
+        reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        raise SceneError("--cluster", f"the address of a running Ray cluster, HOST:PORT, or local ({reason})",
+                         address, source="command line") from None
+
+
+def run_cluster(todo: list[list[Variant]], out: Path, device: str | None, usd: bool, address: str, workers: int,
+                retries: int) -> Iterator[list]:
+    """Each batch a Ray task; rows come back as tasks end, in whatever order."""
+    try:
+        import ray
+    except ImportError:
+        raise SceneError("--cluster", "Ray installed (pip install 'warp-cloth[cluster]')", has_got=False,
+                         source="command line") from None
+    if address == "local":
+        ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False, configure_logging=False)
+    else:
+        ray.init(address=address, log_to_driver=False, configure_logging=False)
+    try:
+        gpus = ray.cluster_resources().get("GPU", 0) > 0 and device in (None, "cuda")
+        task = ray.remote(num_gpus=1 if gpus else 0, num_cpus=0 if gpus else 1, max_retries=retries,
+                          retry_exceptions=False)(run_batch)
+        pending = [task.remote(chunk, out.absolute(), "cuda" if gpus else "cpu", usd) for chunk in todo]
+        while pending:
+            done, pending = ray.wait(pending, num_returns=1)
+            rows = ray.get(done[0])
+            append_rows(out, rows)
+            yield rows
+    finally:
+        ray.shutdown()
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -311,6 +359,12 @@ def _parser() -> argparse.ArgumentParser:
                         help=f"most variants in one batch (default {DEFAULT_WORLDS})")
     parser.add_argument("--out", type=Path, help="output folder (default: out/sweep-SCENE)")
     parser.add_argument("--no-usd", action="store_true", help="write the table only, no USD per variant")
+    parser.add_argument("--cluster", metavar="ADDRESS",
+                        help="run the batches on a Ray cluster: its address (HOST:PORT), or local to start one here")
+    parser.add_argument("--cluster-workers", type=int, default=2,
+                        help="with --cluster local, how many workers (default 2)")
+    parser.add_argument("--retries", type=int, default=3,
+                        help="with --cluster, how often a batch whose worker was lost runs again (default 3)")
     return parser
 
 
@@ -332,6 +386,8 @@ def main(argv: list[str] | None = None) -> int:
         settings = settings_of(keys, args.random, args.seed)
         if not settings:
             raise SceneError("--set", "values that make at least one variant", "none", source="command line")
+        if args.cluster is not None:
+            check_cluster_address(args.cluster)
         base, _ = load_scene_data(args.scene)
         variants, scenes = build_variants(base, settings, args.frames)
     except SceneError as exc:
@@ -347,11 +403,22 @@ def main(argv: list[str] | None = None) -> int:
     bar = Progress(len(variants), f"sweep {scenes[0].name}")
     bar.update(skipped)
     finished, unstable, started = skipped, 0, time.perf_counter()
+    usd = not args.no_usd
+    runs = run_local(todo, out, args.device, usd) if args.cluster is None else \
+        run_cluster(todo, out, args.device, usd, args.cluster, args.cluster_workers, args.retries)
     try:
-        for rows in run_local(todo, out, args.device, not args.no_usd, bar):
+        for rows in runs:
             finished += len(rows)
             unstable += sum(row["unstable_frame"] is not None for row in rows)
             bar.update(finished)
+    except (KeyboardInterrupt, SceneError):
+        raise
+    except Exception as exc:  # a batch that failed (a full disk; on a cluster, a worker lost past its retries)
+        bar.close()
+        print(f"warp-cloth sweep: error: a batch failed ({type(exc).__name__}: {str(exc).strip().splitlines()[-1]}); "
+              f"the {finished - skipped} variants done are in {out / RESULTS}; start the sweep again to go on",
+              file=sys.stderr)
+        return EXIT_FAILED
     finally:
         bar.close()
         rows = list(done_variants(out).values())
