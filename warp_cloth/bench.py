@@ -483,6 +483,31 @@ def newton_comparison(results: list[Result], device: str, repeats: int) -> list[
     return rows
 
 
+def newton_world_comparison(results: list[Result], device: str, repeats: int) -> list[dict]:
+    """The worlds suite's batches in Newton's solvers, as that many Newton worlds of one model on the same
+    device, each row with the ratio of our batch's particle-substeps per second to the solver's."""
+    from .newton_compare import SOLVERS, newton_available, time_newton
+
+    if not newton_available():
+        print("newton is not installed (pip install 'warp-cloth[bench]'): no comparison", file=sys.stderr)
+        return []
+    batches = [r for r in results if r.case.startswith("self 32^2 x ")]
+    rows = []
+    bar = Progress(len(batches) * len(SOLVERS), f"newton worlds on {device}")
+    for mine in batches:
+        worlds = int(mine.case.split(" x ")[1].split()[0])
+        for solver in SOLVERS:
+            row = time_newton("self", 32, solver, device, frames=mine.frames, substeps=MATRIX_SUBSTEPS,
+                              repeats=repeats, worlds=worlds)
+            theirs = row["particle_substeps_per_second"]
+            row["ours_symplectic_particle_substeps_per_second"] = mine.particle_substeps_per_second
+            row["ratio"] = mine.particle_substeps_per_second / theirs if theirs and mine.stable else None
+            rows.append(row)
+            bar.update(len(rows))
+    bar.close()
+    return rows
+
+
 def format_newton_table(rows: list[dict]) -> str:
     header = f"{'variant':<8} {'n^2':>9} {'Newton solver':<14} {'graph':>5} {'ms/frame':>9} " \
              f"{'particle-substeps/s':>20} {'ours (symplectic)':>18} {'ours / Newton':>13} " \
@@ -490,7 +515,8 @@ def format_newton_table(rows: list[dict]) -> str:
     lines = [header, "-" * len(header)]
     for r in rows:
         ratio = f"{r['ratio']:12.1f}x" if r["ratio"] else f"{'-':>13}"
-        lines.append(f"{r['variant']:<8} {r['particles']:>9} {r['solver']:<14} {str(r['graph']):>5} "
+        variant = r["variant"] if r.get("worlds", 1) == 1 else f"{r['variant']} x{r['worlds']}"
+        lines.append(f"{variant:<8} {r['particles']:>9} {r['solver']:<14} {str(r['graph']):>5} "
                      f"{r['ms_per_frame']:>9.3f} {r['particle_substeps_per_second']:>20.3g} "
                      f"{r['ours_symplectic_particle_substeps_per_second']:>18.3g} {ratio} "
                      f"{100 * r['max_strain']:>11.1f}% {r['finite']}")
@@ -505,7 +531,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--repeats", type=int, default=3, help="runs of each case; the median is reported")
     parser.add_argument("--json", type=Path, help="where to write the results (default: out/bench-SUITE-DEVICE.json)")
     parser.add_argument("--newton", action=argparse.BooleanOptionalAction, default=True,
-                        help="with the matrix suite, run the same cloths in Newton's solvers (the 'bench' extra)")
+                        help="with the matrix and worlds suites, run the same cloths in Newton's solvers (the "
+                             "'bench' extra)")
     args = parser.parse_args(argv)
     wp.config.log_level = wp.LOG_ERROR
     try:
@@ -535,7 +562,8 @@ def main(argv: list[str] | None = None) -> int:
     scaling = collision_scaling(device, args.repeats) if args.suite == "collision" else []
     if scaling:
         print(format_collision_table(scaling))
-    newton_rows = newton_comparison(results, device, args.repeats) if args.suite == "matrix" and args.newton else []
+    compare = {"matrix": newton_comparison, "worlds": newton_world_comparison}.get(args.suite)
+    newton_rows = compare(results, device, args.repeats) if compare is not None and args.newton else []
     if newton_rows:
         print(format_newton_table(newton_rows))
     path = args.json or Path("out") / f"bench-{args.suite}-{device.replace(':', '')}.json"

@@ -67,7 +67,8 @@ class NewtonCloth:
     """One scene built for one Newton solver; ``frame()`` runs a frame's substeps the examples' way
     (clear forces, collide, step, swap states)."""
 
-    def __init__(self, variant: str, n: int, solver: str, device: str, substeps: int = 10) -> None:
+    def __init__(self, variant: str, n: int, solver: str, device: str, substeps: int = 10,
+                 worlds: int = 1) -> None:
         import newton
 
         if variant not in VARIANTS or solver not in SOLVERS:
@@ -98,6 +99,10 @@ class NewtonCloth:
             builder.add_shape_sphere(-1, xform=wp.transform(wp.vec3(*SPHERE_CENTER), wp.quat_identity()),
                                      radius=SPHERE_RADIUS,
                                      cfg=newton.ModelBuilder.ShapeConfig(ke=contact_ke, kd=contact_kd, mu=0.0))
+        if worlds > 1:  # copies as Newton's worlds, side by side
+            world, builder = builder, newton.ModelBuilder(up_axis=newton.Axis.Y, gravity=(0.0, -9.81, 0.0))
+            builder.replicate(world, worlds, spacing=(2.0 * SIZE, 0.0, 0.0))
+        self.n, self.worlds = n, worlds
         if solver == "vbd":
             builder.color(include_bending=True)
         model = builder.finalize(device=device)
@@ -159,21 +164,22 @@ def swung_origin(degrees: float) -> tuple[float, float, float]:
 
 
 def max_edge_strain(positions: np.ndarray, n: int) -> float:
-    """The largest strain of the grid's structural edges (row and column neighbours) of an n x n cloth of
-    this module's size; particles in row-major grid order, as both engines number them."""
-    grid = positions.reshape(n, n, 3)
-    across = np.linalg.norm(grid[:, 1:] - grid[:, :-1], axis=2).max()
-    down = np.linalg.norm(grid[1:] - grid[:-1], axis=2).max()
+    """The largest strain of the grid's structural edges (row and column neighbours) of n x n cloths of
+    this module's size, one after another; particles in row-major grid order, as both engines number them."""
+    grid = positions.reshape(-1, n, n, 3)
+    across = np.linalg.norm(grid[:, :, 1:] - grid[:, :, :-1], axis=3).max()
+    down = np.linalg.norm(grid[:, 1:] - grid[:, :-1], axis=3).max()
     return float(max(across, down) / (SIZE / (n - 1)) - 1.0)
 
 
 def time_newton(variant: str, n: int, solver: str, device: str, frames: int = 24, substeps: int = 10,
-                repeats: int = 3) -> dict[str, Any]:
-    """Median wall time of ``frames`` frames of one scene in one Newton solver, after 2 warm-up frames,
-    replaying one frame captured as a graph where the solver allows it. Repeats continue the same run, as
-    bench's warmed cases do. ``build_seconds`` (not timed) is Newton's Python model build."""
+                repeats: int = 3, worlds: int = 1) -> dict[str, Any]:
+    """Median wall time of ``frames`` frames of one scene in one Newton solver (as ``worlds`` copies, its
+    worlds), after 2 warm-up frames, replaying one frame captured as a graph where the solver allows it.
+    Repeats continue the same run, as bench's warmed cases do. ``build_seconds`` (not timed) is Newton's
+    Python model build."""
     started = time.perf_counter()
-    cloth = NewtonCloth(variant, n, solver, device, substeps)
+    cloth = NewtonCloth(variant, n, solver, device, substeps, worlds)
     build_seconds = time.perf_counter() - started
     dev = cloth.model.device
     notes = cloth.notes
@@ -199,7 +205,8 @@ def time_newton(variant: str, n: int, solver: str, device: str, frames: int = 24
         seconds.append(time.perf_counter() - started)
     median = statistics.median(seconds)
     particles = cloth.model.particle_count
-    return {"solver": solver, "variant": variant, "n": n, "particles": particles, "device": str(dev),
+    return {"solver": solver, "variant": variant, "n": n, "worlds": worlds, "particles": particles,
+            "device": str(dev),
             "substeps": substeps, "frames": frames, "median_seconds": median, "ms_per_frame": 1e3 * median / frames,
             "particle_substeps_per_second": particles * substeps * frames / median, "graph": graph is not None,
             "self_contact": cloth.self_contact, "finite": cloth.finite(), "build_seconds": build_seconds,
