@@ -459,45 +459,32 @@ def format_table(results: list[Result]) -> str:
 def newton_comparison(results: list[Result], device: str, repeats: int) -> list[dict]:
     """The matrix's cloths in Newton's solvers on the same device, each row with the ratio of our
     symplectic run's particle-substeps per second to the solver's."""
-    from .newton_compare import SOLVERS, newton_available, time_newton
-
-    if not newton_available():
-        print("newton is not installed (pip install 'warp-cloth[bench]'): no comparison", file=sys.stderr)
-        return []
     ours = {r.case: r for r in results}
-    rows = []
-    sizes = matrix_sizes(device)
-    bar = Progress(len(MATRIX_VARIANTS) * len(sizes) * len(SOLVERS), f"newton on {device}")
-    for variant in MATRIX_VARIANTS:
-        for n in sizes:
-            mine = ours[f"{variant} {n}^2 symplectic"]
-            for solver in SOLVERS:
-                row = time_newton(variant, n, solver, device, frames=matrix_frames(n, device),
-                                  substeps=MATRIX_SUBSTEPS, repeats=repeats)
-                theirs = row["particle_substeps_per_second"]
-                row["ours_symplectic_particle_substeps_per_second"] = mine.particle_substeps_per_second
-                row["ratio"] = mine.particle_substeps_per_second / theirs if theirs and mine.stable else None
-                rows.append(row)
-                bar.update(len(rows))
-    bar.close()
-    return rows
+    pairs = [(ours[f"{variant} {n}^2 symplectic"], variant, n, 1)
+             for variant in MATRIX_VARIANTS for n in matrix_sizes(device)]
+    return _newton_rows(pairs, device, repeats, f"newton on {device}")
 
 
 def newton_world_comparison(results: list[Result], device: str, repeats: int) -> list[dict]:
     """The worlds suite's batches in Newton's solvers, as that many Newton worlds of one model on the same
     device, each row with the ratio of our batch's particle-substeps per second to the solver's."""
+    pairs = [(r, "self", 32, int(r.case.split(" x ")[1].split()[0])) for r in results
+             if r.case.startswith("self 32^2 x ")]
+    return _newton_rows(pairs, device, repeats, f"newton worlds on {device}")
+
+
+def _newton_rows(pairs: list[tuple[Result, str, int, int]], device: str, repeats: int, label: str) -> list[dict]:
+    """Each (our result, variant, n, worlds) timed in each of Newton's solvers, for as many frames."""
     from .newton_compare import SOLVERS, newton_available, time_newton
 
     if not newton_available():
         print("newton is not installed (pip install 'warp-cloth[bench]'): no comparison", file=sys.stderr)
         return []
-    batches = [r for r in results if r.case.startswith("self 32^2 x ")]
     rows = []
-    bar = Progress(len(batches) * len(SOLVERS), f"newton worlds on {device}")
-    for mine in batches:
-        worlds = int(mine.case.split(" x ")[1].split()[0])
+    bar = Progress(len(pairs) * len(SOLVERS), label)
+    for mine, variant, n, worlds in pairs:
         for solver in SOLVERS:
-            row = time_newton("self", 32, solver, device, frames=mine.frames, substeps=MATRIX_SUBSTEPS,
+            row = time_newton(variant, n, solver, device, frames=mine.frames, substeps=MATRIX_SUBSTEPS,
                               repeats=repeats, worlds=worlds)
             theirs = row["particle_substeps_per_second"]
             row["ours_symplectic_particle_substeps_per_second"] = mine.particle_substeps_per_second

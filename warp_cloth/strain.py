@@ -43,6 +43,12 @@ class StrainReport:
                 f"{100 * self.beyond:.2f}% of edge-frames past {100 * BEYOND:.0f}%")
 
 
+def edges_on_device(model, device) -> tuple[wp.array, wp.array]:
+    """Every cloth's structural and shear edges and their rest lengths, as the strain kernels read them."""
+    return (wp.array(model.edges, dtype=wp.vec2i, device=device),
+            wp.array(model.edge_rest, dtype=float, device=device))
+
+
 class StrainMonitor:
     """A frame writer that measures edge strain in every frame it is given (``Simulator.run(writers=[...])``)
     on the device, reading back only every ``SLOTS`` frames and at the end; ``report()`` sums it up."""
@@ -51,9 +57,8 @@ class StrainMonitor:
         wp.load_module(strain_kernels, device=sim.device)
 
     def begin(self, sim) -> None:
-        model, device = sim.model, sim.device
-        self.edges = wp.array(model.edges, dtype=wp.vec2i, device=device)
-        self.rest = wp.array(model.edge_rest, dtype=float, device=device)
+        device = sim.device
+        self.edges, self.rest = edges_on_device(sim.model, device)
         self.worst = wp.zeros((SLOTS, 2), dtype=float, device=device)
         bins = int(round((HISTOGRAM_HIGH - HISTOGRAM_LOW) * BINS_PER_UNIT))
         self.histogram = wp.zeros(bins, dtype=int, device=device)
@@ -136,8 +141,7 @@ class WorldStrain:
 
     def begin(self, sim) -> None:
         model, device = sim.model, sim.device
-        self.edges = wp.array(model.edges, dtype=wp.vec2i, device=device)
-        self.rest = wp.array(model.edge_rest, dtype=float, device=device)
+        self.edges, self.rest = edges_on_device(model, device)
         self.edge_world = wp.array(model.particle_world[model.edges[:, 0]] if len(model.edges) else
                                    np.zeros(0, dtype=np.int32), dtype=int, device=device)
         self.worst_strain = wp.zeros((sim.device_model.world_count, 2), dtype=float, device=device)
