@@ -94,8 +94,12 @@ def test_a_sweep_started_again_runs_only_what_its_table_lacks(tmp_path):
 
 
 def test_an_interrupted_sweep_resumed_completes_each_variant_once(tmp_path):
-    slow = SCENE.replace("frames = 6", "frames = 240").replace("resolution = [8, 8]", "resolution = [24, 24]")
-    (tmp_path / "sheet.toml").write_text(slow)  # seconds a variant: time to stop the sweep after the first
+    # A stable step (chosen by the scene) and seconds a variant: time to stop the sweep after the first. The
+    # finer cloth at the file's 30 substeps blew up within a frame, and a sweep of variants that stop at once
+    # could end before the interrupt arrived.
+    slow = SCENE.replace("frames = 6", "frames = 720").replace("resolution = [8, 8]", "resolution = [12, 12]")
+    slow = slow.replace("substeps = 30\n", "")
+    (tmp_path / "sheet.toml").write_text(slow)
     args = [sys.executable, "-m", "warp_cloth", "sweep", "sheet.toml", "--set", "cloth.density=0.1,0.15,0.2,0.25",
             "--worlds", "1", "--out", "s"]
     process = subprocess.Popen(args, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -104,9 +108,12 @@ def test_an_interrupted_sweep_resumed_completes_each_variant_once(tmp_path):
     while time.monotonic() < deadline and not (results.exists() and results.read_text().strip()):
         time.sleep(0.05)
     process.send_signal(signal.SIGINT)
-    process.communicate(timeout=120)
+    stopped, err = process.communicate(timeout=120)
+    assert process.returncode == 130, err
     first = rows_of(tmp_path / "s")
+    assert f"interrupted by SIGINT after {len(first)} of 4 variants" in stopped
     assert 1 <= len(first) < 4  # stopped part way
+    assert all(row["unstable_frame"] is None for row in first)
     resumed = subprocess.run(args, cwd=tmp_path, capture_output=True, text=True, timeout=300)
     assert resumed.returncode == 0, resumed.stderr
     assert f"4 variants ({len(first)} done before)" in resumed.stdout

@@ -33,6 +33,7 @@ import itertools
 import json
 import os
 import re
+import signal
 import socket
 import sys
 import time
@@ -49,6 +50,7 @@ from .progress import Progress
 
 EXIT_BAD_INPUT = 2
 EXIT_FAILED = 4
+EXIT_SIGNAL_BASE = 128  # a sweep stopped by a signal exits with 128 + the signal's number, as run does
 DEFAULT_WORLDS = 1024
 RESULTS = "results.jsonl"
 TABLE = "results.csv"
@@ -213,6 +215,14 @@ def batches(scenes: list, most: int) -> list[list[int]]:
     return [members[i:i + most] for members in groups.values() for i in range(0, len(members), most)]
 
 
+class SweepInterrupted(Exception):
+    """A batch stopped by a signal after a frame (Ctrl-C, SIGTERM, SIGHUP): its variants have no rows."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = signum
+
+
 def run_batch(variants: list[Variant], out: Path, device: str | None, usd: bool) -> list[dict[str, Any]]:
     """Run one batch of variants and give their rows (what a cluster's task runs, too)."""
     import warnings
@@ -234,12 +244,15 @@ def run_batch(variants: list[Variant], out: Path, device: str | None, usd: bool)
     frames = scenes[0].simulation.frames
     started = time.perf_counter()
     try:
-        batch.run(frames, writers={w: [UsdWriter(p)] for w, p in paths.items()}, monitors=[strain])
+        summary = batch.run(frames, writers={w: [UsdWriter(p)] for w, p in paths.items()}, monitors=[strain])
     except Exception as exc:  # every world stopped: the table says where each blew up
         from .errors import UnstableSimulation
 
         if not isinstance(exc, UnstableSimulation):
             raise
+    else:
+        if summary.interrupted:  # its worlds are not done: no rows, so that the sweep started again runs them
+            raise SweepInterrupted(summary.stop_signal)
     seconds = time.perf_counter() - started
     worst = strain.worst()
     contacts = batch.closest_contacts()
@@ -370,6 +383,7 @@ def _parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     from .scene_file import load_scene_data
+    from .simulator import StopOnSignal
 
     import warp as wp
 
@@ -406,11 +420,18 @@ def main(argv: list[str] | None = None) -> int:
     usd = not args.no_usd
     runs = run_local(todo, out, args.device, usd) if args.cluster is None else \
         run_cluster(todo, out, args.device, usd, args.cluster, args.cluster_workers, args.retries)
+    stopped_by = None  # the first Ctrl-C stops the batch in progress after its frame, a second at once
     try:
-        for rows in runs:
-            finished += len(rows)
-            unstable += sum(row["unstable_frame"] is not None for row in rows)
-            bar.update(finished)
+        with StopOnSignal() as stop:  # a signal between batches
+            for rows in runs:
+                finished += len(rows)
+                unstable += sum(row["unstable_frame"] is not None for row in rows)
+                bar.update(finished)
+                if stop.requested:
+                    stopped_by = stop.signal
+                    break
+    except SweepInterrupted as exc:
+        stopped_by = exc.signum
     except (KeyboardInterrupt, SceneError):
         raise
     except Exception as exc:  # a batch that failed (a full disk; on a cluster, a worker lost past its retries)
@@ -420,14 +441,18 @@ def main(argv: list[str] | None = None) -> int:
               file=sys.stderr)
         return EXIT_FAILED
     finally:
+        runs.close()  # on a cluster, shuts Ray down
         bar.close()
         rows = list(done_variants(out).values())
         if rows:
             write_table(out, rows)
-    print(f"sweep {scenes[0].name}: {len(variants)} variants ({skipped} done before) in "
-          f"{len(todo)} batches, {time.perf_counter() - started:.1f} s; {unstable} blew up; "
+    status = f"{len(variants)} variants ({skipped} done before) in {len(todo)} batches"
+    if stopped_by is not None:
+        status = (f"interrupted by {signal.Signals(stopped_by).name} after {finished} of {len(variants)} variants "
+                  f"({skipped} done before); start the sweep again to go on")
+    print(f"sweep {scenes[0].name}: {status}, {time.perf_counter() - started:.1f} s; {unstable} blew up; "
           f"wrote {out / TABLE} and {out / RESULTS}")
-    return 0
+    return 0 if stopped_by is None else EXIT_SIGNAL_BASE + stopped_by
 
 
 if __name__ == "__main__":
