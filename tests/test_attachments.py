@@ -7,9 +7,12 @@ import numpy as np
 import pytest
 
 import warp_cloth as wc
+from conftest import spring_strains
 from warp_cloth.bench import matrix_scene
+from warp_cloth.bench_meshes import as_mesh_cloth
 from warp_cloth.model import _nearest_on_grid
 from warp_cloth.newton_compare import max_edge_strain
+from warp_cloth.spring_paths import nearest_along_edges
 
 
 def with_attachments(scene: wc.Scene, on: bool) -> wc.Scene:
@@ -70,3 +73,70 @@ def test_without_pins_or_with_attachments_off_nothing_is_allocated():
     assert free.limits.attachment_pin.shape == (0,)
     pinned = wc.Simulator(wc.load_scene("hanging"), device="cpu").model  # off by default
     assert pinned.pins is not None and pinned.limits.attachment_pin.shape == (0,)
+
+
+def shortest_paths_by_relaxation(n, pairs, lengths, sources):
+    """Bellman-Ford: every edge relaxed until nothing changes (the reference for the banded Dijkstra)."""
+    distance = np.full(n, np.inf)
+    distance[sources] = 0.0
+    while True:
+        through = np.concatenate([distance[pairs[:, 0]] + lengths, distance[pairs[:, 1]] + lengths])
+        ends = np.concatenate([pairs[:, 1], pairs[:, 0]])
+        relaxed = distance.copy()
+        np.minimum.at(relaxed, ends, through)
+        if np.array_equal(relaxed, distance):
+            return distance
+        distance = relaxed
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_paths_along_edges_are_the_shortest(seed):
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(5, 200))
+    pairs = rng.integers(0, n, (int(rng.integers(n, 4 * n)), 2))
+    pairs = pairs[pairs[:, 0] != pairs[:, 1]]
+    lengths = rng.uniform(0.05, 2.0, len(pairs))
+    sources = rng.choice(n, int(rng.integers(1, 5)), replace=False)
+    nearest, distance = nearest_along_edges(n, pairs, lengths, sources)
+    expected = shortest_paths_by_relaxation(n, pairs, lengths, sources)
+    np.testing.assert_allclose(distance, expected, rtol=1e-12)
+    reached = np.isfinite(expected)
+    assert np.isin(nearest[reached], sources).all() and (nearest[~reached] == -1).all()
+    for s in sources:  # the source named is one at that distance
+        alone = shortest_paths_by_relaxation(n, pairs, lengths, [s])
+        np.testing.assert_allclose(alone[reached & (nearest == s)], distance[reached & (nearest == s)], rtol=1e-12)
+
+
+@pytest.mark.parametrize("device", ["cpu", pytest.param("cuda", marks=pytest.mark.cuda)])
+@pytest.mark.parametrize("triangles", [False, True], ids=["quads", "triangles"])
+def test_a_mesh_cloth_is_attached_along_its_edges_and_hangs_within_its_limit(triangles, device):
+    # The matrix's hanging cloth read back from an OBJ, its limit solved to tolerance: each particle is
+    # attached to its nearest pin with the shortest path along the mesh's edges, at least the grid's
+    # straight distance and at most the longest detour a path of the mesh's edges makes (8.2% along quads
+    # and both their diagonals, at 22.5 degrees; a factor sqrt(2) across triangles' diagonals, which all
+    # run one way); it hangs within reach of its pins, every limited edge within its limit. The quads are
+    # the grid's cloth and hang as it does; the triangles lack one diagonal's springs and shear further.
+    n = 48
+    grid_scene = matrix_scene("hanging", n, "symplectic")
+    grid_scene = dataclasses.replace(grid_scene,
+                                     simulation=dataclasses.replace(grid_scene.simulation, limit_solve="converged"))
+    mesh_scene = as_mesh_cloth(grid_scene, triangles=triangles)
+    grid, mesh = (wc.Simulator(s, device=device) for s in (grid_scene, mesh_scene))
+    for sim in (grid, mesh):
+        sim.run(24)
+    g, m = grid.model.limits, mesh.model.limits
+    attached = g.attachment_pin >= 0
+    np.testing.assert_array_equal(attached, m.attachment_pin >= 0)
+    ratio = m.attachment_length[attached] / g.attachment_length[attached]
+    assert ratio.min() >= 1 - 1e-6
+    assert ratio.max() <= (1.0824 if not triangles else np.sqrt(2.0)) + 1e-6
+    x = mesh.positions()
+    reach = np.linalg.norm(x[attached] - x[m.attachment_pin[attached]], axis=1)
+    assert (reach <= m.attachment_length[attached] * (1 + 1e-5)).all()
+    limited = np.isfinite(mesh.model.springs.limit_max)
+    assert np.abs(spring_strains(mesh)[limited]).max() <= 0.1 + 0.005 * 1.1  # the solve's tolerance
+    assert mesh.solver_stats().limit_residual <= 1.0  # every solve ended within it
+    lowest = x[:, 1].min()
+    assert lowest >= 10.0 - 10.0 * 1.1 * 1.005
+    if not triangles:
+        assert lowest == pytest.approx(grid.positions()[:, 1].min(), abs=1e-3)

@@ -30,7 +30,7 @@ from typing import Callable
 import numpy as np
 import warp as wp
 
-from .bench_meshes import RINGS_FOR_100K, as_mesh_cloth, sphere_triangles, with_mesh_sphere, without_grid_only
+from .bench_meshes import RINGS_FOR_100K, as_mesh_cloth, sphere_triangles, with_mesh_sphere
 from .progress import Progress
 from .scene import Cloth, Collision, Ground, Limit, Oscillation, Pin, Scene, Simulation, Sphere, SpringKind
 from .scene_file import load_scene
@@ -302,11 +302,11 @@ def matrix_cases(device: str) -> list[Case]:
 
 
 def mesh_cases(device: str) -> list[Case]:
-    """The speed matrix's sphere cloth (limit without its grid-only attachments) as a grid, read from an
-    OBJ of its quads, and of its triangles; then with its sphere made a mesh of about 100k triangles."""
+    """The speed matrix's sphere cloth as a grid, read from an OBJ of its quads, and of its triangles (their
+    attachments along the mesh's edges); then with its sphere made a mesh of about 100k triangles."""
     cases = []
     for n in [64] if device == "cpu" else [256, 1024]:
-        grid = without_grid_only(matrix_scene("sphere", n, "symplectic"))
+        grid = matrix_scene("sphere", n, "symplectic")
         frames = matrix_frames(n, device)
         cases += [Case(f"grid {n}^2", grid, frames, fresh=False),
                   Case(f"mesh quads {n}^2", as_mesh_cloth(grid, triangles=False), frames, fresh=False),

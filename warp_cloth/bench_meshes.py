@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from .cloth_grid import build_grid
-from .scene import Cloth, Limit, MeshCollider, MeshSource, Pin, Scene
+from .scene import Cloth, MeshCollider, MeshSource, Pin, Scene
 
 _FOLDER: tempfile.TemporaryDirectory | None = None
 
@@ -34,14 +34,6 @@ def write_obj(path: Path, points: np.ndarray, faces: list[np.ndarray]) -> Path:
         for table in faces:
             out.write((("f" + " %d" * table.shape[1] + "\n") * len(table)) % tuple((table + 1).ravel().tolist()))
     return path
-
-
-def without_grid_only(scene: Scene) -> Scene:
-    """The scene with its cloths' limits free of the grid-only attachments, so that a mesh copy is the
-    same cloth."""
-    cloths = tuple(c if c.limit is None else dataclasses.replace(c, limit=Limit(c.limit.stretch, c.limit.compression))
-                   for c in scene.cloths)
-    return dataclasses.replace(scene, cloths=cloths)
 
 
 def as_mesh_cloth(scene: Scene, triangles: bool) -> Scene:

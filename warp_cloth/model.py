@@ -21,6 +21,7 @@ from .errors import SceneError
 from .hierarchy import Hierarchy, build_hierarchy
 from .mesh_cloth import build_mesh_cloth, mesh_positions
 from .scene import Cloth, Scene, SpringKind, TransformKey
+from .spring_paths import nearest_along_edges
 
 # The spring kernels' regime bits (kernels/springs.py), which the host side sets and reads.
 FLAG_ELASTIC_TENSION = int(spring_kernels.ELASTIC_TENSION)
@@ -229,7 +230,7 @@ def build_model(scene: Scene, worlds: Worlds | None = None) -> Model:
     for animation in pin_animations:  # they start where their first sample has them
         positions[animation.index] = animation.key_points[0]
     springs = _springs(scene, meshes, offsets, n)
-    limits = _limits(springs, n, _attachments(scene, offsets, selections), _long_range(scene, meshes, offsets))
+    limits = _limits(springs, n, _attachments(scene, meshes, offsets, selections), _long_range(scene, meshes, offsets))
     edges, edge_rest = _edges(meshes, offsets)
     hierarchy = _hierarchy(springs, masses, inv_mass, scene, offsets) if scene.simulation.limit_multilevel else None
     return Model(meshes, tuple(offsets), positions, velocities, masses, inv_mass, cloth_id, springs, limits,
@@ -355,10 +356,12 @@ def _shifted(values: np.ndarray, dx: int, dy: int) -> np.ndarray:
     return out
 
 
-def _attachments(scene: Scene, offsets: list[int],
+def _attachments(scene: Scene, meshes, offsets: list[int],
                  selections: list[list[np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
-    """Per particle, the nearest pin of its cloth in the flat rest grid and (1 + stretch) times the rest
-    distance to it (empty arrays when no limited, pinned cloth asks for attachments)."""
+    """Per particle, the nearest pin of its cloth across the cloth at rest and (1 + stretch) times the rest
+    distance to it (empty arrays when no limited, pinned cloth asks for attachments): on a grid, flat and
+    convex at rest, the straight distance; on a mesh, which may be curved, the shortest path along its
+    structural and shear edges."""
     n = offsets[-1]
     pin_of = np.full(n, -1, dtype=np.int32)
     length = np.zeros(n, dtype=np.float32)
@@ -367,17 +370,24 @@ def _attachments(scene: Scene, offsets: list[int],
         if cloth.limit is None or not cloth.limit.attachments or not chosen_per_pin:
             continue
         attached = True
-        nx, ny = cloth.resolution
-        dx, dy = cloth.size[0] / nx, cloth.size[1] / ny
-        count = cloth.particle_count
-        gx, gy = np.arange(count) % (nx + 1), np.arange(count) // (nx + 1)
+        count = offsets[c + 1] - offsets[c]
         pinned = np.unique(np.concatenate(chosen_per_pin))
-        nearest, distance = _nearest_on_grid(gx, gy, gx[pinned], gy[pinned], dx, dy)
+        if cloth.mesh is None:
+            nx, ny = cloth.resolution
+            gx, gy = np.arange(count) % (nx + 1), np.arange(count) // (nx + 1)
+            nearest, distance = _nearest_on_grid(gx, gy, gx[pinned], gy[pinned], cloth.size[0] / nx,
+                                                 cloth.size[1] / ny)
+            nearest = pinned[nearest]
+        else:
+            mesh = meshes[c]
+            edges = np.isin(mesh.spring_kind, (STRUCTURAL, SHEAR))
+            nearest, distance = nearest_along_edges(count, mesh.springs[edges], mesh.rest_lengths[edges], pinned)
         free = np.ones(count, dtype=bool)
         free[pinned] = False
+        free &= nearest >= 0  # a piece of the mesh with no pin of its own is not attached
         sl = slice(offsets[c], offsets[c + 1])
-        pin_of[sl] = np.where(free, pinned[nearest] + offsets[c], -1)
-        length[sl] = (1.0 + cloth.limit.stretch) * distance
+        pin_of[sl] = np.where(free, nearest + offsets[c], -1)
+        length[sl] = np.where(free, (1.0 + cloth.limit.stretch) * distance, 0.0)
     if not attached:
         return np.zeros(0, dtype=np.int32), np.zeros(0, dtype=np.float32)
     return pin_of, length
