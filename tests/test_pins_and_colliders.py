@@ -40,7 +40,7 @@ def test_oscillating_pins_start_on_their_path():
 def test_no_particle_ends_a_frame_inside_a_sphere_or_under_the_ground(name):
     scene = with_simulation(wc.load_scene(name), frames=96)
     sim = wc.Simulator(scene, device="cpu")
-    radii = np.array([s.radius for s in scene.spheres])
+    radii = np.array([s.radius + s.thickness for s in scene.spheres])  # where the cloth is kept outside
     contact_frames = 0
     for _ in range(96):
         sim.step()
@@ -50,8 +50,28 @@ def test_no_particle_ends_a_frame_inside_a_sphere_or_under_the_ground(name):
         assert (distance >= radii * (1 - 1e-5)).all()
         contact_frames += bool((distance <= radii * (1 + 1e-3)).any())
         if scene.ground is not None:
-            assert x[:, 1].min() >= scene.ground.height - 1e-6
+            assert x[:, 1].min() >= scene.ground.surface - 1e-6
     assert contact_frames > 10, "the scene should bring cloth and sphere into contact"
+
+
+@pytest.mark.parametrize("thickness", [0.0, 0.02])
+def test_cloth_rests_its_thickness_off_the_ground_and_a_sphere(thickness):
+    # A cloth dropped across a sphere onto the ground: at rest its lowest particles lie on the plane raised by
+    # the thickness, and no particle comes nearer the sphere's centre than its radius and the thickness.
+    cloth = wc.Cloth(resolution=(16, 16), size=(3.0, 3.0), orientation="horizontal", origin=(-1.5, 1.2, 1.5),
+                     density=0.2, limit=wc.Limit())
+    scene = wc.Scene(cloths=(cloth,), ground=wc.Ground(height=0.1, friction=0.5, thickness=thickness),
+                     spheres=(wc.Sphere(center=(0.0, 0.6, 0.0), radius=0.5, thickness=thickness, friction=0.5),),
+                     simulation=wc.Simulation(fps=24, integrator="symplectic", limit_solve="converged"))
+    sim = wc.Simulator(scene, device="cpu")
+    nearest = np.inf
+    for _ in range(48):
+        sim.step()
+        x = sim.positions()
+        nearest = min(nearest, float(np.linalg.norm(x - np.array([0.0, 0.6, 0.0]), axis=1).min()))
+        assert x[:, 1].min() >= 0.1 + thickness - 1e-6
+    assert nearest >= (0.5 + thickness) * (1 - 1e-5) and nearest <= (0.5 + thickness) * (1 + 1e-3)
+    assert sim.positions()[:, 1].min() == pytest.approx(0.1 + thickness, abs=1e-4)  # resting on the raised plane
 
 
 def test_moving_sphere_follows_its_motion():

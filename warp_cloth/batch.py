@@ -71,7 +71,7 @@ def pack(scenes: Sequence[Scene]) -> tuple[Scene, Worlds]:
     worlds = Worlds(np.asarray(cloth_world, dtype=np.int32),
                     np.asarray([scene.simulation.gravity for scene in scenes], dtype=np.float32),
                     np.asarray([g is not None for g in grounds], dtype=np.int32),
-                    np.asarray([g.height if g is not None else 0.0 for g in grounds], dtype=np.float32),
+                    np.asarray([g.surface if g is not None else 0.0 for g in grounds], dtype=np.float32),
                     np.asarray([g.friction if g is not None else 0.0 for g in grounds], dtype=np.float32),
                     np.asarray(sphere_start, dtype=np.int32), np.asarray(mesh_start, dtype=np.int32))
     packed = dataclasses.replace(first, name="batch", cloths=tuple(cloths), spheres=tuple(spheres),

@@ -70,7 +70,7 @@ class Worlds:
     cloth_world: np.ndarray  # (cloths,) int32
     gravity: np.ndarray  # (w, 3) float32 m/s^2
     ground: np.ndarray  # (w,) int32: 1 where the world has a ground plane
-    ground_height: np.ndarray  # (w,) float32
+    ground_height: np.ndarray  # (w,) float32: where the cloth rests (the plane raised by its thickness)
     ground_friction: np.ndarray  # (w,) float32
     sphere_start: np.ndarray  # (w + 1,) int32: world w's spheres are sphere_start[w] to [w + 1] - 1
     mesh_start: np.ndarray  # (w + 1,) int32: likewise its mesh colliders
@@ -81,7 +81,7 @@ class Worlds:
         return cls(np.zeros(len(scene.cloths), dtype=np.int32),
                    np.asarray([scene.simulation.gravity], dtype=np.float32),
                    np.asarray([ground is not None], dtype=np.int32),
-                   np.asarray([ground.height if ground is not None else 0.0], dtype=np.float32),
+                   np.asarray([ground.surface if ground is not None else 0.0], dtype=np.float32),
                    np.asarray([ground.friction if ground is not None else 0.0], dtype=np.float32),
                    np.asarray([0, len(scene.spheres)], dtype=np.int32),
                    np.asarray([0, len(scene.colliders)], dtype=np.int32))
@@ -117,7 +117,7 @@ class StrainLimits:
 class Spheres:
     center: np.ndarray  # (k, 3) centre of the motion
     initial_center: np.ndarray  # (k, 3) where the sphere is at t = 0
-    radius: np.ndarray
+    radius: np.ndarray  # what the cloth is kept outside of: the radius and the thickness
     friction: np.ndarray
     angular_velocity: np.ndarray  # (k, 3) radians a second
     amplitude: np.ndarray  # (k, 3)
@@ -501,8 +501,8 @@ def _spheres(scene: Scene) -> Spheres | None:
     initial = [np.add(s.center, s.keyed_offset(0.0)) + (0.0 if s.motion is None else s.motion.offset(0.0))
                for s in scene.spheres]
     keys = [s.keys or (TransformKey(),) for s in scene.spheres]  # unkeyed: held where it is
-    return Spheres(f32([s.center for s in scene.spheres]), f32(initial), f32([s.radius for s in scene.spheres]),
-                   f32([s.friction for s in scene.spheres]), f32([s.angular_velocity() for s in scene.spheres]),
+    return Spheres(f32([s.center for s in scene.spheres]), f32(initial),
+                   f32([s.radius + s.thickness for s in scene.spheres]), f32([s.friction for s in scene.spheres]), f32([s.angular_velocity() for s in scene.spheres]),
                    f32(amp),
                    f32([0.0 if s.motion is None else s.motion.frequency for s in scene.spheres]),
                    f32([0.0 if s.motion is None else s.motion.phase for s in scene.spheres]),

@@ -411,11 +411,13 @@ class Cloth:
 
 @dataclass(frozen=True)
 class Ground:
-    """The plane y = ``height``; ``size`` is only how large it is drawn in the USD (0: fit the scene)."""
+    """The plane y = ``height``; ``size`` is only how large it is drawn in the USD (0: fit the scene). Cloth
+    rests ``thickness`` metres above it, so that a renderer sees a cloth lying on the ground, not in it."""
 
     height: float = 0.0
     friction: float = 0.0
     size: float = 0.0
+    thickness: float = 0.0
 
     def __post_init__(self) -> None:
         check_fields(self)
@@ -423,6 +425,13 @@ class Ground:
         _non_negative(self.friction, "friction")
         _non_negative(self.size, "size")
         _within_extent(self.size, "size")
+        _non_negative(self.thickness, "thickness")
+        _within_extent(self.thickness, "thickness")
+
+    @property
+    def surface(self) -> float:
+        """Where the cloth's particles are kept above: the plane raised by the thickness."""
+        return self.height + self.thickness
 
 
 @dataclass(frozen=True)
@@ -452,7 +461,8 @@ class Sphere:
     translations from ``center`` at times, interpolated linearly in between, held before the first and
     after the last), plus the oscillation ``motion``. ``spin`` turns it about its centre: the axis
     [x, y, z] scaled to degrees a second (the right-hand rule); friction then acts against the cloth's
-    speed relative to the sphere's surface there, so a spinning sphere carries what rests on it round."""
+    speed relative to the sphere's surface there, so a spinning sphere carries what rests on it round.
+    Cloth is kept ``thickness`` metres off its surface (the sphere is drawn at ``radius``)."""
 
     name: str = "sphere"
     center: Vec3 = (0.0, 0.0, 0.0)
@@ -461,6 +471,7 @@ class Sphere:
     motion: Oscillation | None = None
     spin: Vec3 = (0.0, 0.0, 0.0)
     keys: tuple[TransformKey, ...] = ()
+    thickness: float = 0.0
 
     def __post_init__(self) -> None:
         check_fields(self)
@@ -469,6 +480,8 @@ class Sphere:
         _positive(self.radius, "radius")
         _within_extent(self.radius, "radius")
         _non_negative(self.friction, "friction")
+        _non_negative(self.thickness, "thickness")
+        _within_extent(self.thickness, "thickness")
         _check_key_times(self.keys)
         for k, key in enumerate(self.keys):
             _require(key.rotate == (0.0, 0.0, 0.0), f"keys[{k}].rotate",
