@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import warp_cloth as wc
-from warp_cloth.study import (StudyRun, Trajectory, converged_frames, main, pareto_front, plots_available, run_study,
+from warp_cloth.study import (StudyRun, Trajectory, converged_frames, main, pareto_front, run_study,
                               with_resolution)
 
 G = 9.81
@@ -116,10 +116,7 @@ def test_unstable_runs_are_reported_not_raised(tmp_path, capsys):
     pngs = [out / name for name in ("error_vs_time.png", "error_vs_dt.png", "time_vs_resolution.png")]
     stdout = capsys.readouterr().out
     assert "unstable at frame" in stdout and "6 runs (3 unstable) on cpu" in stdout
-    if plots_available():
-        assert all(png.stat().st_size > 1000 for png in pngs)
-    else:
-        assert "plots skipped" in stdout and not any(png.exists() for png in pngs)
+    assert all(png.stat().st_size > 1000 for png in pngs)
 
 
 def test_resolution_keeps_size_and_total_mass():

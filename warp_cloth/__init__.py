@@ -18,6 +18,8 @@ from .scene import (Box, Cloth, Collision, Ground, ImplicitSolver, Limit, MeshCo
 
 if TYPE_CHECKING:
     from .batch import Batch
+    from .metrics import MetricsWriter
+    from .preview import render_preview
     from .scene_file import builtin_scene_names, load_scene, scene_from_dict
     from .simulator import RunSummary, Simulator
     from .stability import UnstableStepWarning
@@ -27,7 +29,7 @@ if TYPE_CHECKING:
 # Imported at first use: they load numpy, Warp and USD (seconds on a first run), which the command line
 # does only once it can answer Ctrl-C with one line instead of a traceback.
 _IMPORTED_AT_FIRST_USE = {
-    "Batch": "batch",
+    "Batch": "batch", "MetricsWriter": "metrics", "render_preview": "preview",
     "builtin_scene_names": "scene_file", "load_scene": "scene_file", "scene_from_dict": "scene_file",
     "RunSummary": "simulator", "Simulator": "simulator", "PolyWriter": "writers", "UsdWriter": "writers",
     "CheckpointWriter": "writers",
@@ -38,11 +40,12 @@ __version__ = "0.1.0"
 
 __all__ = [
     "Batch", "Box", "CheckpointWriter", "Cloth", "Collision", "Ground", "ImplicitSolver", "Limit", "MeshCollider",
-    "MeshSource",
+    "MeshSource", "MetricsWriter",
     "Oscillation", "Output",
     "Pin", "PolyWriter", "RunSummary", "Scene", "SceneError", "Simulation", "Simulator", "Sphere", "SpringKind",
     "StrainMonitor", "StrainReport", "TransformKey", "Wind", "WindKey",
-    "UnstableSimulation", "UnstableStepWarning", "UsdWriter", "builtin_scene_names", "load_scene", "scene_from_dict",
+    "UnstableSimulation", "UnstableStepWarning", "UsdWriter", "builtin_scene_names", "load_scene", "render_preview",
+    "scene_from_dict",
 ]
 
 

@@ -59,6 +59,13 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--quiet", action="store_true", help="no progress bar")
     run.add_argument("--check", action="store_true",
                      help="print, after every frame, the intersecting triangle pairs and the closest contact")
+    run.add_argument("--preview", action="store_true",
+                     help="render the USD the run wrote when it completes: a still of the last frame "
+                          "(OUT/SCENE.preview.png) and an animation (.preview.mp4), with Blender (the preview extra)")
+    run.add_argument("--metrics", metavar="FILE.csv",
+                     help="write per-frame metrics (strain by edge kind, closest contact, energies, solver "
+                          "iterations, wall time; crossing pairs with --check) to FILE.csv, and their plot to "
+                          "FILE.png")
 
     plan = commands.add_parser("plan", help="print the passes of a scene's substep, in order",
                                description="Print the plan of a scene's substep: its passes in the order they "
@@ -76,6 +83,8 @@ def _parser() -> argparse.ArgumentParser:
                                       "per integrator, step and resolution (see 'study --help')", add_help=False)
     commands.add_parser("sweep", help="run variants of a scene (--set KEY=V1,V2,...) as the worlds of batches, "
                                       "with a table of outcomes (see 'sweep --help')", add_help=False)
+    commands.add_parser("preview", help="render a result's USD: a still of its last frame and an animation, with "
+                                        "Blender (see 'preview --help')", add_help=False)
     return parser
 
 
@@ -121,7 +130,7 @@ def _limit_solve(sim) -> str:
     if sim.plan.projection is None:
         fixed = sim.scene.simulation.limit_solve == "fixed" and sim.model.limits is not None
         return "; limit solve fixed: a set number of passes a substep, not solved to a tolerance" if fixed else ""
-    stats = sim.solver_stats()
+    stats = sim.solver_stats(since_start=True)
     cap = sim.scene.simulation.limit_max_passes
     ended = ("every solve ended within tolerance" if stats.limit_residual <= 1.0 else
              f"some reached the cap of {cap} passes at {stats.limit_residual:.3g} tolerances")
@@ -255,7 +264,7 @@ def _quiet_warp() -> None:
 def _cmd_run(args: argparse.Namespace) -> int:
     _quiet_warp()
     from .checkpoint import check_scene, checkpoint_path, load_checkpoint
-    from .output import OutputError, check_folder_output
+    from .output import OutputError, check_file_output, check_folder_output
     from .scene_file import load_scene
     from .simulator import resolve_device
     from .writers import CheckpointWriter
@@ -267,7 +276,16 @@ def _cmd_run(args: argparse.Namespace) -> int:
         raise SceneError("--device", exc.expected, exc.got, source="command line") from None
     if args.out is not None:
         check_folder_output(Path(args.out), "--out", "command line")
+    if args.metrics is not None:
+        check_file_output(Path(args.metrics), (".csv",), "--metrics", "command line")
     writers = _writers(scene, args)
+    if args.preview:
+        from .preview import require_blender
+
+        require_blender("--preview")
+        if not scene.output.usd:
+            raise SceneError("--preview", "a run that writes USD (the preview renders it)", "--no-usd",
+                             source="command line")
     checkpoint_file = checkpoint_path(writers[0].target) if writers else None
     checkpoint = None
     if args.resume:
@@ -305,6 +323,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
         check = CheckReport(sys.stdout, strain)
         writers.append(check)
+    metrics = None
+    if args.metrics is not None:
+        from .metrics import MetricsWriter
+
+        metrics = MetricsWriter(args.metrics, check)
+        writers.append(metrics)
     frames = scene.simulation.frames - sim.frame
     try:
         summary = sim.run(frames, writers=writers, progress=not args.quiet and not args.check)
@@ -321,7 +345,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
               f"{_resume_hint(checkpointer)}.", file=sys.stderr)
         return EXIT_INTERRUPTED
     sim_settings = scene.simulation
-    wrote = _kept(outputs)
+    wrote = _kept(outputs + ([metrics] if metrics is not None and not summary.interrupted else []))
     if summary.interrupted:
         name = signal.Signals(summary.stop_signal).name
         status = f"interrupted after {summary.frames} of {sim_settings.frames} frames by {name}"
@@ -333,11 +357,27 @@ def _cmd_run(args: argparse.Namespace) -> int:
     older = sum(getattr(w, "older_frames_left", 0) for w in outputs)
     if older:
         wrote += f" ({older} older .poly files of other frames left there)"
+    if args.preview and not summary.interrupted:
+        wrote += _preview(outputs, args)
     print(f"{scene.name}: {status} ({summary.substeps} substeps of {sim.dt * 1e3:.3g} ms, "
           f"{sim_settings.integrator}) of {summary.particles} particles on {sim.device.alias} in "
           f"{summary.wall_seconds:.2f} s ({summary.particle_substeps_per_second:.3g} particle-substeps/s); "
           f"wrote {wrote}; {strain.report().describe()}{_limit_solve(sim)}" + (f"; {check.summary()}" if check else ""))
     return EXIT_SIGNAL_BASE + summary.stop_signal if summary.interrupted else 0
+
+
+def _preview(outputs: list, args: argparse.Namespace) -> str:
+    """Render the run's USD (``--preview``); what it wrote, for the summary line."""
+    from .preview import render_preview
+    from .writers import UsdWriter
+
+    (usd,) = [w.path for w in outputs if isinstance(w, UsdWriter)]
+    try:
+        preview = render_preview(usd, progress=not args.quiet)
+    except RuntimeError as exc:
+        print(f"warp-cloth: error: --preview: {exc}", file=sys.stderr)
+        return " (no preview: its render failed)"
+    return f", {preview.still}, {preview.animation} (rendered in {preview.seconds:.1f} s)"
 
 
 class _StoppedBySignal(KeyboardInterrupt):
@@ -393,6 +433,10 @@ def _main(argv: list[str] | None) -> int:
         from .sweep import main as sweep_main
 
         return sweep_main(rest)
+    if args.command == "preview":
+        from .preview import main as preview_main
+
+        return preview_main(rest)
     if rest:
         _parser().error(f"unrecognized arguments: {' '.join(rest)}")
     try:

@@ -58,6 +58,7 @@ class CheckReport:
         self.stream = stream
         self.strain = strain
         self.worst_intersections = (0, 0)  # (count, frame)
+        self.last_intersections = 0  # of the last frame written
         self.closest_contact: tuple[float, int] | None = None
 
     def begin(self, sim: Simulator) -> None:
@@ -65,7 +66,7 @@ class CheckReport:
         self.gaps = ContactGaps(sim) if sim.scene.collision is not None else None
 
     def write_frame(self, sim: Simulator, frame: int) -> None:
-        count = self.intersections(sim)
+        count = self.last_intersections = self.intersections(sim)
         line = f"frame {frame}: {count} intersecting triangle pairs"
         if count > self.worst_intersections[0]:
             self.worst_intersections = (count, frame)

@@ -34,6 +34,23 @@ class SolveStats:
     limit_passes: int | None = None  # the most projection passes a substep
     limit_mean_passes: float | None = None  # projection passes a substep, on average
     limit_residual: float | None = None  # where a solve ended, in its tolerances (at most 1: within them)
+    limit_solves: int | None = None  # the substeps' solves these figures are over
+
+    def merged(self, later: "SolveStats") -> "SolveStats":
+        """These figures and ``later``'s as one reading over the substeps of both."""
+        worst = lambda a, b: b if a is None else a if b is None else max(a, b)  # noqa: E731
+        mean = self.limit_mean_passes
+        if later.limit_solves:
+            earlier = self.limit_solves or 0
+            mean = ((mean or 0.0) * earlier + later.limit_mean_passes * later.limit_solves) / (earlier + later.limit_solves)
+        solves = None if self.limit_solves is None and later.limit_solves is None else \
+            (self.limit_solves or 0) + (later.limit_solves or 0)
+        return SolveStats(worst(self.cg_iterations, later.cg_iterations),
+                          worst(self.cg_relative_residual, later.cg_relative_residual),
+                          worst(self.newton_iterations, later.newton_iterations),
+                          worst(self.newton_residual, later.newton_residual),
+                          worst(self.limit_passes, later.limit_passes), mean,
+                          worst(self.limit_residual, later.limit_residual), solves)
 
 
 class BackwardEuler:

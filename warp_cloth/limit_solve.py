@@ -133,9 +133,9 @@ class ConvergedProjection:
 
         wp.capture_while(self.active, iteration)
 
-    def read_stats(self) -> tuple[int, float, float]:
+    def read_stats(self) -> tuple[int, float, float, int]:
         """The most passes a substep took, the largest residual a solve ended with (in tolerances: 1 or less
-        within them) and the mean passes a substep, since the last reading (waits for the device)."""
+        within them), the mean passes a substep and the solves, since the last reading (waits for the device)."""
         most, residual, total, solves = self.stats.numpy()
         self.stats.zero_()
-        return int(most), float(residual), float(total / solves) if solves else 0.0
+        return int(most), float(residual), float(total / solves) if solves else 0.0, int(solves)

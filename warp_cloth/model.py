@@ -184,6 +184,7 @@ class Model:
     contacts: ParticleContacts | None
     edges: np.ndarray  # (e, 2) int32: every cloth's structural and shear edges, springs or not
     edge_rest: np.ndarray  # (e,) float32: their rest lengths
+    edge_kind: np.ndarray  # (e,) int32: STRUCTURAL or SHEAR
     hierarchy: Hierarchy | None = None  # coarser levels of the strain limits, for the multilevel solve
     mesh_colliders: MeshColliders | None = None
     wind_faces: WindFaces | None = None
@@ -231,10 +232,10 @@ def build_model(scene: Scene, worlds: Worlds | None = None) -> Model:
         positions[animation.index] = animation.key_points[0]
     springs = _springs(scene, meshes, offsets, n)
     limits = _limits(springs, n, _attachments(scene, meshes, offsets, selections), _long_range(scene, meshes, offsets))
-    edges, edge_rest = _edges(meshes, offsets)
+    edges, edge_rest, edge_kind = _edges(meshes, offsets)
     hierarchy = _hierarchy(springs, masses, inv_mass, scene, offsets) if scene.simulation.limit_multilevel else None
     return Model(meshes, tuple(offsets), positions, velocities, masses, inv_mass, cloth_id, springs, limits,
-                 pins, _spheres(scene), _contacts(scene, meshes), edges, edge_rest, hierarchy,
+                 pins, _spheres(scene), _contacts(scene, meshes), edges, edge_rest, edge_kind, hierarchy,
                  _mesh_colliders(scene), _wind_faces(meshes, offsets) if scene.wind is not None else None,
                  pin_animations, worlds)
 
@@ -266,12 +267,14 @@ def _halvings(k: np.ndarray) -> np.ndarray:
     return np.where(k == 0, 30, np.log2((k & -k).clip(1)).astype(np.int64))
 
 
-def _edges(meshes, offsets) -> tuple[np.ndarray, np.ndarray]:
-    """The structural and shear edges of every cloth, whose strain is what the strain limit bounds."""
+def _edges(meshes, offsets) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The structural and shear edges of every cloth, whose strain is what the strain limit bounds, their
+    rest lengths and kinds."""
     chosen = [np.isin(g.spring_kind, (STRUCTURAL, SHEAR)) for g in meshes]
     edges = np.concatenate([g.springs[c] + offset for g, c, offset in zip(meshes, chosen, offsets)])
     rest = np.concatenate([g.rest_lengths[c] for g, c in zip(meshes, chosen)])
-    return edges.astype(np.int32).reshape(-1, 2), rest.astype(np.float32)
+    kind = np.concatenate([g.spring_kind[c] for g, c in zip(meshes, chosen)])
+    return edges.astype(np.int32).reshape(-1, 2), rest.astype(np.float32), kind.astype(np.int32)
 
 
 def _springs(scene: Scene, meshes, offsets, n: int) -> Springs | None:

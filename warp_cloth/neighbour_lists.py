@@ -76,11 +76,13 @@ class NeighbourLists:
         self._remake_if_asked(x)
         wp.launch(particle_collision.end_remake_once, dim=1, inputs=[self.lists], device=x.device)
 
-    def closest_contacts(self, x: wp.array, worlds: int) -> np.ndarray:
+    def closest_contacts(self, x: wp.array, worlds: int, remake: bool = True) -> np.ndarray:
         """Each world's closest approach of two particles that may collide, as a fraction of their contact
-        distance (1e30 where none is listed; a diagnostic: it waits for the device). It remakes the lists
-        from ``x``, which the simulation may then go on using: they are as valid as any it makes itself."""
-        self.remake_now(x)
+        distance (1e30 where none is listed; a diagnostic: it waits for the device). With ``remake`` it
+        remakes the lists from ``x`` first, which the simulation may then go on using: they are as valid as
+        any it makes itself."""
+        if remake:
+            self.remake_now(x)
         ratio = wp.full(worlds, 1.0e30, dtype=float, device=x.device)
         wp.launch(particle_collision.closest_contact_ratio, dim=self.n, inputs=[x, self.contacts, self.rules.world],
                   outputs=[ratio], device=x.device)

@@ -220,6 +220,7 @@ class Simulator:
         self.plan: Plan = build_plan(self.device_model, self.state, self.scene.implicit, threads_per_particle)
         self.frame = 0
         self.substep_count = 0
+        self._stats_since_start: SolveStats | None = None
         # An animated mesh collider's BVH refit is a host call on the CPU, which a CPU graph does not record
         # (a CUDA graph records the refit's kernels): there, launch pass by pass.
         self.use_graph = graph and not (self.device.is_cpu and self.device_model.mesh_animation)
@@ -336,22 +337,27 @@ class Simulator:
         contacts = self.closest_contacts()
         return None if contacts is None else float(contacts.min())
 
-    def closest_contacts(self) -> np.ndarray | None:
-        """``closest_contact`` of each world (see ``Batch``; a scene alone is one)."""
+    def closest_contacts(self, remake: bool = True) -> np.ndarray | None:
+        """``closest_contact`` of each world (see ``Batch``; a scene alone is one); without ``remake``, of the
+        pairs the simulation listed last (no list changes, so the run goes on as it would unmeasured)."""
         if self.plan.lists is None:
             return None
-        return self.plan.lists.closest_contacts(self.state.x, self.device_model.world_count)
+        return self.plan.lists.closest_contacts(self.state.x, self.device_model.world_count, remake)
 
-    def solver_stats(self) -> "SolveStats | None":
-        """The worst figures of the substeps since the last call (reading them waits for the device): the
-        implicit integrator's CG and Newton iterations and residuals, and a converged limit solve's passes
-        and residual; None where the scene has neither."""
+    def solver_stats(self, since_start: bool = False) -> "SolveStats | None":
+        """The worst figures of the substeps since the last call, or with ``since_start`` of every substep
+        since the simulator was made (reading them waits for the device): the implicit integrator's CG and
+        Newton iterations and residuals, and a converged limit solve's passes and residual; None where the
+        scene has neither."""
         stats = self.plan.implicit.read_stats() if self.plan.implicit is not None else None
         if self.plan.projection is not None:
-            most, residual, mean = self.plan.projection.read_stats()
+            most, residual, mean, solves = self.plan.projection.read_stats()
             stats = dataclasses.replace(stats or SolveStats(), limit_passes=most, limit_residual=residual,
-                                        limit_mean_passes=mean)
-        return stats
+                                        limit_mean_passes=mean, limit_solves=solves)
+        if stats is not None:
+            self._stats_since_start = stats if self._stats_since_start is None else \
+                self._stats_since_start.merged(stats)
+        return self._stats_since_start if since_start else stats
 
     def substep(self) -> None:
         """Advance one substep, launching pass by pass (for tests and debugging; frames are faster)."""

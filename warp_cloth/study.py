@@ -6,7 +6,7 @@ compared frame by frame with a reference run at a much smaller step.
 For each run: wall time per simulated second (the median frame's ``Simulator.step()`` after warm-up, no
 output I/O), RMS and max position error against the reference, max strain, energy drift, and whether it
 went unstable. Writes
-``study.csv``, ``study.json`` and, with matplotlib (the ``plots`` extra), three PNG plots.
+``study.csv``, ``study.json`` and three PNG plots.
 
 The reference is the same scene and resolution run with symplectic Euler at a step much smaller than the
 study's, checked against the same run at half that step; a run's error is resolved when it is at least 10
@@ -26,7 +26,6 @@ from __future__ import annotations
 import argparse
 import csv
 import dataclasses
-import importlib.util
 import json
 import math
 import statistics
@@ -494,24 +493,19 @@ def write_csv(study: Study, path: Path) -> None:
         writer.writerows(dataclasses.asdict(r) for r in study.runs)
 
 
-def plots_available() -> bool:
-    return importlib.util.find_spec("matplotlib") is not None
-
-
 def write_study(study: Study, out: Path) -> list[Path]:
-    """study.csv, study.json and, when matplotlib is installed, the three plots; returns the paths."""
+    """study.csv, study.json and the three plots; returns the paths."""
+    import matplotlib
+
     out.mkdir(parents=True, exist_ok=True)
     paths = [out / "study.csv", out / "study.json"]
     write_csv(study, paths[0])
     paths[1].write_text(json.dumps(study_json(study), indent=2))
-    if plots_available():
-        import matplotlib
-
-        matplotlib.use("Agg")
-        for name, plot in (("error_vs_time", plot_error_vs_time), ("error_vs_dt", plot_error_vs_dt),
-                           ("time_vs_resolution", plot_time_vs_resolution)):
-            paths.append(out / f"{name}.png")
-            plot(study, paths[-1])
+    matplotlib.use("Agg")
+    for name, plot in (("error_vs_time", plot_error_vs_time), ("error_vs_dt", plot_error_vs_dt),
+                       ("time_vs_resolution", plot_time_vs_resolution)):
+        paths.append(out / f"{name}.png")
+        plot(study, paths[-1])
     return paths
 
 
@@ -662,8 +656,6 @@ def main(argv: list[str] | None = None) -> int:
     out = args.out or Path("out") / f"study-{study.scene}"
     write_study(study, out)
     print(format_table(study))
-    if not plots_available():
-        print("plots skipped: matplotlib is not installed (pip install 'warp-cloth[plots]')")
     print(summary_line(study, out))
     return 0
 

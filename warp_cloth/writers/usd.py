@@ -24,6 +24,7 @@ from ..output import (INCOMPLETE, OutputError, RunOutcome, StagedOutput, check_f
 from .shot_layer import GROUND_PATH, layer_path, prim_paths, shot_files, write_shot_layer
 
 USD_SUFFIXES = (".usd", ".usda", ".usdc")
+ROLE_KEY = "warpCloth:role"  # customData of each prim written: "cloth", "collider" or "ground" (for previews)
 # A save appends the new samples and the whole structure again: small, but with every sample's time.
 SAVE_MARGIN_BYTES = 64 * 1024
 BYTES_PER_SAMPLE_TIME = 16
@@ -95,6 +96,7 @@ class UsdWriter(StagedOutput):
             r = sphere.radius
             prim.CreateExtentAttr(Vt.Vec3fArray([Gf.Vec3f(-r, -r, -r), Gf.Vec3f(r, r, r)]))
             prim.CreateDisplayColorAttr(Vt.Vec3fArray([Gf.Vec3f(0.55, 0.6, 0.7)]))
+            prim.GetPrim().SetCustomDataByKey(ROLE_KEY, "collider")
             translate = prim.AddTranslateOp()
             if moving:
                 self._sphere_translates.append(translate.GetAttr())
@@ -139,6 +141,7 @@ class UsdWriter(StagedOutput):
                                          else UsdGeom.Tokens.none)
         mesh.CreateDoubleSidedAttr(True)
         mesh.CreateDisplayColorAttr(Vt.Vec3fArray([Gf.Vec3f(*cloth.color)]))
+        mesh.GetPrim().SetCustomDataByKey(ROLE_KEY, "cloth")
         if faces.uvs is not None:
             per_corner = len(faces.uvs) == len(faces.face_indices)  # a grid's are per particle
             st = UsdGeom.PrimvarsAPI(mesh).CreatePrimvar(
@@ -165,6 +168,7 @@ class UsdWriter(StagedOutput):
                                              Gf.Vec3f(*points.max(axis=0).tolist())]))
         mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
         mesh.CreateDisplayColorAttr(Vt.Vec3fArray([Gf.Vec3f(0.55, 0.6, 0.7)]))
+        mesh.GetPrim().SetCustomDataByKey(ROLE_KEY, "collider")
 
     def _define_ground(self, sim) -> None:
         ground = sim.scene.ground
@@ -181,6 +185,7 @@ class UsdWriter(StagedOutput):
         mesh.CreateExtentAttr(Vt.Vec3fArray([Gf.Vec3f(cx - half, y, cz - half), Gf.Vec3f(cx + half, y, cz + half)]))
         mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
         mesh.CreateDisplayColorAttr(Vt.Vec3fArray([Gf.Vec3f(0.35, 0.35, 0.33)]))
+        mesh.GetPrim().SetCustomDataByKey(ROLE_KEY, "ground")
 
     def write_frame(self, sim, frame: int) -> None:
         code = Usd.TimeCode(frame)

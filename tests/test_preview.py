@@ -1,0 +1,114 @@
+"""The rendered preview (``warp-cloth run --preview``, ``warp-cloth preview``): a still whose pixels show the
+cloth in its colour where the camera looks, an animation of one picture per frame asked, in place only when
+all of it is made; bad input refused in one line. Skipped where Blender (bpy) is not installed."""
+
+import importlib.util
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import run_cli_in_process
+
+needs_blender = pytest.mark.skipif(importlib.util.find_spec("bpy") is None, reason="bpy (Blender) is not installed")
+
+GREEN = (0.15, 0.75, 0.2)
+
+
+def green_hanging(folder: Path) -> Path:
+    """The built-in hanging scene with a cloth of a colour nothing else in the picture has."""
+    from warp_cloth.scene_file import resolve_scene_path
+
+    text = resolve_scene_path("hanging").read_text().replace('name = "cloth"', f'name = "cloth"\ncolor = {list(GREEN)}')
+    path = folder / "green.toml"
+    path.write_text(text)
+    return path
+
+
+def cloth_pixels(png: Path) -> np.ndarray:
+    """Where the picture is the cloth's green (lit or shaded: green well above red and blue)."""
+    from PIL import Image
+
+    rgb = np.asarray(Image.open(png).convert("RGB"), dtype=np.float64) / 255.0
+    return (rgb[..., 1] > rgb[..., 0] + 0.1) & (rgb[..., 1] > rgb[..., 2] + 0.1)
+
+
+def movie_pictures(path: Path) -> int:
+    """The pictures in a video, as Blender reads it (in its own process: it carries its own USD)."""
+    code = f"import bpy; print('PICTURES', bpy.data.movieclips.load({str(path)!r}).frame_duration)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120).stdout
+    return int(out.split("PICTURES")[1].split()[0])
+
+
+@needs_blender
+def test_run_preview_renders_the_cloth_in_its_colour_and_a_picture_per_frame(tmp_path):
+    scene = green_hanging(tmp_path)
+    code, out, err = run_cli_in_process("run", str(scene), "--frames", "12", "--out", "out", "--no-poly", "--quiet",
+                                        "--preview", cwd=tmp_path)
+    assert code == 0, err
+    still, movie = tmp_path / "out" / "green.preview.png", tmp_path / "out" / "green.preview.mp4"
+    assert f"{Path('out/green.preview.png')}, {Path('out/green.preview.mp4')} (rendered in" in out
+    cloth = cloth_pixels(still)
+    assert cloth.shape == (540, 960)
+    assert cloth.mean() > 0.03  # the cloth fills a good part of the picture ...
+    rows, columns = np.nonzero(cloth)
+    assert 540 * 0.2 < rows.mean() < 540 * 0.8 and 960 * 0.2 < columns.mean() < 960 * 0.8  # ... where it looks
+    assert not cloth[:20, :20].any() and not cloth[-20:, -20:].any()  # and the background is not the cloth
+    assert movie_pictures(movie) == 13
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["green.preview.mp4", "green.preview.png",
+                                                                     "green.usdc"]
+
+
+@needs_blender
+def test_preview_of_a_result_animates_the_frames_asked_and_replaces_only_when_done(tmp_path):
+    from PIL import Image
+
+    scene = green_hanging(tmp_path)
+    assert run_cli_in_process("run", str(scene), "--frames", "12", "--out", "out", "--no-poly", "--quiet",
+                              cwd=tmp_path)[0] == 0
+    usd = tmp_path / "out" / "green.usdc"
+    code, out, err = run_cli_in_process("preview", str(usd), "--frames", "2:11:3", "--animation", "anim.gif",
+                                        "--still", "still.png", "--quiet", cwd=tmp_path)
+    assert code == 0, err
+    assert Image.open(tmp_path / "anim.gif").n_frames == 4  # frames 2, 5, 8 and 11
+    assert cloth_pixels(tmp_path / "still.png").mean() > 0.03
+    before = (tmp_path / "still.png").read_bytes()
+    code, out, err = run_cli_in_process("preview", str(usd), "--frames", "2:30", "--still", "still.png",
+                                        cwd=tmp_path)
+    assert code == 2 and "--frames: expected frames within the result's 0:12" in err
+    assert (tmp_path / "still.png").read_bytes() == before
+    assert not list(tmp_path.glob("*.incomplete*")) and not list(tmp_path.glob(".preview-*"))
+
+
+@pytest.mark.parametrize("args, expected", [
+    (["missing.usdc"], "usd: expected a USD file a run wrote, got 'missing.usdc'"),
+    (["not_usd.usdc"], "usd: expected a USD file a run wrote (it does not open"),
+    (["out/green.usdc", "--frames", "5"], "--frames: expected FIRST:LAST or FIRST:LAST:STEP"),
+    (["out/green.usdc", "--frames", "5:2"], "--frames: expected FIRST:LAST or FIRST:LAST:STEP"),
+    (["out/green.usdc", "--still", "still.jpg"], "--still: expected a file name ending in .png"),
+    (["out/green.usdc", "--animation", "a.avi"], "--animation: expected a file name ending in .mp4, .gif"),
+])
+@needs_blender
+def test_bad_preview_input_is_one_line_and_nothing_is_written(tmp_path, args, expected):
+    scene = green_hanging(tmp_path)
+    assert run_cli_in_process("run", str(scene), "--frames", "2", "--out", "out", "--no-poly", "--quiet",
+                              cwd=tmp_path)[0] == 0
+    (tmp_path / "not_usd.usdc").write_text("not a stage")
+    before = sorted(p.name for p in tmp_path.rglob("*"))
+    code, out, err = run_cli_in_process("preview", *args, cwd=tmp_path)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and expected in err, err
+    assert sorted(p.name for p in tmp_path.rglob("*")) == before
+
+
+def test_without_blender_preview_is_refused_in_one_line_before_anything_runs(tmp_path, monkeypatch):
+    from warp_cloth import preview
+
+    monkeypatch.setattr(preview, "blender_available", lambda: False)
+    code, out, err = run_cli_in_process("run", "hanging", "--frames", "2", "--out", "out", "--preview", cwd=tmp_path)
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert "--preview: expected Blender as a Python module" in err and "pip install 'warp-cloth[preview]'" in err
+    assert not (tmp_path / "out").exists()
+    code, out, err = run_cli_in_process("preview", "anything.usdc", cwd=tmp_path)
+    assert code == 2 and "preview: expected Blender as a Python module" in err

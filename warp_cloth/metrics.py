@@ -1,0 +1,166 @@
+"""Per-frame metrics of a run, as a CSV with named columns and a PNG of them over time.
+
+``MetricsWriter(path)`` is a frame writer (``Simulator.run(writers=[...])``, ``warp-cloth run --metrics``).
+Each frame's row: its number and time; the worst stretch and compression of the structural and of the shear
+edges (every edge, springs or not, as fractions: 0.1 is 10%); the closest contact (with particle collision:
+the closest pair the simulation has listed, as a fraction of its contact distance; measuring it changes
+nothing in the run); the crossing triangle pairs (where the run's ``--check`` counts them); kinetic energy,
+potential energy (gravity's, from y = 0 along the gravity of the cloth's world, plus the springs' elastic
+energy, 1/2 k L (l/L - 1)^2 for each spring in the regime it acts in) and the springs' part of it, in
+joules; the substeps' solves since the frame before (the converged strain limit solve's mean and most
+passes a substep, the implicit step's most CG iterations); and the frame's wall time, from the end of the
+frame before (simulation and the writers before this one).
+
+The CSV is written under a staging name and put in place when the run completes (a failed or stopped run
+leaves its rows beside it, as the other outputs do); the plot is made from it then.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .cloth_mesh import SHEAR, STRUCTURAL
+from .model import Worlds
+from .output import first_free, labelled
+
+COLUMNS = ("frame", "time", "structural_stretch", "structural_compression", "shear_stretch", "shear_compression",
+           "closest_contact", "crossing_pairs", "kinetic_energy", "potential_energy", "spring_energy",
+           "limit_passes_mean", "limit_passes_most", "cg_iterations", "wall_seconds")
+PLOTS = (  # (title, columns, unit) of each panel of the PNG
+    ("worst edge strain", ("structural_stretch", "structural_compression", "shear_stretch", "shear_compression"),
+     "%"),
+    ("energy", ("kinetic_energy", "potential_energy", "spring_energy"), "J"),
+    ("closest contact", ("closest_contact",), "of contact distance"),
+    ("solver", ("limit_passes_mean", "limit_passes_most", "cg_iterations"), "a substep"),
+    ("wall time", ("wall_seconds",), "s a frame"),
+)
+
+
+class MetricsWriter:
+    """Writes a run's per-frame metrics to ``path`` (CSV) and plots them to ``path`` with ``.png``. Give it
+    the run's ``CheckReport`` (a writer before it) to have the crossing pairs it counts."""
+
+    def __init__(self, path: str | Path, check=None, plot: bool = True) -> None:
+        self.path = Path(path)
+        self.check = check
+        self.plot = plot
+        self.staging = labelled(self.path, "incomplete", self.path.suffix)
+        self.rows: list[dict] = []
+
+    @property
+    def outputs(self) -> list[Path]:
+        return [self.path, self.plot_path] if self.plot else [self.path]
+
+    @property
+    def plot_path(self) -> Path:
+        return self.path.with_suffix(".png")
+
+    def begin(self, sim) -> None:
+        model = sim.model
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._file = open(self.staging, "w", newline="")
+        self._csv = csv.DictWriter(self._file, COLUMNS)
+        self._csv.writeheader()
+        self._kinds = {kind: model.edge_kind == kind for kind in (STRUCTURAL, SHEAR)}
+        worlds = model.worlds if model.worlds is not None else Worlds.of_scene(sim.scene)
+        self._gravity = worlds.gravity[model.particle_world].astype(np.float64)
+        self._springs = model.springs
+        self._last: float | None = None
+        self._substeps = sim.substep_count
+
+    def write_frame(self, sim, frame: int) -> None:
+        model = sim.model
+        x = sim.positions().astype(np.float64)
+        v = sim.velocities().astype(np.float64)
+        row: dict = {"frame": frame, "time": frame / sim.scene.simulation.fps}
+        strain = np.linalg.norm(x[model.edges[:, 0]] - x[model.edges[:, 1]], axis=1) / model.edge_rest - 1.0
+        for kind, name in ((STRUCTURAL, "structural"), (SHEAR, "shear")):
+            chosen = strain[self._kinds[kind]]
+            row[f"{name}_stretch"] = max(0.0, float(chosen.max())) if len(chosen) else ""
+            row[f"{name}_compression"] = max(0.0, float(-chosen.min())) if len(chosen) else ""
+        contacts = sim.closest_contacts(remake=False) if sim.plan.lists is not None else None
+        row["closest_contact"] = "" if contacts is None or contacts.min() >= 1e29 else float(contacts.min())
+        row["crossing_pairs"] = "" if self.check is None else self.check.last_intersections
+        masses = model.masses.astype(np.float64)
+        row["kinetic_energy"] = 0.5 * float(np.sum(masses * np.sum(v * v, axis=1)))
+        spring_energy = self._spring_energy(x)
+        row["potential_energy"] = -float(np.sum(masses * np.sum(self._gravity * x, axis=1))) + spring_energy
+        row["spring_energy"] = spring_energy
+        stats = sim.solver_stats()
+        stepped = stats is not None and sim.substep_count > self._substeps  # none before the first frame's
+        self._substeps = sim.substep_count
+        row["limit_passes_mean"] = stats.limit_mean_passes if stepped and stats.limit_solves else ""
+        row["limit_passes_most"] = stats.limit_passes if stepped and stats.limit_solves else ""
+        row["cg_iterations"] = stats.cg_iterations if stepped and stats.cg_iterations is not None else ""
+        now = time.perf_counter()
+        row["wall_seconds"] = "" if self._last is None else now - self._last  # none for the first frame written
+        self._last = now
+        self.rows.append(row)
+        self._csv.writerow(row)
+
+    def _spring_energy(self, x: np.ndarray) -> float:
+        springs = self._springs
+        if springs is None:
+            return 0.0
+        from warp_cloth.kernels.springs import ELASTIC_COMPRESSION, ELASTIC_TENSION
+
+        strain = np.linalg.norm(x[springs.pairs[:, 0]] - x[springs.pairs[:, 1]], axis=1) / springs.rest - 1.0
+        acts = np.where(strain > 0, springs.flags & int(ELASTIC_TENSION), springs.flags & int(ELASTIC_COMPRESSION))
+        return float(np.sum(np.where(acts != 0, 0.5 * springs.stiffness * springs.rest * strain * strain, 0.0)))
+
+    def sync(self, sim) -> None:
+        self._file.flush()
+
+    def finish(self, sim, frames_written: int) -> None:
+        self._file.close()
+        os.replace(self.staging, self.path)
+        if self.plot:
+            plot_metrics(self.path, self.plot_path)
+
+    def abandon(self, sim, frames_written: int, outcome) -> None:
+        self._file.close()
+        os.replace(self.staging, first_free(self.path, outcome.label, self.path.suffix))
+
+
+def read_metrics(path: str | Path) -> dict[str, np.ndarray]:
+    """A metrics CSV's columns as arrays (nan where a row has no value)."""
+    with open(path, newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    return {c: np.array([float(r[c]) if r.get(c) not in (None, "") else math.nan for r in rows]) for c in COLUMNS}
+
+
+def plot_metrics(csv_path: str | Path, png_path: str | Path) -> Path:
+    """The metrics over time, a panel for each of ``PLOTS`` that has values, as a PNG."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    data = read_metrics(csv_path)
+    panels = [(title, [c for c in columns if np.isfinite(data[c]).any()], unit)
+              for title, columns, unit in PLOTS]
+    panels = [p for p in panels if p[1]]
+    figure, axes = plt.subplots(len(panels), 1, figsize=(8, 2.2 * len(panels)), sharex=True, squeeze=False)
+    for axis, (title, columns, unit) in zip(axes[:, 0], panels):
+        for column in columns:
+            values = data[column] * (100.0 if unit == "%" else 1.0)
+            axis.plot(data["time"], values, label=column.replace("_", " "))
+        axis.set_title(title, fontsize=10)
+        axis.set_ylabel(unit)
+        axis.grid(alpha=0.3)
+        if len(columns) > 1:
+            axis.legend(fontsize=7, loc="best")
+    axes[-1, 0].set_xlabel("time (s)")
+    figure.tight_layout()
+    png_path = Path(png_path)
+    staging = labelled(png_path, "incomplete", png_path.suffix)
+    figure.savefig(staging, dpi=100)
+    plt.close(figure)
+    os.replace(staging, png_path)
+    return png_path
