@@ -85,6 +85,9 @@ def test_the_shot_layer_puts_the_simulated_cloth_over_the_shot_in_its_units_axes
     assert UsdGeom.GetStageUpAxis(ours) == UsdGeom.Tokens.y and ours.GetTimeCodesPerSecond() == 24
     simulated = UsdGeom.Mesh(ours.GetPrimAtPath("/Shot/Cloth/Sheet")).GetPointsAttr()
     assert ours.GetPrimAtPath("/Shot/Table").IsA(UsdGeom.Mesh)
+    # Their parents are transforms: Blender's importer takes a prim under a parent of no type out of the
+    # hierarchy, and with it out of the Y-up turn its root gives.
+    assert ours.GetPrimAtPath("/Shot").IsA(UsdGeom.Xform) and ours.GetPrimAtPath("/Shot/Cloth").IsA(UsdGeom.Xform)
 
     layered = Usd.Stage.Open(str(tmp_path / "out" / "scene.shot.usda"))
     shot = Usd.Stage.Open(str(tmp_path / "shot.usda"))

@@ -91,7 +91,7 @@ class UsdWriter(StagedOutput):
             self._define_cloth(sim, c, cloth, paths.cloths[c])
         moving = sim.model.spheres is not None and sim.model.spheres.moving
         for sphere, path in zip(sim.scene.spheres, paths.spheres):
-            prim = UsdGeom.Sphere.Define(stage, path)
+            prim = UsdGeom.Sphere.Define(stage, _with_parents(stage, path))
             prim.CreateRadiusAttr(sphere.radius)
             r = sphere.radius
             prim.CreateExtentAttr(Vt.Vec3fArray([Gf.Vec3f(-r, -r, -r), Gf.Vec3f(r, r, r)]))
@@ -134,7 +134,7 @@ class UsdWriter(StagedOutput):
 
     def _define_cloth(self, sim, c: int, cloth, path: str) -> None:
         faces = sim.model.cloths[c]
-        mesh = UsdGeom.Mesh.Define(self.stage, path)
+        mesh = UsdGeom.Mesh.Define(self.stage, _with_parents(self.stage, path))
         mesh.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(faces.face_counts.astype(np.int32)))
         mesh.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(faces.face_indices.astype(np.int32)))
         mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.catmullClark if self.subdivision == "catmullClark"
@@ -154,7 +154,7 @@ class UsdWriter(StagedOutput):
     def _define_mesh_collider(self, collider, path: str, key_times, key_points) -> None:
         """A mesh collider: world-space points (sampled where it moves), its faces."""
         surface = collider.surface()
-        mesh = UsdGeom.Mesh.Define(self.stage, path)
+        mesh = UsdGeom.Mesh.Define(self.stage, _with_parents(self.stage, path))
         points = surface.points.astype(np.float32)
         attr = mesh.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(points))
         if key_points is not None:  # animated: its samples, at the frames of their times
@@ -316,3 +316,13 @@ class UsdWriter(StagedOutput):
     @property
     def outputs(self) -> list[Path]:
         return [*super().outputs, *([self.layer] if self.layer is not None else [])]
+
+
+def _with_parents(stage, path: str) -> str:
+    """``path``, its parents defined as transforms where nothing defines them yet: a prim of a shot's path
+    (/World/Character/Body) under a parent of no type is taken out of the hierarchy by Blender's importer,
+    which then misses the Y-up turn that /World gives its children."""
+    for parent in Sdf.Path(path).GetParentPath().GetPrefixes():
+        if not stage.GetPrimAtPath(parent).IsValid():
+            UsdGeom.Xform.Define(stage, parent)
+    return path
