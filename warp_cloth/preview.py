@@ -1,7 +1,8 @@
 """``warp-cloth preview OUT.usdc`` and ``warp-cloth run SCENE --preview``: the USD a run wrote, rendered, so
 that what you see is what a DCC tool gets: a still of the last frame (PNG) and an animation of the run (MP4,
-or a GIF where Blender has no video encoder), from a camera framed on the cloths and colliders over the
-whole run, lit, each cloth in its display colour and the colliders and ground shaded apart.
+or a GIF where Blender has no video encoder), from a camera framed on the cloths and colliders (the still on
+its frame, the animation on the whole run), lit, each cloth in its display colour and the colliders and
+ground shaded apart.
 
 The renderer is Blender's Cycles on the CPU, through Blender as a Python module (``pip install
 'warp-cloth[preview]'``): Blender is the DCC tool the output targets, it runs headless on a machine without
@@ -202,7 +203,10 @@ def _gif(pictures: list[Path], target: Path, fps: float) -> None:
 
 
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="warp-cloth preview", description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(prog="warp-cloth preview",
+                                     description="Render a result's USD with Blender: a still of its last frame "
+                                                 "(PNG) and an animation of its frames (MP4, or GIF), framed on its "
+                                                 "cloths and colliders. Needs the preview extra.")
     parser.add_argument("usd", help="a USD file a run wrote (out/SCENE.usdc)")
     parser.add_argument("--frames", metavar="FIRST:LAST[:STEP]", help="the frames to animate (default: all); "
                                                                      "the still shows LAST")
