@@ -1,0 +1,128 @@
+"""Would tethers to the particles a collider holds up carry the settled drape's load? A probe for issue 15.
+
+The speed matrix's sphere cloth at n^2 runs with the converged limit solve (cap 1000), its state kept every
+5 frames. From each kept state, one symplectic substep's prediction (x + h (v + h g), pins held; the soft
+springs left out) is projected by a numpy copy of warp-cloth's limit pass (averaged Jacobi over the limited
+springs, then the attachments to the pins, then the sphere) until no limit is 0.5% past, checked every two
+passes as the converged solve does, at most 1000 passes: once as it is, once with each free particle also
+tethered to the particle nearest it along the cloth's edges among those the sphere holds up (touching it)
+or pinned, within (1 + stretch) times that path (a limit the springs' own limits imply, as the attachments
+are), the tether's far end held still in the pass, as a pin is.
+
+    python tools/anchor_probe.py [N]          (default 64: about 20 s for the run on this CPU)
+"""
+
+import dataclasses
+import sys
+
+import numpy as np
+
+import warp_cloth as wc
+from warp_cloth.bench import matrix_scene
+from warp_cloth.cloth_mesh import SHEAR, STRUCTURAL
+from warp_cloth.spring_paths import nearest_along_edges
+
+TOLERANCE = 0.005
+CAP = 1000
+
+
+class Cloth:
+    """The limits, attachments and sphere of the matrix cloth, as numpy arrays."""
+
+    def __init__(self, sim: wc.Simulator) -> None:
+        model = sim.model
+        springs = model.springs
+        limited = np.isfinite(springs.limit_max)
+        self.a, self.b = springs.pairs[limited, 0], springs.pairs[limited, 1]
+        self.low, self.high = springs.limit_min[limited].astype(np.float64), springs.limit_max[limited].astype(np.float64)
+        self.w = model.inv_mass.astype(np.float64)
+        self.free = self.w > 0
+        self.pin, self.reach = model.limits.attachment_pin, model.limits.attachment_length.astype(np.float64)
+        self.center, self.radius = model.spheres.initial_center[0].astype(np.float64), float(model.spheres.radius[0])
+        mesh = model.cloths[0]
+        edges = np.isin(mesh.spring_kind, (STRUCTURAL, SHEAR))
+        self.edges, self.edge_rest = mesh.springs[edges], mesh.rest_lengths[edges]
+        self.stretch = sim.scene.cloths[0].limit.stretch
+        self.n = model.particle_count
+
+    def tethers(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        touching = np.linalg.norm(x - self.center, axis=1) <= self.radius * (1 + 1e-3)
+        held = np.nonzero(~self.free | touching)[0]
+        nearest, distance = nearest_along_edges(self.n, self.edges, self.edge_rest, held)
+        nearest = np.where(self.free & (nearest >= 0) & (nearest != np.arange(self.n)), nearest, -1)
+        return nearest, (1 + self.stretch) * distance
+
+    def residual(self, x: np.ndarray) -> float:
+        length = np.linalg.norm(x[self.a] - x[self.b], axis=1)
+        worst = max(np.max((length - self.high) / self.high), np.max((self.low - length) / self.low))
+        attached = self.pin >= 0
+        reach = np.linalg.norm(x[attached] - x[self.pin[attached]], axis=1)
+        return max(worst, float(np.max((reach - self.reach[attached]) / np.maximum(self.reach[attached], 1e-12))))
+
+    def one_pass(self, x: np.ndarray, tethers=None) -> np.ndarray:
+        d = x[self.a] - x[self.b]
+        length = np.linalg.norm(d, axis=1)
+        target = np.clip(length, self.low, self.high)
+        out = (target != length) & (length > 1e-12)
+        correction = ((target - length) / np.maximum(length, 1e-12))[:, None] * d
+        weight = np.maximum(self.w[self.a] + self.w[self.b], 1e-30)  # two pins: neither moves
+        total, count = np.zeros((self.n, 3)), np.zeros(self.n)
+        np.add.at(total, self.a[out], (self.w[self.a] / weight)[out, None] * correction[out])
+        np.add.at(total, self.b[out], -(self.w[self.b] / weight)[out, None] * correction[out])
+        np.add.at(count, self.a[out], 1)
+        np.add.at(count, self.b[out], 1)
+        p = x + total / np.maximum(count, 1)[:, None]
+        p[~self.free] = x[~self.free]
+        p = held_within(p, x, self.pin, self.reach)
+        if tethers is not None:
+            p = held_within(p, x, *tethers)
+        r = p - self.center
+        distance = np.linalg.norm(r, axis=1)
+        inside = distance < self.radius
+        p[inside] = self.center + r[inside] * (self.radius / distance[inside])[:, None]
+        return p
+
+    def passes(self, x: np.ndarray, tethers=None) -> int:
+        for k in range(2, CAP + 1, 2):
+            x = self.one_pass(self.one_pass(x, tethers), tethers)
+            if self.residual(x) <= TOLERANCE:
+                return k
+        return CAP
+
+
+def held_within(p: np.ndarray, x: np.ndarray, other: np.ndarray, reach: np.ndarray) -> np.ndarray:
+    """Each particle with an other end (>= 0) put back within ``reach`` of where that end was."""
+    tied = np.nonzero(other >= 0)[0]
+    d = p[tied] - x[other[tied]]
+    length = np.linalg.norm(d, axis=1)
+    over = length > reach[tied]
+    moved = tied[over]
+    p[moved] = x[other[moved]] + d[over] * (reach[moved] / length[over])[:, None]
+    return p
+
+
+def main() -> None:
+    n = int(sys.argv[1]) if len(sys.argv) > 1 else 64
+    scene = matrix_scene("sphere", n, "symplectic")
+    scene = dataclasses.replace(scene, simulation=dataclasses.replace(scene.simulation, limit_solve="converged",
+                                                                      limit_max_passes=CAP))
+    sim = wc.Simulator(scene, device="cpu")
+    cloth = Cloth(sim)
+    gravity = np.array([0.0, -9.81, 0.0])
+    print("frame  passes of the real solve (mean / most)  copy, as it is  copy, with tethers  tethered particles")
+    for frame in range(1, 121):
+        sim.step()
+        stats = sim.solver_stats()
+        if frame % 5:
+            continue
+        x, v = sim.positions().astype(np.float64), sim.velocities().astype(np.float64)
+        v += sim.dt * gravity
+        v[~cloth.free] = 0.0
+        predicted = x + sim.dt * v
+        tethers = cloth.tethers(x)
+        print(f"{frame:5d}  {stats.limit_mean_passes:6.1f} / {stats.limit_passes:4d}  {cloth.passes(predicted):14d}  "
+              f"{cloth.passes(predicted, tethers):18d}  {int((tethers[0] >= 0).sum()):18d}", flush=True)
+
+
+if __name__ == "__main__":
+    main()
