@@ -19,7 +19,6 @@ import numpy as np
 
 import warp_cloth as wc
 from warp_cloth.bench import matrix_scene
-from warp_cloth.cloth_mesh import SHEAR, STRUCTURAL
 from warp_cloth.spring_paths import nearest_along_edges
 
 TOLERANCE = 0.005
@@ -34,14 +33,14 @@ class Cloth:
         springs = model.springs
         limited = np.isfinite(springs.limit_max)
         self.a, self.b = springs.pairs[limited, 0], springs.pairs[limited, 1]
-        self.low, self.high = springs.limit_min[limited].astype(np.float64), springs.limit_max[limited].astype(np.float64)
+        self.low = springs.limit_min[limited].astype(np.float64)
+        self.high = springs.limit_max[limited].astype(np.float64)
         self.w = model.inv_mass.astype(np.float64)
         self.free = self.w > 0
         self.pin, self.reach = model.limits.attachment_pin, model.limits.attachment_length.astype(np.float64)
         self.center, self.radius = model.spheres.initial_center[0].astype(np.float64), float(model.spheres.radius[0])
         mesh = model.cloths[0]
-        edges = np.isin(mesh.spring_kind, (STRUCTURAL, SHEAR))
-        self.edges, self.edge_rest = mesh.springs[edges], mesh.rest_lengths[edges]
+        self.edges, self.edge_rest = mesh.springs[mesh.is_edge], mesh.rest_lengths[mesh.is_edge]
         self.stretch = sim.scene.cloths[0].limit.stretch
         self.n = model.particle_count
 

@@ -34,6 +34,11 @@ class ClothMesh:
     def triangles(self) -> np.ndarray:
         return fan_triangles(self.face_counts, self.face_indices)
 
+    @property
+    def is_edge(self) -> np.ndarray:
+        """(s,) bool: which springs are edges (structural or shear), whose strain the strain limit bounds."""
+        return np.isin(self.spring_kind, (STRUCTURAL, SHEAR))
+
     def face_table(self) -> np.ndarray:
         """(f, 4) particles of each face, -1 as a triangle's fourth."""
         return face_table(self.face_counts, self.face_indices)

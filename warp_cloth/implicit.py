@@ -39,12 +39,12 @@ class SolveStats:
     def merged(self, later: "SolveStats") -> "SolveStats":
         """These figures and ``later``'s as one reading over the substeps of both."""
         worst = lambda a, b: b if a is None else a if b is None else max(a, b)  # noqa: E731
-        mean = self.limit_mean_passes
+        mean, earlier = self.limit_mean_passes, self.limit_solves or 0
         if later.limit_solves:
-            earlier = self.limit_solves or 0
-            mean = ((mean or 0.0) * earlier + later.limit_mean_passes * later.limit_solves) / (earlier + later.limit_solves)
+            total = (mean or 0.0) * earlier + later.limit_mean_passes * later.limit_solves
+            mean = total / (earlier + later.limit_solves)
         solves = None if self.limit_solves is None and later.limit_solves is None else \
-            (self.limit_solves or 0) + (later.limit_solves or 0)
+            earlier + (later.limit_solves or 0)
         return SolveStats(worst(self.cg_iterations, later.cg_iterations),
                           worst(self.cg_relative_residual, later.cg_relative_residual),
                           worst(self.newton_iterations, later.newton_iterations),

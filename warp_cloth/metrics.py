@@ -25,6 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
+from warp_cloth.kernels.springs import ELASTIC_COMPRESSION, ELASTIC_TENSION
+
 from .cloth_mesh import SHEAR, STRUCTURAL
 from .model import Worlds
 from .output import first_free, labelled
@@ -51,7 +53,6 @@ class MetricsWriter:
         self.check = check
         self.plot = plot
         self.staging = labelled(self.path, "incomplete", self.path.suffix)
-        self.rows: list[dict] = []
 
     @property
     def outputs(self) -> list[Path]:
@@ -70,7 +71,7 @@ class MetricsWriter:
         self._kinds = {kind: model.edge_kind == kind for kind in (STRUCTURAL, SHEAR)}
         worlds = model.worlds if model.worlds is not None else Worlds.of_scene(sim.scene)
         self._gravity = worlds.gravity[model.particle_world].astype(np.float64)
-        self._springs = model.springs
+        self._masses = model.masses.astype(np.float64)
         self._last: float | None = None
         self._substeps = sim.substep_count
 
@@ -84,13 +85,12 @@ class MetricsWriter:
             chosen = strain[self._kinds[kind]]
             row[f"{name}_stretch"] = max(0.0, float(chosen.max())) if len(chosen) else ""
             row[f"{name}_compression"] = max(0.0, float(-chosen.min())) if len(chosen) else ""
-        contacts = sim.closest_contacts(remake=False) if sim.plan.lists is not None else None
+        contacts = sim.closest_contacts(remake=False)
         row["closest_contact"] = "" if contacts is None or contacts.min() >= 1e29 else float(contacts.min())
         row["crossing_pairs"] = "" if self.check is None else self.check.last_intersections
-        masses = model.masses.astype(np.float64)
-        row["kinetic_energy"] = 0.5 * float(np.sum(masses * np.sum(v * v, axis=1)))
-        spring_energy = self._spring_energy(x)
-        row["potential_energy"] = -float(np.sum(masses * np.sum(self._gravity * x, axis=1))) + spring_energy
+        row["kinetic_energy"] = 0.5 * float(np.sum(self._masses * np.sum(v * v, axis=1)))
+        spring_energy = _spring_energy(model.springs, x)
+        row["potential_energy"] = -float(np.sum(self._masses * np.sum(self._gravity * x, axis=1))) + spring_energy
         row["spring_energy"] = spring_energy
         stats = sim.solver_stats()
         stepped = stats is not None and sim.substep_count > self._substeps  # none before the first frame's
@@ -101,18 +101,7 @@ class MetricsWriter:
         now = time.perf_counter()
         row["wall_seconds"] = "" if self._last is None else now - self._last  # none for the first frame written
         self._last = now
-        self.rows.append(row)
         self._csv.writerow(row)
-
-    def _spring_energy(self, x: np.ndarray) -> float:
-        springs = self._springs
-        if springs is None:
-            return 0.0
-        from warp_cloth.kernels.springs import ELASTIC_COMPRESSION, ELASTIC_TENSION
-
-        strain = np.linalg.norm(x[springs.pairs[:, 0]] - x[springs.pairs[:, 1]], axis=1) / springs.rest - 1.0
-        acts = np.where(strain > 0, springs.flags & int(ELASTIC_TENSION), springs.flags & int(ELASTIC_COMPRESSION))
-        return float(np.sum(np.where(acts != 0, 0.5 * springs.stiffness * springs.rest * strain * strain, 0.0)))
 
     def sync(self, sim) -> None:
         self._file.flush()
@@ -126,6 +115,15 @@ class MetricsWriter:
     def abandon(self, sim, frames_written: int, outcome) -> None:
         self._file.close()
         os.replace(self.staging, first_free(self.path, outcome.label, self.path.suffix))
+
+
+def _spring_energy(springs, x: np.ndarray) -> float:
+    """1/2 k L (l/L - 1)^2 over the springs, each in the regime its elastic part acts in."""
+    if springs is None:
+        return 0.0
+    strain = np.linalg.norm(x[springs.pairs[:, 0]] - x[springs.pairs[:, 1]], axis=1) / springs.rest - 1.0
+    acts = np.where(strain > 0, springs.flags & int(ELASTIC_TENSION), springs.flags & int(ELASTIC_COMPRESSION))
+    return float(np.sum(np.where(acts != 0, 0.5 * springs.stiffness * springs.rest * strain * strain, 0.0)))
 
 
 def read_metrics(path: str | Path) -> dict[str, np.ndarray]:

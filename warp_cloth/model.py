@@ -270,7 +270,7 @@ def _halvings(k: np.ndarray) -> np.ndarray:
 def _edges(meshes, offsets) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The structural and shear edges of every cloth, whose strain is what the strain limit bounds, their
     rest lengths and kinds."""
-    chosen = [np.isin(g.spring_kind, (STRUCTURAL, SHEAR)) for g in meshes]
+    chosen = [g.is_edge for g in meshes]
     edges = np.concatenate([g.springs[c] + offset for g, c, offset in zip(meshes, chosen, offsets)])
     rest = np.concatenate([g.rest_lengths[c] for g, c in zip(meshes, chosen)])
     kind = np.concatenate([g.spring_kind[c] for g, c in zip(meshes, chosen)])
@@ -383,8 +383,8 @@ def _attachments(scene: Scene, meshes, offsets: list[int],
             nearest = pinned[nearest]
         else:
             mesh = meshes[c]
-            edges = np.isin(mesh.spring_kind, (STRUCTURAL, SHEAR))
-            nearest, distance = nearest_along_edges(count, mesh.springs[edges], mesh.rest_lengths[edges], pinned)
+            nearest, distance = nearest_along_edges(count, mesh.springs[mesh.is_edge], mesh.rest_lengths[mesh.is_edge],
+                                                    pinned)
         free = np.ones(count, dtype=bool)
         free[pinned] = False
         free &= nearest >= 0  # a piece of the mesh with no pin of its own is not attached
@@ -504,8 +504,8 @@ def _spheres(scene: Scene) -> Spheres | None:
     initial = [np.add(s.center, s.keyed_offset(0.0)) + (0.0 if s.motion is None else s.motion.offset(0.0))
                for s in scene.spheres]
     keys = [s.keys or (TransformKey(),) for s in scene.spheres]  # unkeyed: held where it is
-    return Spheres(f32([s.center for s in scene.spheres]), f32(initial),
-                   f32([s.radius + s.thickness for s in scene.spheres]), f32([s.friction for s in scene.spheres]), f32([s.angular_velocity() for s in scene.spheres]),
+    return Spheres(f32([s.center for s in scene.spheres]), f32(initial), f32([s.surface_radius for s in scene.spheres]),
+                   f32([s.friction for s in scene.spheres]), f32([s.angular_velocity() for s in scene.spheres]),
                    f32(amp),
                    f32([0.0 if s.motion is None else s.motion.frequency for s in scene.spheres]),
                    f32([0.0 if s.motion is None else s.motion.phase for s in scene.spheres]),

@@ -35,7 +35,6 @@ STILL_RESOLUTION = (960, 540)
 ANIMATION_RESOLUTION = (640, 360)
 STILL_SAMPLES = 32
 ANIMATION_SAMPLES = 16
-COLLIDER_COLOR = (0.55, 0.6, 0.7)
 
 
 @dataclass(frozen=True)
@@ -50,10 +49,10 @@ def blender_available() -> bool:
     return importlib.util.find_spec("bpy") is not None
 
 
-def require_blender(key: str) -> None:
+def require_blender(key: str, source: str | None = "command line") -> None:
     if not blender_available():
         raise SceneError(key, "Blender as a Python module to render with (pip install 'warp-cloth[preview]'; its "
-                              "wheels are for Python 3.11)", has_got=False, source="command line")
+                              "wheels are for Python 3.11)", has_got=False, source=source)
 
 
 def default_paths(usd: Path) -> tuple[Path, Path]:
@@ -66,7 +65,7 @@ def read_stage(usd: Path, key: str = "usd") -> dict:
     """What the renderer needs of a result: its frames, fps and each prim's role and display colour."""
     from pxr import Usd, UsdGeom
 
-    from .writers.usd import ROLE_KEY
+    from .writers.usd import COLLIDER_COLOR, ROLE_KEY
 
     if not usd.is_file():
         raise SceneError(key, "a USD file a run wrote", str(usd), source="command line")
@@ -129,9 +128,7 @@ def render_preview(usd: str | Path, still: str | Path | None = None, animation: 
     with ``animate``, one picture per frame of ``frames`` as an MP4 (or a GIF, by ``animation``'s suffix or
     where Blender has no video encoder). Paths default to ``default_paths(usd)``."""
     usd = Path(usd)
-    if not blender_available():
-        raise SceneError("preview", "Blender as a Python module (pip install 'warp-cloth[preview]')",
-                         has_got=False)
+    require_blender("preview", source=None)
     info = read_stage(usd)
     default_still, default_animation = default_paths(usd)
     still = Path(still) if still is not None else default_still

@@ -132,8 +132,9 @@ class Limit:
 
     With ``attachments``, each particle of a pinned cloth also stays within (1 + stretch) times its rest
     distance across the cloth from its nearest pin (long-range attachments, Kim, Chentanez and Mueller
-    2012; on a mesh, the shortest path along its edges), projected in every limit pass: the limit's passes then hold a hanging cloth's length whatever
-    its resolution, where springs alone pass a pull on one row per pass. They are off by default: they
+    2012; on a mesh, the shortest path along its edges), projected in every limit pass: the limit's passes
+    then hold a hanging cloth's length whatever its resolution, where springs alone pass a pull on one row
+    per pass. They are off by default: they
     fight a kinematic collider that pushes the cloth out of their reach (the fast_sphere hard case reached
     36 to 60 m/s and up to 23 crossing triangle pairs with them, 23 to 30 m/s and none without).
 
@@ -486,6 +487,11 @@ class Sphere:
         for k, key in enumerate(self.keys):
             _require(key.rotate == (0.0, 0.0, 0.0), f"keys[{k}].rotate",
                      "no rotation on a sphere's key (a sphere turns by spin)", list(key.rotate))
+
+    @property
+    def surface_radius(self) -> float:
+        """What the cloth's particles are kept outside of: the radius grown by the thickness."""
+        return self.radius + self.thickness
 
     def keyed_offset(self, t: float) -> Vec3:
         """Where ``keys`` have moved the sphere from ``center`` at ``t`` seconds."""

@@ -24,6 +24,7 @@ from ..output import (INCOMPLETE, OutputError, RunOutcome, StagedOutput, check_f
 from .shot_layer import GROUND_PATH, layer_path, prim_paths, shot_files, write_shot_layer
 
 USD_SUFFIXES = (".usd", ".usda", ".usdc")
+COLLIDER_COLOR = (0.55, 0.6, 0.7)  # display colour of spheres and mesh colliders
 ROLE_KEY = "warpCloth:role"  # customData of each prim written: "cloth", "collider" or "ground" (for previews)
 # A save appends the new samples and the whole structure again: small, but with every sample's time.
 SAVE_MARGIN_BYTES = 64 * 1024
@@ -95,7 +96,7 @@ class UsdWriter(StagedOutput):
             prim.CreateRadiusAttr(sphere.radius)
             r = sphere.radius
             prim.CreateExtentAttr(Vt.Vec3fArray([Gf.Vec3f(-r, -r, -r), Gf.Vec3f(r, r, r)]))
-            prim.CreateDisplayColorAttr(Vt.Vec3fArray([Gf.Vec3f(0.55, 0.6, 0.7)]))
+            prim.CreateDisplayColorAttr(Vt.Vec3fArray([Gf.Vec3f(*COLLIDER_COLOR)]))
             prim.GetPrim().SetCustomDataByKey(ROLE_KEY, "collider")
             translate = prim.AddTranslateOp()
             if moving:
@@ -167,7 +168,7 @@ class UsdWriter(StagedOutput):
         mesh.CreateExtentAttr(Vt.Vec3fArray([Gf.Vec3f(*points.min(axis=0).tolist()),
                                              Gf.Vec3f(*points.max(axis=0).tolist())]))
         mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
-        mesh.CreateDisplayColorAttr(Vt.Vec3fArray([Gf.Vec3f(0.55, 0.6, 0.7)]))
+        mesh.CreateDisplayColorAttr(Vt.Vec3fArray([Gf.Vec3f(*COLLIDER_COLOR)]))
         mesh.GetPrim().SetCustomDataByKey(ROLE_KEY, "collider")
 
     def _define_ground(self, sim) -> None:
