@@ -1,10 +1,14 @@
-"""Preconditioned conjugate gradient building blocks for systems over vec3 arrays, kept on the device.
+"""Preconditioned conjugate gradient building blocks for systems over vec3 arrays, kept on the device: one
+system a world (warp_cloth/batch.py; a scene alone is one world), each with its own scalars, iteration
+count and convergence, so that the worlds of a batch solve as each would alone.
 
-Scalars live in a small array so that no iteration waits for the host: ``CG_*`` name its slots. The
-kernels of an iteration do nothing once the solve has converged, so a fixed number of iterations can be
-captured and the surplus ones cost only their launch.
-Dot products are reduced in a fixed order (interleaved partial sums, then a second level, then one
-thread), so the result is the same on every run, with no atomics.
+Scalars live in small arrays, a row a world (``CG_*`` name its columns), so that no iteration waits for the
+host. The kernels of an iteration do nothing for a world whose solve has converged; ``iterating[0]`` is the
+loop's condition, 1 while any world's goes on, so a fixed number of iterations can be captured too and the
+surplus ones cost only their launch.
+Dot products are reduced in a fixed order, with no atomics, so the result is the same on every run: one
+world's by interleaved partial sums and a second level of them, a batch's by ``lanes`` partial sums a
+world. Each scalar kernel totals its world's ``lanes`` partials in one thread.
 """
 
 import warp as wp
@@ -16,15 +20,11 @@ CG_BETA = wp.constant(3)
 CG_TOLERANCE_SQ = wp.constant(4)  # squared relative tolerance on sqrt(r . z)
 CG_SLOTS = 5
 
-# Integer state: ``active`` (one element, the loop's condition: 1 while iterating) and ``counts``:
-# [0] iterations done, [1] iteration cap.
-ITERATIONS = wp.constant(0)
-MAX_ITERATIONS = wp.constant(1)
-
 
 @wp.kernel
 def dot_partials(a: wp.array(dtype=wp.vec3), b: wp.array(dtype=wp.vec3), stride: int, active: wp.array(dtype=int),
                  partial: wp.array(dtype=float)):
+    """One world's a . b as ``stride`` interleaved partial sums."""
     if active[0] == 0:
         return
     t = wp.tid()
@@ -50,83 +50,114 @@ def sum_partials(values: wp.array(dtype=float), stride: int, active: wp.array(dt
     partial[t] = total
 
 
+@wp.kernel
+def world_dot_partials(a: wp.array(dtype=wp.vec3), b: wp.array(dtype=wp.vec3), world_start: wp.array(dtype=int),
+                       lanes: int, active: wp.array(dtype=int), partial: wp.array(dtype=float)):
+    """Each world's a . b over its particles (``world_start[w]`` to ``[w + 1]``) as ``lanes`` partial sums."""
+    t = wp.tid()
+    w = t / lanes
+    if active[w] == 0:
+        return
+    total = float(0.0)
+    k = world_start[w] + t - w * lanes
+    end = world_start[w + 1]
+    while k < end:
+        total += wp.dot(a[k], b[k])
+        k += lanes
+    partial[t] = total
+
+
 @wp.func
-def total(partial: wp.array(dtype=float)) -> float:
+def world_total(partial: wp.array(dtype=float), w: int, lanes: int) -> float:
     s = float(0.0)
-    for k in range(partial.shape[0]):
-        s += partial[k]
+    for k in range(lanes):
+        s += partial[w * lanes + k]
     return s
 
 
 @wp.kernel
-def start(partial: wp.array(dtype=float), tolerance: float, max_iterations: int, enabled: wp.array(dtype=int),
-          scalars: wp.array(dtype=float), active: wp.array(dtype=int), counts: wp.array(dtype=int)):
-    """After r . z of the first residual: arm the loop unless there is nothing to solve."""
-    rz = total(partial)
-    scalars[CG_RZ] = rz
-    scalars[CG_RZ0] = rz
-    scalars[CG_TOLERANCE_SQ] = tolerance * tolerance
-    counts[ITERATIONS] = 0
-    counts[MAX_ITERATIONS] = max_iterations
-    active[0] = 0
-    if enabled[0] != 0 and rz > 0.0 and max_iterations > 0:
-        active[0] = 1
+def start(partial: wp.array(dtype=float), lanes: int, tolerance: float, max_iterations: int,
+          enabled: wp.array2d(dtype=int), scalars: wp.array2d(dtype=float), active: wp.array(dtype=int),
+          iterating: wp.array(dtype=int), iterations: wp.array(dtype=int)):
+    """After r . z of each world's first residual: arm its solve unless it has nothing to solve or is not
+    ``enabled`` (its Newton loop has converged). ``iterating`` must be 0 before."""
+    w = wp.tid()
+    rz = world_total(partial, w, lanes)
+    scalars[w, CG_RZ] = rz
+    scalars[w, CG_RZ0] = rz
+    scalars[w, CG_TOLERANCE_SQ] = tolerance * tolerance
+    iterations[w] = 0
+    active[w] = 0
+    if enabled[w, 0] != 0 and rz > 0.0 and max_iterations > 0:
+        active[w] = 1
+        iterating[0] = 1
 
 
 @wp.kernel
-def step_length(partial: wp.array(dtype=float), active: wp.array(dtype=int), scalars: wp.array(dtype=float)):
-    if active[0] == 0:
+def step_length(partial: wp.array(dtype=float), lanes: int, active: wp.array(dtype=int),
+                scalars: wp.array2d(dtype=float), iterating: wp.array(dtype=int)):
+    w = wp.tid()
+    if w == 0:
+        iterating[0] = 0  # raised again by next_direction_scale for each world that goes on
+    if active[w] == 0:
         return
-    p_ap = total(partial)
-    scalars[CG_ALPHA] = 0.0
+    p_ap = world_total(partial, w, lanes)
+    scalars[w, CG_ALPHA] = 0.0
     if p_ap > 0.0:
-        scalars[CG_ALPHA] = scalars[CG_RZ] / p_ap
+        scalars[w, CG_ALPHA] = scalars[w, CG_RZ] / p_ap
 
 
 @wp.kernel
-def advance(p: wp.array(dtype=wp.vec3), ap: wp.array(dtype=wp.vec3), scalars: wp.array(dtype=float),
-            active: wp.array(dtype=int), x: wp.array(dtype=wp.vec3), r: wp.array(dtype=wp.vec3)):
-    if active[0] == 0:
-        return
+def advance(p: wp.array(dtype=wp.vec3), ap: wp.array(dtype=wp.vec3), world: wp.array(dtype=int),
+            scalars: wp.array2d(dtype=float), active: wp.array(dtype=int), x: wp.array(dtype=wp.vec3),
+            r: wp.array(dtype=wp.vec3)):
     i = wp.tid()
-    alpha = scalars[CG_ALPHA]
+    w = world[i]
+    if active[w] == 0:
+        return
+    alpha = scalars[w, CG_ALPHA]
     x[i] = x[i] + alpha * p[i]
     r[i] = r[i] - alpha * ap[i]
 
 
 @wp.kernel
-def precondition(inverse: wp.array(dtype=wp.mat33), r: wp.array(dtype=wp.vec3), active: wp.array(dtype=int),
-                 z: wp.array(dtype=wp.vec3)):
-    if active[0] == 0:
-        return
+def precondition(inverse: wp.array(dtype=wp.mat33), r: wp.array(dtype=wp.vec3), world: wp.array(dtype=int),
+                 active: wp.array(dtype=int), z: wp.array(dtype=wp.vec3)):
     i = wp.tid()
+    if active[world[i]] == 0:
+        return
     z[i] = inverse[i] * r[i]
 
 
 @wp.kernel
-def next_direction_scale(partial: wp.array(dtype=float), scalars: wp.array(dtype=float),
-                         active: wp.array(dtype=int), counts: wp.array(dtype=int)):
-    """After r . z of the new residual: beta, the iteration count, and whether to go on."""
-    if active[0] == 0:
+def next_direction_scale(partial: wp.array(dtype=float), lanes: int, max_iterations: int,
+                         scalars: wp.array2d(dtype=float), active: wp.array(dtype=int),
+                         iterating: wp.array(dtype=int), iterations: wp.array(dtype=int)):
+    """After r . z of each world's new residual: beta, the iteration count, and whether it goes on."""
+    w = wp.tid()
+    if active[w] == 0:
         return
-    rz = total(partial)
+    rz = world_total(partial, w, lanes)
     beta = float(0.0)
-    if scalars[CG_RZ] > 0.0:
-        beta = rz / scalars[CG_RZ]
-    scalars[CG_BETA] = beta
-    scalars[CG_RZ] = rz
-    counts[ITERATIONS] = counts[ITERATIONS] + 1
-    if rz <= scalars[CG_TOLERANCE_SQ] * scalars[CG_RZ0] or counts[ITERATIONS] >= counts[MAX_ITERATIONS]:
-        active[0] = 0
+    if scalars[w, CG_RZ] > 0.0:
+        beta = rz / scalars[w, CG_RZ]
+    scalars[w, CG_BETA] = beta
+    scalars[w, CG_RZ] = rz
+    iterations[w] = iterations[w] + 1
+    if rz <= scalars[w, CG_TOLERANCE_SQ] * scalars[w, CG_RZ0] or iterations[w] >= max_iterations:
+        active[w] = 0
+    else:
+        iterating[0] = 1
 
 
 @wp.kernel
-def update_direction(z: wp.array(dtype=wp.vec3), scalars: wp.array(dtype=float), active: wp.array(dtype=int),
-                     p: wp.array(dtype=wp.vec3)):
-    if active[0] == 0:
-        return
+def update_direction(z: wp.array(dtype=wp.vec3), world: wp.array(dtype=int), scalars: wp.array2d(dtype=float),
+                     active: wp.array(dtype=int), p: wp.array(dtype=wp.vec3)):
     i = wp.tid()
-    p[i] = z[i] + scalars[CG_BETA] * p[i]
+    w = world[i]
+    if active[w] == 0:
+        return
+    p[i] = z[i] + scalars[w, CG_BETA] * p[i]
 
 
 @wp.kernel
@@ -136,8 +167,13 @@ def subtract(a: wp.array(dtype=wp.vec3), b: wp.array(dtype=wp.vec3), out: wp.arr
 
 
 @wp.kernel
-def record_solve(scalars: wp.array(dtype=float), counts: wp.array(dtype=int), stats: wp.array(dtype=float)):
-    """After a solve: stats[0] and stats[1] keep the most iterations and the largest r.z / r0.z0 so far."""
-    stats[0] = wp.max(stats[0], float(counts[ITERATIONS]))
-    if scalars[CG_RZ0] > 0.0:
-        stats[1] = wp.max(stats[1], scalars[CG_RZ] / scalars[CG_RZ0])
+def record_solve(scalars: wp.array2d(dtype=float), iterations: wp.array(dtype=int), enabled: wp.array2d(dtype=int),
+                 stats: wp.array(dtype=float)):
+    """After a solve, over the worlds that solved: stats[0] and stats[1] keep the most iterations and the
+    largest r.z / r0.z0 so far."""
+    w = wp.tid()
+    if enabled[w, 0] == 0:
+        return
+    wp.atomic_max(stats, 0, float(iterations[w]))
+    if scalars[w, CG_RZ0] > 0.0:
+        wp.atomic_max(stats, 1, scalars[w, CG_RZ] / scalars[w, CG_RZ0])

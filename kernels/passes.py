@@ -533,9 +533,10 @@ def mass_term(args: SpringSystemArgs, i: int) -> float:
 @wp.kernel(module="unique")  # without fast math, as the rest of the implicit solve
 def system_times(y: wp.array(dtype=wp.vec3), p: wp.array(dtype=wp.vec3), active: wp.array(dtype=int),
                  args: SpringSystemArgs, out: wp.array(dtype=wp.vec3)):
-    """out = A p on free particles, 0 on pinned ones (the filter). Does nothing once ``active`` is 0."""
+    """out = A p on free particles, 0 on pinned ones (the filter). Does nothing in a world whose ``active``
+    is 0."""
     i = wp.tid()
-    if active[0] == 0:
+    if active[args.forces.world[i]] == 0:
         return
     if args.inv_mass[i] == 0.0:
         out[i] = wp.vec3(0.0)

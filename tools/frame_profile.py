@@ -5,6 +5,7 @@ passes (``sim.plan.pass_names``) and threads per particle; and what an empty gra
 docs/benchmarks.md's section on 64^2 frames.
 
     python tools/frame_profile.py OUT.json
+    python tools/frame_profile.py OUT.json --worlds 1024   # the self cloth at 32^2 as 1024 worlds of a batch
 """
 
 import collections
@@ -15,6 +16,7 @@ import time
 
 import warp as wp
 
+from warp_cloth.batch import Batch
 from warp_cloth.bench import matrix_scene
 from warp_cloth.simulator import Simulator
 
@@ -100,25 +102,34 @@ def node_costs() -> dict:
     return costs
 
 
-def main(out_path: str) -> None:
+def profile(sim: Simulator) -> dict:
+    sim.run(20)  # past the start: the swing has begun and the neighbour lists are in use
+    return {"step_ms": ms_per_frame(lambda frames: [sim.step() for _ in range(frames)]),
+            "run_ms": ms_per_frame(sim.run),
+            "replay_ms": ms_per_frame(lambda frames: replay(sim, frames)),
+            "kernels": kernel_times(sim),
+            "threads_per_particle": sim.plan.threads, "passes": sim.plan.pass_names}
+
+
+def main(out_path: str, worlds: int | None) -> None:
     wp.config.log_level = wp.LOG_ERROR
     results = {"device": wp.get_device("cuda").name}
-    for n in (64, 256):
-        for variant in ("springs", "hanging", "sphere", "self"):
-            sim = Simulator(matrix_scene(variant, n, "symplectic"), device="cuda")
-            sim.run(4)
-            row = {"step_ms": ms_per_frame(lambda frames: [sim.step() for _ in range(frames)]),
-                   "run_ms": ms_per_frame(sim.run),
-                   "replay_ms": ms_per_frame(lambda frames: replay(sim, frames)),
-                   "kernels": kernel_times(sim),
-                   "threads_per_particle": sim.plan.threads, "passes": sim.plan.pass_names}
-            results[f"{variant} {n}"] = row
-            print(variant, n, {k: round(v, 3) for k, v in row.items() if k.endswith("_ms")}, flush=True)
-    results["node_us"] = node_costs()
-    print("us per graph node", results["node_us"], flush=True)
+    cases = {f"self 32 x {worlds} worlds": lambda: Batch([matrix_scene("self", 32, "symplectic")] * worlds,
+                                                           device="cuda").simulator} if worlds else {
+        f"{variant} {n}": lambda variant=variant, n=n: Simulator(matrix_scene(variant, n, "symplectic"), device="cuda")
+        for n in (64, 256) for variant in ("springs", "hanging", "sphere", "self")}
+    for name, make in cases.items():
+        results[name] = row = profile(make())
+        print(name, {k: round(v, 3) for k, v in row.items() if k.endswith("_ms")}, flush=True)
+    if worlds:
+        top = sorted(row["kernels"].items(), key=lambda kv: -kv[1]["total_ms"])[:12]
+        print("\n".join(f"  {v['total_ms']:8.3f} ms {v['count']:4d}x {k}" for k, v in top), flush=True)
+    else:
+        results["node_us"] = node_costs()
+        print("us per graph node", results["node_us"], flush=True)
     with open(out_path, "w") as out:
         json.dump(results, out, indent=1)
 
 
 if __name__ == "__main__":
-    main(sys.argv[1])
+    main(sys.argv[1], int(sys.argv[3]) if len(sys.argv) > 3 and sys.argv[2] == "--worlds" else None)

@@ -44,9 +44,6 @@ def pack(scenes: Sequence[Scene]) -> tuple[Scene, Worlds]:
     if not scenes:
         raise SceneError("scenes", "at least one scene", 0)
     first = scenes[0]
-    if first.simulation.integrator == "implicit" and len(scenes) > 1:  # its CG's sums run over every particle
-        raise SceneError("scenes[0].simulation.integrator", "explicit or symplectic in a batch (the implicit step's "
-                         "solve would couple the worlds; run implicit scenes alone)", "implicit")
     shared = shared_settings(first)
     for w, scene in enumerate(scenes[1:], start=1):
         mine = shared_settings(scene)
@@ -87,8 +84,10 @@ class Batch:
     is refused: batch them apart). Where the scenes set no step, the batch takes the finest any of its
     cloths needs, which may be finer than a world alone would take. A converged strain solve runs until
     every world is within tolerance, so a world may take more passes than alone: its frames then differ
-    from its scene's alone within that tolerance; a fixed solve gives them to rounding. An implicit
-    scene is refused but in a batch of its own (its solve's sums run over every world).
+    from its scene's alone within that tolerance; a fixed solve gives them to rounding. With the implicit
+    step each world runs its own Newton loop and conjugate gradient (its own sums, step lengths and
+    stopping test: kernels/cg.py), so it takes the iterations it would alone; its sums add up in another
+    order than alone, so its frames equal its scene's alone to rounding and the solve's tolerance.
 
     A world that blows up is stopped (put back where it started, at rest, and held) and the others go on:
     ``stopped_worlds`` holds each such world's ``UnstableSimulation`` (its frame and cause); its frames from

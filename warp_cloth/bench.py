@@ -25,7 +25,7 @@ import time
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Sequence
 
 import numpy as np
 import warp as wp
@@ -36,7 +36,7 @@ from .scene import Cloth, Collision, Ground, Limit, Oscillation, Pin, Scene, Sim
 from .scene_file import load_scene
 from .cli import EXIT_BAD_INPUT
 from .errors import SceneError, UnstableSimulation
-from .newton_compare import SPHERE_CENTER, SPHERE_RADIUS, SWING_DEGREES, swung_origin
+from .newton_compare import SOLVERS as NEWTON_SOLVERS, SPHERE_CENTER, SPHERE_RADIUS, SWING_DEGREES, swung_origin
 from .batch import Batch
 from .simulator import Simulator, resolve_device
 from .stability import UnstableStepWarning
@@ -316,14 +316,23 @@ def mesh_cases(device: str) -> list[Case]:
     return cases
 
 
+SOLVED = "limit solved"  # the worlds suite's cases with the strain limit solved to its tolerance
+
+
 def world_cases(device: str) -> list[Case]:
     """The matrix's self-collision cloth at 32^2 as the worlds of one batch, against one cloth of as many
-    particles with the same effects."""
+    particles with the same effects; the same worlds with the strain limit solved to its tolerance (the
+    converged solve, Chebyshev 0.95); and with the implicit step, against one such world alone."""
     counts, single = ([4, 16], 128) if device == "cpu" else ([64, 1024, 4096], 1024)
     frames = matrix_frames(32, device)
-    cases = [Case(f"self {single}^2, one cloth", matrix_scene("self", single, "symplectic"), frames, fresh=False)]
-    return cases + [Case(f"self 32^2 x {k} worlds", matrix_scene("self", 32, "symplectic"), frames, fresh=False,
-                         worlds=k) for k in counts]
+    world, implicit = matrix_scene("self", 32, "symplectic"), matrix_scene("self", 32, "implicit")
+    solved = dataclasses.replace(world, simulation=dataclasses.replace(world.simulation, limit_solve="converged",
+                                                                       limit_chebyshev_rho=0.95))
+    return ([Case(f"self {single}^2, one cloth", matrix_scene("self", single, "symplectic"), frames, fresh=False)]
+            + [Case(f"self 32^2 x {k} worlds", world, frames, fresh=False, worlds=k) for k in counts]
+            + [Case(f"self 32^2 x {k} worlds, {SOLVED}", solved, frames, fresh=False, worlds=k) for k in counts[:2]]
+            + [Case("self 32^2 implicit, one world", implicit, frames, fresh=False)]
+            + [Case(f"self 32^2 implicit x {k} worlds", implicit, frames, fresh=False, worlds=k) for k in counts[:2]])
 
 
 @dataclass(frozen=True)
@@ -353,7 +362,8 @@ SUITES = {
                                 "the CPU, 256^2 and 1024^2 on a GPU)"),
     "worlds": Suite(world_cases, "the matrix's self-collision cloth at 32^2 as 4 and 16 worlds of one batch on the "
                                  "CPU (64, 1024 and 4096 on a GPU), against one 128^2 cloth (1024^2 on a GPU) with "
-                                 "the same effects"),
+                                 "the same effects; the first two with the strain limit solved, and with the "
+                                 "implicit step against one world alone"),
 }
 
 
@@ -456,39 +466,46 @@ def format_table(results: list[Result]) -> str:
     return "\n".join(lines)
 
 
-def newton_comparison(results: list[Result], device: str, repeats: int) -> list[dict]:
+def newton_comparison(results: list[Result], device: str, repeats: int, solvers: Sequence[str]) -> list[dict]:
     """The matrix's cloths in Newton's solvers on the same device, each row with the ratio of our
     symplectic run's particle-substeps per second to the solver's."""
     ours = {r.case: r for r in results}
-    pairs = [(ours[f"{variant} {n}^2 symplectic"], variant, n, 1)
+    pairs = [(ours[f"{variant} {n}^2 symplectic"], variant, n, 1, None)
              for variant in MATRIX_VARIANTS for n in matrix_sizes(device)]
-    return _newton_rows(pairs, device, repeats, f"newton on {device}")
+    return _newton_rows(pairs, device, repeats, solvers, f"newton on {device}")
 
 
-def newton_world_comparison(results: list[Result], device: str, repeats: int) -> list[dict]:
-    """The worlds suite's batches in Newton's solvers, as that many Newton worlds of one model on the same
-    device, each row with the ratio of our batch's particle-substeps per second to the solver's."""
-    pairs = [(r, "self", 32, int(r.case.split(" x ")[1].split()[0])) for r in results
-             if r.case.startswith("self 32^2 x ")]
-    return _newton_rows(pairs, device, repeats, f"newton worlds on {device}")
+def newton_world_comparison(results: list[Result], device: str, repeats: int, solvers: Sequence[str]) -> list[dict]:
+    """The worlds suite's symplectic batches in Newton's solvers, as that many Newton worlds of one model on
+    the same device, each row with the ratio of our batch's particle-substeps per second to the solver's,
+    with the fixed limit solve and (where measured) with the limit solved."""
+    ours = {r.case: r for r in results}
+    pairs = [(r, "self", 32, k, ours.get(f"{r.case}, {SOLVED}")) for r in results
+             for k in [int(r.case.split(" x ")[1].split()[0])] if r.case == f"self 32^2 x {k} worlds"]
+    return _newton_rows(pairs, device, repeats, solvers, f"newton worlds on {device}")
 
 
-def _newton_rows(pairs: list[tuple[Result, str, int, int]], device: str, repeats: int, label: str) -> list[dict]:
-    """Each (our result, variant, n, worlds) timed in each of Newton's solvers, for as many frames."""
-    from .newton_compare import SOLVERS, newton_available, time_newton
+def _newton_rows(pairs: list[tuple[Result, str, int, int, Result | None]], device: str, repeats: int,
+                 solvers: Sequence[str], label: str) -> list[dict]:
+    """Each (our result, variant, n, worlds, our result with the limit solved) timed in each of ``solvers``
+    of Newton's, for as many frames."""
+    from .newton_compare import newton_available, time_newton
 
     if not newton_available():
         print("newton is not installed (pip install 'warp-cloth[bench]'): no comparison", file=sys.stderr)
         return []
     rows = []
-    bar = Progress(len(pairs) * len(SOLVERS), label)
-    for mine, variant, n, worlds in pairs:
-        for solver in SOLVERS:
+    bar = Progress(len(pairs) * len(solvers), label)
+    for mine, variant, n, worlds, solved in pairs:
+        for solver in solvers:
             row = time_newton(variant, n, solver, device, frames=mine.frames, substeps=MATRIX_SUBSTEPS,
                               repeats=repeats, worlds=worlds)
             theirs = row["particle_substeps_per_second"]
-            row["ours_symplectic_particle_substeps_per_second"] = mine.particle_substeps_per_second
-            row["ratio"] = mine.particle_substeps_per_second / theirs if theirs and mine.stable else None
+            for key, ours in (("", mine), ("_solved", solved)):
+                if ours is not None:
+                    row[f"ours{key}_symplectic_particle_substeps_per_second"] = ours.particle_substeps_per_second
+                    row[f"ours{key}_max_strain"] = ours.max_strain
+                    row[f"ratio{key}"] = ours.particle_substeps_per_second / theirs if theirs and ours.stable else None
             rows.append(row)
             bar.update(len(rows))
     bar.close()
@@ -507,6 +524,10 @@ def format_newton_table(rows: list[dict]) -> str:
                      f"{r['ms_per_frame']:>9.3f} {r['particle_substeps_per_second']:>20.3g} "
                      f"{r['ours_symplectic_particle_substeps_per_second']:>18.3g} {ratio} "
                      f"{100 * r['max_strain']:>11.1f}% {r['finite']}")
+        if r.get("ratio_solved"):
+            lines.append(f"{'':<8} {'':>9} {'(ours, limit solved)':<20} {'':>9} {'':>20} "
+                         f"{r['ours_solved_symplectic_particle_substeps_per_second']:>18.3g} "
+                         f"{r['ratio_solved']:12.1f}x {100 * r['ours_solved_max_strain']:>11.1f}%")
     return "\n".join(lines)
 
 
@@ -520,6 +541,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--newton", action=argparse.BooleanOptionalAction, default=True,
                         help="with the matrix and worlds suites, run the same cloths in Newton's solvers (the "
                              "'bench' extra)")
+    parser.add_argument("--newton-solvers", nargs="+", choices=NEWTON_SOLVERS, default=list(NEWTON_SOLVERS),
+                        metavar="SOLVER", help=f"which of Newton's solvers ({', '.join(NEWTON_SOLVERS)}; default: all)")
     args = parser.parse_args(argv)
     wp.config.log_level = wp.LOG_ERROR
     try:
@@ -550,7 +573,8 @@ def main(argv: list[str] | None = None) -> int:
     if scaling:
         print(format_collision_table(scaling))
     compare = {"matrix": newton_comparison, "worlds": newton_world_comparison}.get(args.suite)
-    newton_rows = compare(results, device, args.repeats) if compare is not None and args.newton else []
+    newton_rows = compare(results, device, args.repeats, args.newton_solvers) if compare is not None and args.newton \
+        else []
     if newton_rows:
         print(format_newton_table(newton_rows))
     path = args.json or Path("out") / f"bench-{args.suite}-{device.replace(':', '')}.json"

@@ -129,10 +129,13 @@ class DeviceModel:
         self.integrator = simulation.integrator
         self.inv_mass = upload(model.inv_mass, float, device)
         self.mass = upload(model.masses, float, device) if simulation.integrator == "implicit" else None
-        self.free_particles = max(1, int(np.count_nonzero(model.inv_mass)))
         worlds = model.worlds if model.worlds is not None else Worlds.of_scene(scene)
         self.world_count = worlds.count
-        self.particle_world = upload(model.particle_world, int, device)
+        world = model.particle_world
+        self.particle_world = upload(world, int, device)
+        self.world_start = upload(np.searchsorted(world, np.arange(worlds.count + 1)), int, device)  # contiguous
+        self.free_particles = upload(np.maximum(np.bincount(world[model.inv_mass != 0], minlength=worlds.count), 1),
+                                     float, device)  # each world's, for RMS residuals
         self.forces = ExternalForces()
         self.forces.gravity = upload(worlds.gravity, wp.vec3, device)
         self.forces.world = self.particle_world

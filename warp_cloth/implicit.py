@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
 import warp as wp
 
 from warp_cloth.kernels import cg, implicit, motion, passes as fused
@@ -18,8 +19,8 @@ from .device_model import DeviceModel
 from .scene import ImplicitSolver
 from .state import DeviceState
 
-PARTIALS = 16384  # first level of every dot product's reduction
-PARTIALS_2 = 128  # second level, summed by one thread
+PARTIALS = 16384  # one world: first level of every dot product's reduction
+PARTIALS_2 = 128  # one world: second level, summed by one thread
 
 
 @dataclass(frozen=True)
@@ -53,6 +54,13 @@ class SolveStats:
                           worst(self.limit_residual, later.limit_residual), solves)
 
 
+def world_lanes(world_start: np.ndarray) -> int:
+    """Partial sums a world of a batch's dot products: about 32 particles a lane in its largest world, as a
+    power of two from 32 to 1024."""
+    largest = int(np.diff(world_start).max())
+    return int(min(1024, max(32, 1 << max(0, math.ceil(math.log2(max(1, largest) / 32))))))
+
+
 class BackwardEuler:
     name = "integrate:implicit"
 
@@ -63,6 +71,9 @@ class BackwardEuler:
         self.device = device = model.device
         self.inv_mass = model.inv_mass
         self.free_particles = model.free_particles
+        self.worlds = worlds = model.world_count
+        self.world = model.particle_world
+        self.world_start = model.world_start
         self.pins = model.pins
         self.system = fused.SpringSystemArgs()
         self.system.springs, self.system.forces = model.springs, model.forces
@@ -70,36 +81,43 @@ class BackwardEuler:
         vec = lambda: wp.zeros(n, dtype=wp.vec3, device=device)  # noqa: E731
         self.dv, self.r, self.z, self.p, self.ap = vec(), vec(), vec(), vec(), vec()
         self.inverse = wp.zeros(n, dtype=wp.mat33, device=device)
-        self.partial = wp.zeros(min(n, PARTIALS), dtype=float, device=device)
-        self.partial_2 = wp.zeros(min(n, PARTIALS_2), dtype=float, device=device)
-        self.scalars = wp.zeros(cg.CG_SLOTS, dtype=float, device=device)
-        self.cg_active = wp.zeros(1, dtype=int, device=device)  # the device loop's condition
-        self.cg_counts = wp.zeros(2, dtype=int, device=device)
-        self.newton = wp.ones(2, dtype=int, device=device)  # [on (0 once converged), steps this substep]
+        if worlds == 1:
+            self.partial = wp.zeros(min(n, PARTIALS), dtype=float, device=device)
+            self.partial_2 = wp.zeros(min(n, PARTIALS_2), dtype=float, device=device)
+            self.lanes = self.partial_2.shape[0]
+        else:
+            self.lanes = world_lanes(model.world_start.numpy())
+            self.partial = self.partial_2 = wp.zeros(worlds * self.lanes, dtype=float, device=device)
+        self.scalars = wp.zeros((worlds, cg.CG_SLOTS), dtype=float, device=device)
+        self.cg_active = wp.zeros(worlds, dtype=int, device=device)
+        self.cg_iterating = wp.zeros(1, dtype=int, device=device)  # the device loop's condition
+        self.cg_iterations = wp.zeros(worlds, dtype=int, device=device)
+        self.newton = wp.ones((worlds, 2), dtype=int, device=device)  # [on (0 once converged), steps this substep]
         self.stats = wp.zeros(4, dtype=float, device=device)  # worst since read, see implicit.record_*
-        self.always = wp.ones(1, dtype=int, device=device)
+        self.always = wp.ones(worlds, dtype=int, device=device)
 
     def run(self, state: DeviceState) -> None:
         x0, v0 = state.x, state.v
         x1, v1 = state.x_next, state.v_next
         launch = self._launch
-        launch(implicit.start_newton, 1, outputs=[self.newton])
+        launch(implicit.start_newton, self.worlds, outputs=[self.newton])
         # Baraff & Witkin's step, linearised at the start of the step.
         launch(fused.newton_rhs, self.n, inputs=[x0, v0, v0, self.system, 1], outputs=[self.r])
         self._solve(x0, v0, state.clock)
-        launch(implicit.finish_step, self.n, inputs=[x0, v0, self.dv, self.h, self.newton], outputs=[x1, v1])
+        finish = [self.h, self.world, self.newton]
+        launch(implicit.finish_step, self.n, inputs=[x0, v0, self.dv, *finish], outputs=[x1, v1])
         # Further Newton steps on M (v - v0) = h f(x0 + h v, v), at y = x0 + h v = x1, until the residual
         # is below the tolerance.
         for _ in range(self.settings.newton_iterations - 1):
             self._newton_residual(x1, v1, v0)
-            launch(implicit.continue_newton, 1, inputs=[self.partial_2, float(self.free_particles),
-                                                        self.settings.newton_tolerance], outputs=[self.newton])
+            launch(implicit.continue_newton, self.worlds, inputs=[self.partial_2, self.lanes, self.free_particles,
+                                                                  self.settings.newton_tolerance], outputs=[self.newton])
             self._solve(x1, v1, state.clock)
-            launch(implicit.finish_step, self.n, inputs=[x0, v1, self.dv, self.h, self.newton], outputs=[x1, v1])
+            launch(implicit.finish_step, self.n, inputs=[x0, v1, self.dv, *finish], outputs=[x1, v1])
         if self.settings.newton_iterations > 1:
             self._newton_residual(x1, v1, v0)
-            launch(implicit.record_newton, 1, inputs=[self.partial_2, float(self.free_particles), self.newton],
-                   outputs=[self.stats])
+            launch(implicit.record_newton, self.worlds, inputs=[self.partial_2, self.lanes, self.free_particles,
+                                                                self.newton], outputs=[self.stats])
         state.swap_positions()
         state.swap_velocities()
 
@@ -107,7 +125,12 @@ class BackwardEuler:
         wp.launch(kernel, dim=dim, inputs=inputs, outputs=outputs, device=self.device)
 
     def _dot(self, a: wp.array, b: wp.array, active: wp.array) -> None:
-        """Leaves a . b as the partial sums that the next scalar kernel totals (if ``active[0]``)."""
+        """Leaves each world's a . b (where ``active``) in ``partial_2``, as the ``lanes`` partial sums a world
+        that the next scalar kernel totals."""
+        if self.worlds > 1:
+            self._launch(cg.world_dot_partials, self.partial.shape[0],
+                         inputs=[a, b, self.world_start, self.lanes, active], outputs=[self.partial])
+            return
         self._launch(cg.dot_partials, self.partial.shape[0], inputs=[a, b, self.partial.shape[0], active],
                      outputs=[self.partial])
         self._launch(cg.sum_partials, self.partial_2.shape[0],
@@ -125,30 +148,34 @@ class BackwardEuler:
         launch(fused.system_times, self.n, inputs=[y, self.dv, self.always, self.system], outputs=[self.ap])
         launch(cg.subtract, self.n, inputs=[self.r, self.ap], outputs=[self.r])
         launch(fused.block_jacobi_inverse, self.n, inputs=[y, self.system], outputs=[self.inverse])
-        launch(cg.precondition, self.n, inputs=[self.inverse, self.r, self.always], outputs=[self.z])
+        launch(cg.precondition, self.n, inputs=[self.inverse, self.r, self.world, self.always], outputs=[self.z])
         wp.copy(self.p, self.z)
         self._dot(self.r, self.z, self.always)
-        launch(cg.start, 1, inputs=[self.partial_2, s.cg_tolerance, s.cg_max_iterations, self.newton],
-               outputs=[self.scalars, self.cg_active, self.cg_counts])
+        self.cg_iterating.zero_()
+        launch(cg.start, self.worlds, inputs=[self.partial_2, self.lanes, s.cg_tolerance, s.cg_max_iterations,
+                                              self.newton],
+               outputs=[self.scalars, self.cg_active, self.cg_iterating, self.cg_iterations])
 
-        state = self.cg_active
+        active, world, lanes, worlds = self.cg_active, self.world, self.lanes, self.worlds
 
         def iteration() -> None:
-            launch(fused.system_times, self.n, inputs=[y, self.p, state, self.system], outputs=[self.ap])
-            self._dot(self.p, self.ap, state)
-            launch(cg.step_length, 1, inputs=[self.partial_2, state], outputs=[self.scalars])
-            launch(cg.advance, self.n, inputs=[self.p, self.ap, self.scalars, state], outputs=[self.dv, self.r])
-            launch(cg.precondition, self.n, inputs=[self.inverse, self.r, state], outputs=[self.z])
-            self._dot(self.r, self.z, state)
-            launch(cg.next_direction_scale, 1, inputs=[self.partial_2], outputs=[self.scalars, state, self.cg_counts])
-            launch(cg.update_direction, self.n, inputs=[self.z, self.scalars, state], outputs=[self.p])
+            launch(fused.system_times, self.n, inputs=[y, self.p, active, self.system], outputs=[self.ap])
+            self._dot(self.p, self.ap, active)
+            launch(cg.step_length, worlds, inputs=[self.partial_2, lanes, active],
+                   outputs=[self.scalars, self.cg_iterating])
+            launch(cg.advance, self.n, inputs=[self.p, self.ap, world, self.scalars, active], outputs=[self.dv, self.r])
+            launch(cg.precondition, self.n, inputs=[self.inverse, self.r, world, active], outputs=[self.z])
+            self._dot(self.r, self.z, active)
+            launch(cg.next_direction_scale, worlds, inputs=[self.partial_2, lanes, s.cg_max_iterations],
+                   outputs=[self.scalars, active, self.cg_iterating, self.cg_iterations])
+            launch(cg.update_direction, self.n, inputs=[self.z, world, self.scalars, active], outputs=[self.p])
 
         if s.cg_loop == "device_while":
-            wp.capture_while(state, iteration)
+            wp.capture_while(self.cg_iterating, iteration)
         else:
             for _ in range(s.cg_max_iterations):
                 iteration()
-        launch(cg.record_solve, 1, inputs=[self.scalars, self.cg_counts], outputs=[self.stats])
+        launch(cg.record_solve, worlds, inputs=[self.scalars, self.cg_iterations, self.newton], outputs=[self.stats])
 
     def _newton_residual(self, y: wp.array, v: wp.array, v0: wp.array) -> None:
         """r = h f(y, v) - M (v - v0), and (in the partial sums) the square of its size per unit mass."""

@@ -9,9 +9,9 @@ a string); the sweep runs the cartesian product. With ``--random N``, ``KEY=LOW:
 uniformly in the range and a list draws one of its values, N times from ``--seed``.
 
 Variants that can share a step (see ``batch.pack``) run together as the worlds of one batch, at most
-``--worlds`` at a time; the rest (an implicit one, one with its own step) run in batches of their own. Each
-writes its USD, named by its settings, into the output folder, and one row of ``results.jsonl`` as its batch
-ends: its settings, its worst edge stretch and compression over every frame, its kinetic energy and closest
+``--worlds`` at a time; those with another step (another integrator, substeps, solve settings) or another
+number of frames in batches of their own. Each writes its USD, named by its settings, into the output folder, and one row of
+``results.jsonl`` as its batch ends: its settings, its worst edge stretch and compression over every frame, its kinetic energy and closest
 contact at the end, the frame it blew up in if it did, and the wall time. ``results.csv`` holds the same
 table. A sweep started again over the same folder skips the variants the table already has, so an
 interrupted sweep goes on where it stopped, and nothing is computed twice.
@@ -204,14 +204,14 @@ def build_variants(base: dict[str, Any], settings: list[tuple[tuple[str, Any], .
 
 
 def batches(scenes: list, most: int) -> list[list[int]]:
-    """The variants' indices in batches: those that can share a step together, ``most`` at a time."""
+    """The variants' indices in batches: those that can share a step and run as many frames together,
+    ``most`` at a time."""
     from .batch import shared_settings
 
     groups: dict[str, list[int]] = {}
     for k, scene in enumerate(scenes):
-        alone = scene.simulation.integrator == "implicit"
-        groups.setdefault(f"alone {k}" if alone else json.dumps(shared_settings(scene), sort_keys=True,
-                                                                default=str), []).append(k)
+        key = shared_settings(scene) | {"simulation.frames": scene.simulation.frames}
+        groups.setdefault(json.dumps(key, sort_keys=True, default=str), []).append(k)
     return [members[i:i + most] for members in groups.values() for i in range(0, len(members), most)]
 
 
