@@ -470,8 +470,8 @@ def newton_comparison(results: list[Result], device: str, repeats: int, solvers:
     """The matrix's cloths in Newton's solvers on the same device, each row with the ratio of our
     symplectic run's particle-substeps per second to the solver's."""
     ours = {r.case: r for r in results}
-    pairs = [(ours[f"{variant} {n}^2 symplectic"], variant, n, 1, None)
-             for variant in MATRIX_VARIANTS for n in matrix_sizes(device)]
+    pairs = [(ours[case], variant, n, 1, None) for variant in MATRIX_VARIANTS for n in matrix_sizes(device)
+             for case in [f"{variant} {n}^2 symplectic"] if case in ours]
     return _newton_rows(pairs, device, repeats, solvers, f"newton on {device}")
 
 
@@ -541,6 +541,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--newton", action=argparse.BooleanOptionalAction, default=True,
                         help="with the matrix and worlds suites, run the same cloths in Newton's solvers (the "
                              "'bench' extra)")
+    parser.add_argument("--match", nargs="+", metavar="TEXT",
+                        help="only the suite's cases whose name contains one of these texts")
     parser.add_argument("--newton-solvers", nargs="+", choices=NEWTON_SOLVERS, default=list(NEWTON_SOLVERS),
                         metavar="SOLVER", help=f"which of Newton's solvers ({', '.join(NEWTON_SOLVERS)}; default: all)")
     args = parser.parse_args(argv)
@@ -558,7 +560,12 @@ def main(argv: list[str] | None = None) -> int:
     # the integrators suite runs the seed's steps past the stable bound on purpose; its table says which blew up
     warnings.simplefilter("ignore", UnstableStepWarning)
     device = args.device or ("cuda" if wp.is_cuda_available() else "cpu")
-    cases = SUITES[args.suite].cases(device)
+    cases = [case for case in SUITES[args.suite].cases(device)
+             if not args.match or any(text in case.name for text in args.match)]
+    if not cases:
+        print(f"warp-cloth bench: error: --match: expected text in a case's name of the {args.suite} suite, got "
+              f"{' '.join(args.match)}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     bar = Progress(len(cases), f"bench {args.suite} on {device}")
     results = []
     for k, case in enumerate(cases):
