@@ -18,9 +18,9 @@ def start_solve(max_passes: int, active: wp.array(dtype=int), counts: wp.array(d
     residual[0] = 0.0
 
 
-@wp.kernel
-def continue_solve(tolerance: float, passes: int, active: wp.array(dtype=int), counts: wp.array(dtype=int),
-                   residual: wp.array(dtype=float), stats: wp.array(dtype=float)):
+@wp.func
+def continue_or_stop(tolerance: float, passes: int, active: wp.array(dtype=int), counts: wp.array(dtype=int),
+                     residual: wp.array(dtype=float), stats: wp.array(dtype=float)):
     """After ``passes`` more passes and a check: stop within the tolerance or at the cap, recording how it
     ended; else clear the residual for the next check."""
     counts[0] = counts[0] + passes
@@ -32,6 +32,12 @@ def continue_solve(tolerance: float, passes: int, active: wp.array(dtype=int), c
         stats[3] = stats[3] + 1.0
     else:
         residual[0] = 0.0
+
+
+@wp.kernel
+def continue_solve(tolerance: float, passes: int, active: wp.array(dtype=int), counts: wp.array(dtype=int),
+                   residual: wp.array(dtype=float), stats: wp.array(dtype=float)):
+    continue_or_stop(tolerance, passes, active, counts, residual, stats)
 
 
 @wp.func
@@ -50,7 +56,7 @@ def chebyshev_extrapolation(i: int, x: wp.array(dtype=wp.vec3), omega: wp.array(
     return xn
 
 
-@wp.kernel
+@wp.func
 def next_chebyshev_weight(omega: wp.array(dtype=float)):
     """omega = [weight, rho^2, iterations, last residual]: 1, then 2 / (2 - rho^2), then 4 / (4 - rho^2 omega)."""
     k = omega[2] + 1.0
@@ -65,21 +71,28 @@ def next_chebyshev_weight(omega: wp.array(dtype=float)):
 
 @wp.kernel
 def start_chebyshev(rho_squared: float, omega: wp.array(dtype=float)):
-    omega[0] = 1.0
+    """The first iteration's weight (1: a plain one)."""
     omega[1] = rho_squared
     omega[2] = 0.0
     omega[3] = 1.0e30
+    next_chebyshev_weight(omega)
 
 
 RESTART_GROWTH = wp.constant(1.5)
 
 
 @wp.kernel
-def restart_chebyshev_if_worse(residual: wp.array(dtype=float), omega: wp.array(dtype=float)):
-    """Where an iteration left a residual more than RESTART_GROWTH times the one before (a collider's
-    projection undoing the extrapolation), the acceleration starts over: the next iteration is a plain
-    one. Without it the matrix's sphere cloth never converged (30 to 50 tolerances at 300 passes); at every
-    growth the hanging cloth took 2 to 8 times as many passes (docs/strain-solve.md)."""
+def continue_chebyshev_solve(tolerance: float, passes: int, active: wp.array(dtype=int),
+                             counts: wp.array(dtype=int), residual: wp.array(dtype=float),
+                             stats: wp.array(dtype=float), omega: wp.array(dtype=float)):
+    """``continue_solve`` of an accelerated solve, and the next iteration's weight. Where an iteration left a
+    residual more than RESTART_GROWTH times the one before (a collider's projection undoing the
+    extrapolation), the acceleration starts over: the next iteration is a plain one. Without it the
+    matrix's sphere cloth never converged (30 to 50 tolerances at 300 passes); at every growth the hanging
+    cloth took 2 to 8 times as many passes (docs/strain-solve.md). One kernel for the three, as the loop's
+    launches are what a small cloth's iteration costs."""
     if residual[0] > RESTART_GROWTH * omega[3]:
         omega[2] = 0.0
     omega[3] = residual[0]
+    continue_or_stop(tolerance, passes, active, counts, residual, stats)
+    next_chebyshev_weight(omega)

@@ -154,6 +154,21 @@ def test_the_converged_solve_repeats_its_pair_of_passes_and_check_until_within_t
     assert 2 <= stats.limit_passes <= sim.scene.simulation.limit_max_passes and stats.limit_residual <= 1.0
 
 
+def test_an_accelerated_solve_adds_its_extrapolation_and_no_other_launch_a_pair(launches):
+    # Chebyshev's weight, its restart test and the loop's bookkeeping are one kernel: a small cloth's
+    # iteration costs its launches.
+    scene = with_simulation(wc.load_scene("sphere_push"), limit_solve="converged", limit_chebyshev_rho=0.95)
+    sim = wc.Simulator(scene, device="cpu")
+    for _ in range(20):
+        launches.clear()
+        sim.substep()
+        pairs = launches["continue_chebyshev_solve"]
+        assert dict(launches) == {"move_spheres": 1, "explicit_step": 1, "start_solve": 1, "start_chebyshev": 1,
+                                  "limit_pass": 2 * pairs, "chebyshev_step_and_colliders": pairs,
+                                  "projection_residual": pairs, "continue_chebyshev_solve": pairs, "advance_clock": 1}
+    assert sim.solver_stats().limit_residual <= 1.0
+
+
 def test_bare_cloth_launches_one_kernel_and_holds_no_effect_arrays(launches):
     cloth = wc.Cloth(resolution=(3, 3), structural=OFF, shear=OFF, bend=OFF)
     sim = wc.Simulator(wc.Scene(cloths=(cloth,)), device="cpu")

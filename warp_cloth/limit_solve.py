@@ -113,8 +113,6 @@ class ConvergedProjection:
             wp.copy(self.iterates[0], state.x)
 
         def iteration() -> None:
-            if self.rho is not None:
-                wp.launch(solve_loop.next_chebyshev_weight, dim=1, outputs=[self.omega], device=device)
             if self.cascade is not None:
                 self.cascade.run(state)
             for step in self.body:
@@ -125,11 +123,13 @@ class ConvergedProjection:
                                   *self.iterates], device=device)
             wp.launch(fused.projection_residual, dim=state.x.shape[0], inputs=[state.x, self.args],
                       outputs=[self.residual], device=device)
+            bookkeeping = [self.active, self.counts, self.residual, self.stats]
             if self.rho is not None:
-                wp.launch(solve_loop.restart_chebyshev_if_worse, dim=1, inputs=[self.residual], outputs=[self.omega],
+                wp.launch(solve_loop.continue_chebyshev_solve, dim=1, inputs=[1.0, len(self.body)],
+                          outputs=[*bookkeeping, self.omega], device=device)
+            else:
+                wp.launch(solve_loop.continue_solve, dim=1, inputs=[1.0, len(self.body)], outputs=bookkeeping,
                           device=device)
-            wp.launch(solve_loop.continue_solve, dim=1, inputs=[1.0, len(self.body)],
-                      outputs=[self.active, self.counts, self.residual, self.stats], device=device)
 
         wp.capture_while(self.active, iteration)
 
