@@ -1,0 +1,135 @@
+"""Would Gauss-Seidel over a colouring of the particles converge the settled drape's limits in fewer passes
+than the averaged Jacobi passes? A probe for issue 15 (docs/strain-solve.md).
+
+The speed matrix's sphere cloth at n^2 runs with the converged limit solve (cap 1000), as
+tools/anchor_probe.py does, and from its state every 5 frames one substep's prediction is projected by a
+numpy copy of the limit pass until no limit is 0.5% past (checked every two passes, at most 1000):
+- ``jacobi``: the pass as warp-cloth runs it (every particle's mean correction from the same positions);
+- ``gauss-seidel``: the particles coloured greedily so that no limited spring joins two of a colour (any
+  spring graph; 4 colours on a grid with diagonals), and one pass a sweep over the colours, each colour's
+  particles moving by their mean correction from the positions the colours before left, then held within
+  their attachments and put out of the sphere;
+- ``gauss-seidel, sor W``: the same, each move scaled by W (successive over-relaxation);
+- ``chebyshev R``: Jacobi pairs of passes accelerated as warp-cloth's converged solve does with
+  ``limit_chebyshev_rho = R`` (the extrapolation put out of the sphere, restarted where a pair leaves more
+  than 1.5 times the residual before), for comparison.
+A Gauss-Seidel pass would cost one launch a colour on a GPU, over a quarter of the particles each.
+
+    python tools/gauss_seidel_probe.py [N]          (default 64)
+"""
+
+import dataclasses
+import sys
+
+import numpy as np
+
+import warp_cloth as wc
+from anchor_probe import CAP, TOLERANCE, Cloth, held_within
+from warp_cloth.bench import matrix_scene
+
+
+def colouring(n: int, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Each particle's colour, the smallest its neighbours along the springs (a, b) have not taken."""
+    neighbours = [[] for _ in range(n)]
+    for i, j in zip(a.tolist(), b.tolist()):
+        neighbours[i].append(j)
+        neighbours[j].append(i)
+    colour = np.full(n, -1)
+    for i in range(n):
+        taken = {colour[j] for j in neighbours[i]}
+        colour[i] = next(c for c in range(len(taken) + 1) if c not in taken)
+    return colour
+
+
+class ColouredCloth(Cloth):
+    def __init__(self, sim: wc.Simulator) -> None:
+        super().__init__(sim)
+        colour = colouring(self.n, self.a, self.b)
+        self.colours = [np.nonzero((colour == c) & self.free)[0] for c in range(colour.max() + 1)]
+
+    def sweep(self, x: np.ndarray, over_relaxation: float) -> np.ndarray:
+        x = x.copy()
+        for members in self.colours:
+            mine = np.zeros(self.n, dtype=bool)
+            mine[members] = True
+            d = x[self.a] - x[self.b]
+            length = np.linalg.norm(d, axis=1)
+            target = np.clip(length, self.low, self.high)
+            out = (target != length) & (length > 1e-12) & (mine[self.a] | mine[self.b])
+            correction = ((target - length) / np.maximum(length, 1e-12))[:, None] * d
+            weight = np.maximum(self.w[self.a] + self.w[self.b], 1e-30)
+            total, count = np.zeros((self.n, 3)), np.zeros(self.n)
+            at_a, at_b = out & mine[self.a], out & mine[self.b]
+            np.add.at(total, self.a[at_a], (self.w[self.a] / weight)[at_a, None] * correction[at_a])
+            np.add.at(total, self.b[at_b], -(self.w[self.b] / weight)[at_b, None] * correction[at_b])
+            np.add.at(count, self.a[at_a], 1)
+            np.add.at(count, self.b[at_b], 1)
+            before = x[members]
+            p = x.copy()
+            p[members] = before + over_relaxation * total[members] / np.maximum(count[members], 1)[:, None]
+            p = held_within(p, x, self.pin, self.reach)
+            r = p[members] - self.center
+            distance = np.linalg.norm(r, axis=1)
+            inside = distance < self.radius
+            moved = p[members]
+            moved[inside] = self.center + r[inside] * (self.radius / distance[inside])[:, None]
+            x[members] = moved
+        return x
+
+    def chebyshev(self, x: np.ndarray, rho: float) -> int:
+        start, before, omega, k, last = x.copy(), x.copy(), 1.0, 0, np.inf
+        for passes in range(2, CAP + 1, 2):
+            k += 1
+            omega = 1.0 if k == 1 else 2.0 / (2.0 - rho * rho) if k == 2 else 4.0 / (4.0 - rho * rho * omega)
+            paired = self.one_pass(self.one_pass(x))
+            base = start if k == 1 else before
+            x = np.where(self.free[:, None], omega * (paired - base) + base, paired)
+            before, start = start, x.copy()
+            r = x - self.center
+            distance = np.linalg.norm(r, axis=1)
+            inside = (distance < self.radius) & self.free
+            x[inside] = self.center + r[inside] * (self.radius / distance[inside])[:, None]
+            residual = self.residual(x)
+            if residual <= TOLERANCE:
+                return passes
+            if residual > 1.5 * last:
+                k = 0
+            last = residual
+        return CAP
+
+    def sweeps(self, x: np.ndarray, over_relaxation: float) -> int:
+        for k in range(2, CAP + 1, 2):
+            x = self.sweep(self.sweep(x, over_relaxation), over_relaxation)
+            if self.residual(x) <= TOLERANCE:
+                return k
+        return CAP
+
+
+def main() -> None:
+    n = int(sys.argv[1]) if len(sys.argv) > 1 else 64
+    scene = matrix_scene("sphere", n, "symplectic")
+    scene = dataclasses.replace(scene, simulation=dataclasses.replace(scene.simulation, limit_solve="converged",
+                                                                      limit_max_passes=CAP))
+    sim = wc.Simulator(scene, device="cpu")
+    cloth = ColouredCloth(sim)
+    gravity = np.array([0.0, -9.81, 0.0])
+    relaxations, radii = (1.0, 1.8, 1.9), (0.95, 0.99)
+    print(f"{len(cloth.colours)} colours; passes to within {TOLERANCE:.1%}, at most {CAP}")
+    print("frame  real solve (mean / most)  jacobi  " + "  ".join(f"chebyshev {r}" for r in radii) + "  "
+          + "  ".join(f"gauss-seidel, sor {w}" for w in relaxations))
+    for frame in range(1, 121):
+        sim.step()
+        stats = sim.solver_stats()
+        if frame % 5:
+            continue
+        x, v = sim.positions().astype(np.float64), sim.velocities().astype(np.float64)
+        v += sim.dt * gravity
+        v[~cloth.free] = 0.0
+        predicted = x + sim.dt * v
+        counts = [cloth.chebyshev(predicted, r) for r in radii] + [cloth.sweeps(predicted, w) for w in relaxations]
+        print(f"{frame:5d}  {stats.limit_mean_passes:6.1f} / {stats.limit_passes:4d}  {cloth.passes(predicted):6d}  "
+              + "  ".join(f"{c:14d}" for c in counts), flush=True)
+
+
+if __name__ == "__main__":
+    main()
