@@ -57,14 +57,31 @@ def test_each_world_of_a_batch_moves_as_its_scene_alone(device):
     assert batch.positions(2)[:, 1].min() >= -1e-6
 
 
-def test_a_batch_refuses_scenes_that_cannot_share_a_step():
+@pytest.mark.parametrize("device", ["cpu", pytest.param("cuda", marks=pytest.mark.cuda)])
+def test_worlds_of_another_step_are_packed_apart_and_each_moves_as_alone(device, tmp_path):
     scenes = three_worlds()
-    scenes[2] = dataclasses.replace(scenes[2], simulation=simulation(substeps=41))
-    with pytest.raises(wc.SceneError, match=r"scenes\[2\].simulation.substeps: expected the same as scenes\[0\]'s"):
-        wc.Batch(scenes, device="cpu")
-    scenes[2] = dataclasses.replace(scenes[2], simulation=simulation(), collision=None)
-    with pytest.raises(wc.SceneError, match=r"scenes\[2\].collision: expected the same as scenes\[0\]'s"):
-        wc.Batch(scenes, device="cpu")
+    scenes[1] = dataclasses.replace(scenes[1], simulation=simulation(substeps=60, gravity=(0.0, -5.0, 0.0)))
+    batch = wc.Batch(scenes, device=device)
+    assert [group.members for group in batch.groups] == [(0, 2), (1,)]
+    assert [group.simulator.substeps_per_frame for group in batch.groups] == [40, 60]
+    alone = [wc.Simulator(scene, device=device) for scene in scenes]
+    writers = {w: [wc.UsdWriter(tmp_path / f"world{w}.usdc")] for w in range(3)}
+    summary = batch.run(12, writers=writers)
+    for sim in alone:
+        sim.run(12)
+    for w, sim in enumerate(alone):
+        np.testing.assert_allclose(batch.positions(w), sim.positions(), atol=1e-6, err_msg=f"world {w}")
+        stage = Usd.Stage.Open(str(tmp_path / f"world{w}.usdc"))
+        assert stage.GetEndTimeCode() == 12
+    assert summary.frames == 12 and not summary.interrupted and batch.frame == 12
+    assert summary.particles == sum(sim.model.particle_count for sim in alone)
+    with pytest.raises(ValueError, match="a simulator for each"):
+        batch.simulator
+    with pytest.raises(ValueError, match="must share one step"):
+        batch.run(1, monitors=[wc.StrainMonitor()])
+
+
+def test_a_batch_refuses_no_scenes_and_worlds_it_does_not_have():
     with pytest.raises(wc.SceneError, match="scenes: expected at least one scene"):
         wc.Batch([], device="cpu")
     with pytest.raises(IndexError):
@@ -72,10 +89,13 @@ def test_a_batch_refuses_scenes_that_cannot_share_a_step():
 
 
 @pytest.mark.parametrize("device", ["cpu", pytest.param("cuda", marks=pytest.mark.cuda)])
-def test_a_world_that_blows_up_is_stopped_and_the_others_go_on(device):
+@pytest.mark.parametrize("own_step", [False, True], ids=["shared-step", "own-step"])
+def test_a_world_that_blows_up_is_stopped_and_the_others_go_on(device, own_step):
+    """Also where it is alone in a group of its own step: the group is left, the others' go on."""
     scenes = three_worlds()
     stiff = wc.SpringKind(1e6, 0.02)  # far past what the shared step holds: it blows up within frames
-    scenes[1] = dataclasses.replace(scenes[1], cloths=(dataclasses.replace(scenes[1].cloths[0], structural=stiff),))
+    scenes[1] = dataclasses.replace(scenes[1], cloths=(dataclasses.replace(scenes[1].cloths[0], structural=stiff),),
+                                    simulation=simulation(substeps=41 if own_step else 40, gravity=(0.0, -5.0, 0.0)))
     with pytest.warns(wc.UnstableStepWarning):
         batch = wc.Batch(scenes, device=device)
     alone = [wc.Simulator(scenes[w], device=device) for w in (0, 2)]

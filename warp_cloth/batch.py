@@ -6,12 +6,14 @@ belongs to and what each world has of its own: gravity and ground. The kernels t
 itself: colliders act on their world's particles only, particles of different worlds never collide, and
 the spatial hash puts each world's cells apart. What a pass does for a world is what it does for that
 scene alone, so each world's frames are those of its scene run by itself, to rounding, where the steps
-are the same (see ``Batch``).
+are the same (see ``Batch``). Worlds whose steps differ cannot share a launch (every kernel takes one
+substep length): a batch packs each step's worlds apart and steps those groups one after another.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import json
 from collections.abc import Sequence
 
 import numpy as np
@@ -34,24 +36,27 @@ def shared_settings(scene: Scene) -> dict[str, object]:
     return shared
 
 
+def step_key(scene: Scene) -> str:
+    """``shared_settings`` as one text: scenes with the same key can be stepped by the same launches."""
+    return json.dumps(shared_settings(scene), sort_keys=True, default=str)
+
+
+def step_groups(scenes: Sequence[Scene]) -> list[list[int]]:
+    """The scenes' indices by step (``step_key``), each group in order, the groups in the order their
+    first scene comes."""
+    groups: dict[str, list[int]] = {}
+    for w, scene in enumerate(scenes):
+        groups.setdefault(step_key(scene), []).append(w)
+    return list(groups.values())
+
+
 def _renamed(name: str, world: int) -> str:
     return f"w{world}_{name}"
 
 
 def pack(scenes: Sequence[Scene]) -> tuple[Scene, Worlds]:
-    """The one scene the batch simulates, and its worlds. Settings every world must share are checked:
-    the first that differs from world 0's is refused, naming the world and the key."""
-    if not scenes:
-        raise SceneError("scenes", "at least one scene", 0)
+    """The one scene that scenes of one step (``step_key``) are simulated as, and its worlds."""
     first = scenes[0]
-    shared = shared_settings(first)
-    for w, scene in enumerate(scenes[1:], start=1):
-        mine = shared_settings(scene)
-        differs = next((key for key in shared if mine[key] != shared[key]), None)
-        if differs is not None:
-            raise SceneError(f"scenes[{w}].{differs}", "the same as scenes[0]'s: a batch's worlds share their "
-                             "step, solves, collision and wind settings (batch them apart, or make them equal)",
-                             has_got=False)
     cloths, spheres, colliders = [], [], []
     cloth_world, sphere_start, mesh_start = [], [0], [0]
     for w, scene in enumerate(scenes):
@@ -76,22 +81,38 @@ def pack(scenes: Sequence[Scene]) -> tuple[Scene, Worlds]:
     return packed, worlds
 
 
-class Batch:
-    """Scenes (worlds) stepped together on one device: one particle buffer, one launch per pass for all.
+@dataclasses.dataclass(frozen=True)
+class StepGroup:
+    """The worlds of a batch that share a step (``step_key``): one simulator of their packed scene."""
 
-    Each world keeps its own cloths, colliders, pins, gravity and ground, and never touches another; all
-    share the step, the solves' settings, collision and wind settings (a batch of scenes that differ there
-    is refused: batch them apart). Where the scenes set no step, the batch takes the finest any of its
-    cloths needs, which may be finer than a world alone would take. A converged strain solve runs until
-    every world is within tolerance, so a world may take more passes than alone: its frames then differ
-    from its scene's alone within that tolerance; a fixed solve gives them to rounding. With the implicit
-    step each world runs its own Newton loop and conjugate gradient (its own sums, step lengths and
-    stopping test: kernels/cg.py), so it takes the iterations it would alone; its sums add up in another
-    order than alone, so its frames equal its scene's alone to rounding and the solve's tolerance.
+    members: tuple[int, ...]  # the batch's world indices, in order
+    worlds: Worlds
+    simulator: Simulator
+    starts: np.ndarray  # (members + 1,): where each member's particles start in the simulator's buffer
+
+    def particles(self, k: int) -> slice:
+        return slice(int(self.starts[k]), int(self.starts[k + 1]))
+
+
+class Batch:
+    """Scenes (worlds) stepped together on one device: one particle buffer, one launch per pass for all
+    that share a step.
+
+    Each world keeps its own cloths, colliders, pins, gravity and ground, and never touches another. Worlds
+    that share the step, the solves' settings, collision and wind settings (``shared_settings``) are
+    packed together; those that differ there are packed apart, a ``StepGroup`` for each step, and the
+    groups are stepped one after another (``groups``: each world's own step, at the cost of its group's
+    launches). Where the scenes set no step, a group takes the finest any of its cloths needs, which may be
+    finer than a world alone would take. A converged strain solve runs until every world of its group is
+    within tolerance, so a world may take more passes than alone: its frames then differ from its scene's
+    alone within that tolerance; a fixed solve gives them to rounding. With the implicit step each world
+    runs its own Newton loop and conjugate gradient (its own sums, step lengths and stopping test:
+    kernels/cg.py), so it takes the iterations it would alone; its sums add up in another order than
+    alone, so its frames equal its scene's alone to rounding and the solve's tolerance.
 
     A world that blows up is stopped (put back where it started, at rest, and held) and the others go on:
     ``stopped_worlds`` holds each such world's ``UnstableSimulation`` (its frame and cause); its frames from
-    that one on are not valid. Once every world has stopped, ``step`` raises the first one's.
+    that one on are not valid. Once every world has stopped, ``step`` and ``run`` raise the first one's.
 
     ``step()`` advances every world one frame, ``run(frames)`` several; ``positions(w)`` and
     ``velocities(w)`` read world ``w``'s particles (its cloths' in order, as its scene alone has them).
@@ -100,13 +121,16 @@ class Batch:
     def __init__(self, scenes: Sequence[Scene], device: str | None = None, graph: bool = True,
                  threads_per_particle: int | None = None) -> None:
         self.scenes = tuple(scenes)
-        packed, worlds = pack(self.scenes)
-        self.worlds = worlds
-        self.simulator = Simulator(packed, device=device, graph=graph, threads_per_particle=threads_per_particle,
-                                   worlds=worlds)
-        offsets = np.asarray(self.simulator.model.offsets)
-        first_cloth = np.searchsorted(worlds.cloth_world, np.arange(len(self.scenes) + 1))
-        self._starts = offsets[first_cloth]
+        if not self.scenes:
+            raise SceneError("scenes", "at least one scene", 0)
+        self.groups: list[StepGroup] = []
+        for members in step_groups(self.scenes):
+            packed, worlds = pack([self.scenes[w] for w in members])
+            sim = Simulator(packed, device=device, graph=graph, threads_per_particle=threads_per_particle,
+                            worlds=worlds)
+            first_cloth = np.searchsorted(worlds.cloth_world, np.arange(len(members) + 1))
+            self.groups.append(StepGroup(tuple(members), worlds, sim, np.asarray(sim.model.offsets)[first_cloth]))
+        self._place = {w: (group, k) for group in self.groups for k, w in enumerate(group.members)}
         self._views: dict[int, WorldView] = {}
 
     @property
@@ -114,30 +138,69 @@ class Batch:
         return len(self.scenes)
 
     @property
+    def simulator(self) -> Simulator:
+        """The simulator of a batch whose worlds share one step."""
+        if len(self.groups) > 1:
+            raise ValueError(f"this batch's worlds have {len(self.groups)} steps, a simulator for each: see groups")
+        return self.groups[0].simulator
+
+    @property
     def frame(self) -> int:
-        return self.simulator.frame
+        """The frame every world has reached."""
+        return min(group.simulator.frame for group in self.groups)
 
     @property
     def stopped_worlds(self) -> dict[int, UnstableSimulation]:
-        return self.simulator.stopped_worlds
+        return {group.members[k]: stopped for group in self.groups
+                for k, stopped in group.simulator.stopped_worlds.items()}
 
-    def world_slice(self, w: int) -> slice:
-        """World ``w``'s particles in the batch's buffer."""
+    def place(self, w: int) -> tuple[StepGroup, int]:
+        """World ``w``'s group and its index there."""
         if not 0 <= w < self.world_count:
             raise IndexError(f"world {w} of a batch of {self.world_count}")
-        return slice(int(self._starts[w]), int(self._starts[w + 1]))
+        return self._place[w]
 
     def step(self) -> None:
-        self.simulator.step()
+        self._each_group(lambda group: group.simulator.step())
 
     def run(self, frames: int, writers: dict[int, list] | None = None, progress: bool = False,
             monitors: Sequence = ()) -> RunSummary:
-        """Simulate ``frames`` frames; ``writers``: each world's own (``UsdWriter``, ``PolyWriter``, ...), by
-        world. A world that blows up has its writers abandoned there, as a run alone that fails (its frames
-        kept under the failed names), while the others' go on. ``monitors``: writers of the whole batch
-        (``strain.WorldStrain``)."""
-        chosen = [WorldWriters(self, writers)] if writers else []
-        return self.simulator.run(frames, writers=[*chosen, *monitors], progress=progress)
+        """Simulate ``frames`` frames, one group after another; ``writers``: each world's own
+        (``UsdWriter``, ``PolyWriter``, ...), by world. A world that blows up has its writers abandoned there,
+        as a run alone that fails (its frames kept under the failed names), while the others' go on.
+        ``monitors``: writers of the whole batch (``strain.WorldStrain``), for a batch of one step. The
+        summary counts every group's particles, substeps and time; an interrupted group ends the run."""
+        if monitors and len(self.groups) > 1:
+            raise ValueError("a batch's monitors read one simulator: its worlds must share one step")
+        summaries: list[RunSummary] = []
+
+        def run_group(group: StepGroup) -> None:
+            if summaries and summaries[-1].interrupted:
+                return
+            mine = {w: writers[w] for w in group.members if writers and w in writers}
+            chosen = [WorldWriters(self, mine)] if mine else []
+            summaries.append(group.simulator.run(frames, writers=[*chosen, *monitors], progress=progress))
+
+        self._each_group(run_group)
+        particle_substeps = sum(s.particles * s.substeps for s in summaries)
+        particles = sum(s.particles for s in summaries)
+        stop = next((s for s in summaries if s.interrupted), None)
+        return RunSummary(min(s.frames for s in summaries), particle_substeps // max(1, particles), particles,
+                          sum(s.wall_seconds for s in summaries), stop is not None,
+                          None if stop is None else stop.stop_signal)
+
+    def _each_group(self, act) -> None:
+        """``act`` on every group; a group whose worlds have all stopped is left, and once every world has
+        stopped the first one's ``UnstableSimulation`` is raised."""
+        for group in self.groups:
+            if len(group.simulator.stopped_worlds) < len(group.members):
+                try:
+                    act(group)
+                except UnstableSimulation:
+                    pass
+        stopped = self.stopped_worlds
+        if len(stopped) == self.world_count:
+            raise stopped[min(stopped, key=lambda w: stopped[w].frame)]
 
     def view(self, w: int) -> "WorldView":
         """World ``w`` as its writers see it (made once)."""
@@ -148,13 +211,26 @@ class Batch:
     def closest_contacts(self) -> np.ndarray | None:
         """Each world's closest approach of colliding particles, as a fraction of their contact distance
         (1e30 where a world has no pair listed; None without particle collision)."""
-        return self.simulator.closest_contacts()
+        found = [(group, group.simulator.closest_contacts()) for group in self.groups]
+        if all(contacts is None for _, contacts in found):
+            return None
+        closest = np.full(self.world_count, 1e30)
+        for group, contacts in found:
+            if contacts is not None:
+                closest[list(group.members)] = contacts
+        return closest
 
     def positions(self, w: int) -> np.ndarray:
-        return self.simulator.positions()[self.world_slice(w)]
+        group, k = self.place(w)
+        return group.simulator.positions()[group.particles(k)]
 
     def velocities(self, w: int) -> np.ndarray:
-        return self.simulator.velocities()[self.world_slice(w)]
+        group, k = self.place(w)
+        return group.simulator.velocities()[group.particles(k)]
+
+    def masses(self, w: int) -> np.ndarray:
+        group, k = self.place(w)
+        return group.simulator.model.masses[group.particles(k)]
 
 
 class WorldView:
@@ -165,13 +241,14 @@ class WorldView:
         self.batch, self.world = batch, w
         self.scene = batch.scenes[w]
         self.model: Model = build_model(self.scene)
-        self.device = batch.simulator.device
-        spheres = batch.worlds.sphere_start
-        self._spheres = slice(int(spheres[w]), int(spheres[w + 1]))
+        self.group, k = batch.place(w)
+        self.device = self.group.simulator.device
+        spheres = self.group.worlds.sphere_start
+        self._spheres = slice(int(spheres[k]), int(spheres[k + 1]))
 
     @property
     def frame(self) -> int:
-        return self.batch.frame
+        return self.group.simulator.frame
 
     def positions(self) -> np.ndarray:
         return self.batch.positions(self.world)
@@ -183,7 +260,7 @@ class WorldView:
         return (self.positions() if positions is None else positions)[self.model.cloth_slice(cloth)]
 
     def sphere_centers(self) -> np.ndarray:
-        return self.batch.simulator.sphere_centers()[self._spheres]
+        return self.group.simulator.sphere_centers()[self._spheres]
 
 
 class WorldWriters:

@@ -8,7 +8,7 @@ every cloth, ``cloth[1].bend.stiffness`` on the second) and its values, each a T
 a string); the sweep runs the cartesian product. With ``--random N``, ``KEY=LOW:HIGH`` draws a number
 uniformly in the range and a list draws one of its values, N times from ``--seed``.
 
-Variants that can share a step (see ``batch.pack``) run together as the worlds of one batch, at most
+Variants that can share a step (see ``batch.step_key``) run together as the worlds of one batch, at most
 ``--worlds`` at a time; those with another step (another integrator, substeps, solve settings) or another
 number of frames in batches of their own. Each writes its USD, named by its settings, into the output folder, and one row of
 ``results.jsonl`` as its batch ends: its settings, its worst edge stretch and compression over every frame, its kinetic energy and closest
@@ -206,12 +206,11 @@ def build_variants(base: dict[str, Any], settings: list[tuple[tuple[str, Any], .
 def batches(scenes: list, most: int) -> list[list[int]]:
     """The variants' indices in batches: those that can share a step and run as many frames together,
     ``most`` at a time."""
-    from .batch import shared_settings
+    from .batch import step_key
 
-    groups: dict[str, list[int]] = {}
+    groups: dict[tuple[str, int], list[int]] = {}
     for k, scene in enumerate(scenes):
-        key = shared_settings(scene) | {"simulation.frames": scene.simulation.frames}
-        groups.setdefault(json.dumps(key, sort_keys=True, default=str), []).append(k)
+        groups.setdefault((step_key(scene), scene.simulation.frames), []).append(k)
     return [members[i:i + most] for members in groups.values() for i in range(0, len(members), most)]
 
 
@@ -256,18 +255,16 @@ def run_batch(variants: list[Variant], out: Path, device: str | None, usd: bool)
     seconds = time.perf_counter() - started
     worst = strain.worst()
     contacts = batch.closest_contacts()
-    masses = batch.simulator.model.masses.astype(np.float64)
     rows = []
     for w, variant in enumerate(variants):
-        part = batch.world_slice(w)
-        v = batch.velocities(w).astype(np.float64)
+        v, masses = batch.velocities(w).astype(np.float64), batch.masses(w).astype(np.float64)
         stopped = batch.stopped_worlds.get(w)
         usd_path = paths.get(w)
         if usd_path is not None and stopped is not None:
             usd_path = usd_path.with_name(f"{usd_path.stem}.failed.usdc")
         rows.append({"variant": variant.name, "settings": dict(variant.settings),
                      "stretch": float(worst[w, 0]), "compression": float(worst[w, 1]),
-                     "kinetic_energy": float(0.5 * np.sum(masses[part] * np.sum(v * v, axis=1))),
+                     "kinetic_energy": float(0.5 * np.sum(masses * np.sum(v * v, axis=1))),
                      "closest_contact": None if contacts is None or contacts[w] >= 1e29 else float(contacts[w]),
                      "unstable_frame": None if stopped is None else stopped.frame,
                      "batch_worlds": len(variants), "batch_seconds": seconds,
