@@ -6,9 +6,11 @@ docs/benchmarks.md's section on 64^2 frames.
 
     python tools/frame_profile.py OUT.json
     python tools/frame_profile.py OUT.json --worlds 1024   # the self cloth at 32^2 as 1024 worlds of a batch
+    python tools/frame_profile.py OUT.json --worlds 1024 --solved   # the same, the limit solved (Chebyshev 0.95)
 """
 
 import collections
+import dataclasses
 import json
 import statistics
 import sys
@@ -111,11 +113,15 @@ def profile(sim: Simulator) -> dict:
             "threads_per_particle": sim.plan.threads, "passes": sim.plan.pass_names}
 
 
-def main(out_path: str, worlds: int | None) -> None:
+def main(out_path: str, worlds: int | None, solved: bool) -> None:
     wp.config.log_level = wp.LOG_ERROR
     results = {"device": wp.get_device("cuda").name}
-    cases = {f"self 32 x {worlds} worlds": lambda: Batch([matrix_scene("self", 32, "symplectic")] * worlds,
-                                                           device="cuda").simulator} if worlds else {
+    world = matrix_scene("self", 32, "symplectic")
+    if solved:
+        world = dataclasses.replace(world, simulation=dataclasses.replace(
+            world.simulation, limit_solve="converged", limit_chebyshev_rho=0.95))
+    cases = {f"self 32 x {worlds} worlds{', limit solved' if solved else ''}": lambda: Batch(
+        [world] * worlds, device="cuda").simulator} if worlds else {
         f"{variant} {n}": lambda variant=variant, n=n: Simulator(matrix_scene(variant, n, "symplectic"), device="cuda")
         for n in (64, 256) for variant in ("springs", "hanging", "sphere", "self")}
     for name, make in cases.items():
@@ -132,4 +138,5 @@ def main(out_path: str, worlds: int | None) -> None:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1], int(sys.argv[3]) if len(sys.argv) > 3 and sys.argv[2] == "--worlds" else None)
+    main(sys.argv[1], int(sys.argv[3]) if len(sys.argv) > 3 and sys.argv[2] == "--worlds" else None,
+         "--solved" in sys.argv[4:])
