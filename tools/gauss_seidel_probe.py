@@ -16,6 +16,7 @@ numpy copy of the limit pass until no limit is 0.5% past (checked every two pass
 A Gauss-Seidel pass would cost one launch a colour on a GPU, over a quarter of the particles each.
 
     python tools/gauss_seidel_probe.py [N]          (default 64)
+    python tools/gauss_seidel_probe.py N --radii R ...   (Chebyshev at those radii only, beside Jacobi)
 """
 
 import dataclasses
@@ -107,13 +108,14 @@ class ColouredCloth(Cloth):
 
 def main() -> None:
     n = int(sys.argv[1]) if len(sys.argv) > 1 else 64
+    chosen = [float(r) for r in sys.argv[sys.argv.index("--radii") + 1:]] if "--radii" in sys.argv else None
     scene = matrix_scene("sphere", n, "symplectic")
     scene = dataclasses.replace(scene, simulation=dataclasses.replace(scene.simulation, limit_solve="converged",
                                                                       limit_max_passes=CAP))
     sim = wc.Simulator(scene, device="cpu")
     cloth = ColouredCloth(sim)
     gravity = np.array([0.0, -9.81, 0.0])
-    relaxations, radii = (1.0, 1.8, 1.9), (0.95, 0.99)
+    relaxations, radii = ((), chosen) if chosen else ((1.0, 1.8, 1.9), (0.95, 0.99))
     print(f"{len(cloth.colours)} colours; passes to within {TOLERANCE:.1%}, at most {CAP}")
     print("frame  real solve (mean / most)  jacobi  " + "  ".join(f"chebyshev {r}" for r in radii) + "  "
           + "  ".join(f"gauss-seidel, sor {w}" for w in relaxations))
