@@ -58,28 +58,41 @@ class Cloth:
         reach = np.linalg.norm(x[attached] - x[self.pin[attached]], axis=1)
         return max(worst, float(np.max((reach - self.reach[attached]) / np.maximum(self.reach[attached], 1e-12))))
 
-    def one_pass(self, x: np.ndarray, tethers=None) -> np.ndarray:
+    def corrections(self, x: np.ndarray, movers: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Each particle's sum of the corrections (its share, by inverse mass) of its limited springs out of
+        range at ``x``, and their count; for ``movers`` only (a mask; None: every particle)."""
         d = x[self.a] - x[self.b]
         length = np.linalg.norm(d, axis=1)
         target = np.clip(length, self.low, self.high)
         out = (target != length) & (length > 1e-12)
         correction = ((target - length) / np.maximum(length, 1e-12))[:, None] * d
         weight = np.maximum(self.w[self.a] + self.w[self.b], 1e-30)  # two pins: neither moves
+        at_a, at_b = (out, out) if movers is None else (out & movers[self.a], out & movers[self.b])
         total, count = np.zeros((self.n, 3)), np.zeros(self.n)
-        np.add.at(total, self.a[out], (self.w[self.a] / weight)[out, None] * correction[out])
-        np.add.at(total, self.b[out], -(self.w[self.b] / weight)[out, None] * correction[out])
-        np.add.at(count, self.a[out], 1)
-        np.add.at(count, self.b[out], 1)
+        np.add.at(total, self.a[at_a], (self.w[self.a] / weight)[at_a, None] * correction[at_a])
+        np.add.at(total, self.b[at_b], -(self.w[self.b] / weight)[at_b, None] * correction[at_b])
+        np.add.at(count, self.a[at_a], 1)
+        np.add.at(count, self.b[at_b], 1)
+        return total, count
+
+    def out_of_sphere(self, p: np.ndarray, which: np.ndarray | None = None) -> np.ndarray:
+        """``p`` with its particles inside the sphere (of ``which``, a mask; None: all) put on its surface."""
+        r = p - self.center
+        distance = np.linalg.norm(r, axis=1)
+        inside = distance < self.radius
+        if which is not None:
+            inside &= which
+        p[inside] = self.center + r[inside] * (self.radius / distance[inside])[:, None]
+        return p
+
+    def one_pass(self, x: np.ndarray, tethers=None) -> np.ndarray:
+        total, count = self.corrections(x)
         p = x + total / np.maximum(count, 1)[:, None]
         p[~self.free] = x[~self.free]
         p = held_within(p, x, self.pin, self.reach)
         if tethers is not None:
             p = held_within(p, x, *tethers)
-        r = p - self.center
-        distance = np.linalg.norm(r, axis=1)
-        inside = distance < self.radius
-        p[inside] = self.center + r[inside] * (self.radius / distance[inside])[:, None]
-        return p
+        return self.out_of_sphere(p)
 
     def passes(self, x: np.ndarray, tethers=None) -> int:
         for k in range(2, CAP + 1, 2):
@@ -100,24 +113,34 @@ def held_within(p: np.ndarray, x: np.ndarray, other: np.ndarray, reach: np.ndarr
     return p
 
 
-def main() -> None:
-    n = int(sys.argv[1]) if len(sys.argv) > 1 else 64
+def converged_sphere_cloth(n: int) -> wc.Simulator:
+    """The speed matrix's sphere cloth at n^2 with the converged limit solve, at most CAP passes."""
     scene = matrix_scene("sphere", n, "symplectic")
-    scene = dataclasses.replace(scene, simulation=dataclasses.replace(scene.simulation, limit_solve="converged",
-                                                                      limit_max_passes=CAP))
-    sim = wc.Simulator(scene, device="cpu")
-    cloth = Cloth(sim)
+    return wc.Simulator(dataclasses.replace(scene, simulation=dataclasses.replace(
+        scene.simulation, limit_solve="converged", limit_max_passes=CAP)), device="cpu")
+
+
+def predictions(sim: wc.Simulator, cloth: Cloth, frames: int = 120, every: int = 5):
+    """Every ``every`` frames of the run: the frame, the real solve's stats over the frames since the last,
+    the positions, and one symplectic substep's prediction from them (x + h (v + h g), pins held)."""
     gravity = np.array([0.0, -9.81, 0.0])
-    print("frame  passes of the real solve (mean / most)  copy, as it is  copy, with tethers  tethered particles")
-    for frame in range(1, 121):
+    for frame in range(1, frames + 1):
         sim.step()
         stats = sim.solver_stats()
-        if frame % 5:
+        if frame % every:
             continue
         x, v = sim.positions().astype(np.float64), sim.velocities().astype(np.float64)
         v += sim.dt * gravity
         v[~cloth.free] = 0.0
-        predicted = x + sim.dt * v
+        yield frame, stats, x, x + sim.dt * v
+
+
+def main() -> None:
+    n = int(sys.argv[1]) if len(sys.argv) > 1 else 64
+    sim = converged_sphere_cloth(n)
+    cloth = Cloth(sim)
+    print("frame  passes of the real solve (mean / most)  copy, as it is  copy, with tethers  tethered particles")
+    for frame, stats, x, predicted in predictions(sim, cloth):
         tethers = cloth.tethers(x)
         print(f"{frame:5d}  {stats.limit_mean_passes:6.1f} / {stats.limit_passes:4d}  {cloth.passes(predicted):14d}  "
               f"{cloth.passes(predicted, tethers):18d}  {int((tethers[0] >= 0).sum()):18d}", flush=True)

@@ -19,14 +19,12 @@ A Gauss-Seidel pass would cost one launch a colour on a GPU, over a quarter of t
     python tools/gauss_seidel_probe.py N --radii R ...   (Chebyshev at those radii only, beside Jacobi)
 """
 
-import dataclasses
 import sys
 
 import numpy as np
 
 import warp_cloth as wc
-from anchor_probe import CAP, TOLERANCE, Cloth, held_within
-from warp_cloth.bench import matrix_scene
+from anchor_probe import CAP, TOLERANCE, Cloth, converged_sphere_cloth, held_within, predictions
 
 
 def colouring(n: int, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -53,28 +51,11 @@ class ColouredCloth(Cloth):
         for members in self.colours:
             mine = np.zeros(self.n, dtype=bool)
             mine[members] = True
-            d = x[self.a] - x[self.b]
-            length = np.linalg.norm(d, axis=1)
-            target = np.clip(length, self.low, self.high)
-            out = (target != length) & (length > 1e-12) & (mine[self.a] | mine[self.b])
-            correction = ((target - length) / np.maximum(length, 1e-12))[:, None] * d
-            weight = np.maximum(self.w[self.a] + self.w[self.b], 1e-30)
-            total, count = np.zeros((self.n, 3)), np.zeros(self.n)
-            at_a, at_b = out & mine[self.a], out & mine[self.b]
-            np.add.at(total, self.a[at_a], (self.w[self.a] / weight)[at_a, None] * correction[at_a])
-            np.add.at(total, self.b[at_b], -(self.w[self.b] / weight)[at_b, None] * correction[at_b])
-            np.add.at(count, self.a[at_a], 1)
-            np.add.at(count, self.b[at_b], 1)
-            before = x[members]
+            total, count = self.corrections(x, mine)
             p = x.copy()
-            p[members] = before + over_relaxation * total[members] / np.maximum(count[members], 1)[:, None]
-            p = held_within(p, x, self.pin, self.reach)
-            r = p[members] - self.center
-            distance = np.linalg.norm(r, axis=1)
-            inside = distance < self.radius
-            moved = p[members]
-            moved[inside] = self.center + r[inside] * (self.radius / distance[inside])[:, None]
-            x[members] = moved
+            p[members] = x[members] + over_relaxation * total[members] / np.maximum(count[members], 1)[:, None]
+            p = self.out_of_sphere(held_within(p, x, self.pin, self.reach), mine)
+            x[members] = p[members]
         return x
 
     def chebyshev(self, x: np.ndarray, rho: float) -> int:
@@ -86,10 +67,7 @@ class ColouredCloth(Cloth):
             base = start if k == 1 else before
             x = np.where(self.free[:, None], omega * (paired - base) + base, paired)
             before, start = start, x.copy()
-            r = x - self.center
-            distance = np.linalg.norm(r, axis=1)
-            inside = (distance < self.radius) & self.free
-            x[inside] = self.center + r[inside] * (self.radius / distance[inside])[:, None]
+            x = self.out_of_sphere(x, self.free)
             residual = self.residual(x)
             if residual <= TOLERANCE:
                 return passes
@@ -109,25 +87,13 @@ class ColouredCloth(Cloth):
 def main() -> None:
     n = int(sys.argv[1]) if len(sys.argv) > 1 else 64
     chosen = [float(r) for r in sys.argv[sys.argv.index("--radii") + 1:]] if "--radii" in sys.argv else None
-    scene = matrix_scene("sphere", n, "symplectic")
-    scene = dataclasses.replace(scene, simulation=dataclasses.replace(scene.simulation, limit_solve="converged",
-                                                                      limit_max_passes=CAP))
-    sim = wc.Simulator(scene, device="cpu")
+    sim = converged_sphere_cloth(n)
     cloth = ColouredCloth(sim)
-    gravity = np.array([0.0, -9.81, 0.0])
     relaxations, radii = ((), chosen) if chosen else ((1.0, 1.8, 1.9), (0.95, 0.99))
     print(f"{len(cloth.colours)} colours; passes to within {TOLERANCE:.1%}, at most {CAP}")
     print("frame  real solve (mean / most)  jacobi  " + "  ".join(f"chebyshev {r}" for r in radii) + "  "
           + "  ".join(f"gauss-seidel, sor {w}" for w in relaxations))
-    for frame in range(1, 121):
-        sim.step()
-        stats = sim.solver_stats()
-        if frame % 5:
-            continue
-        x, v = sim.positions().astype(np.float64), sim.velocities().astype(np.float64)
-        v += sim.dt * gravity
-        v[~cloth.free] = 0.0
-        predicted = x + sim.dt * v
+    for frame, stats, _, predicted in predictions(sim, cloth):
         counts = [cloth.chebyshev(predicted, r) for r in radii] + [cloth.sweeps(predicted, w) for w in relaxations]
         print(f"{frame:5d}  {stats.limit_mean_passes:6.1f} / {stats.limit_passes:4d}  {cloth.passes(predicted):6d}  "
               + "  ".join(f"{c:14d}" for c in counts), flush=True)

@@ -128,8 +128,7 @@ class Batch:
             packed, worlds = pack([self.scenes[w] for w in members])
             sim = Simulator(packed, device=device, graph=graph, threads_per_particle=threads_per_particle,
                             worlds=worlds)
-            first_cloth = np.searchsorted(worlds.cloth_world, np.arange(len(members) + 1))
-            self.groups.append(StepGroup(tuple(members), worlds, sim, np.asarray(sim.model.offsets)[first_cloth]))
+            self.groups.append(StepGroup(tuple(members), worlds, sim, sim.model.world_start))
         self._place = {w: (group, k) for group in self.groups for k, w in enumerate(group.members)}
         self._views: dict[int, WorldView] = {}
 
@@ -283,8 +282,9 @@ class WorldWriters:
                 writer.begin(view)
 
     def write_frame(self, sim, frame: int) -> None:
+        stopped_worlds = self.batch.stopped_worlds
         for w, view, writers in list(self._live()):
-            stopped = self.batch.stopped_worlds.get(w)
+            stopped = stopped_worlds.get(w)
             if stopped is not None:
                 self._end(w, view, writers, RunOutcome(interrupted=False, error=stopped), frame - 1)
                 continue

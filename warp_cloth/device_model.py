@@ -133,7 +133,7 @@ class DeviceModel:
         self.world_count = worlds.count
         world = model.particle_world
         self.particle_world = upload(world, int, device)
-        self.world_start = upload(np.searchsorted(world, np.arange(worlds.count + 1)), int, device)  # contiguous
+        self.world_start = upload(model.world_start, int, device)
         self.free_particles = upload(np.maximum(np.bincount(world[model.inv_mass != 0], minlength=worlds.count), 1),
                                      float, device)  # each world's, for RMS residuals
         self.forces = ExternalForces()

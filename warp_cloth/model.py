@@ -199,6 +199,12 @@ class Model:
         return self.worlds.cloth_world[self.cloth_id]
 
     @property
+    def world_start(self) -> np.ndarray:
+        """(worlds + 1,) where each world's particles start: a world's particles are contiguous."""
+        count = 1 if self.worlds is None else self.worlds.count
+        return np.searchsorted(self.particle_world, np.arange(count + 1))
+
+    @property
     def particle_count(self) -> int:
         return self.offsets[-1]
 

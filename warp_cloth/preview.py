@@ -25,12 +25,11 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from .cli import EXIT_BAD_INPUT, EXIT_OUTPUT_FAILED
 from .errors import SceneError
 from .output import check_file_output, labelled
 from .progress import Progress
 
-EXIT_BAD_INPUT = 2
-EXIT_FAILED = 4
 STILL_RESOLUTION = (960, 540)
 ANIMATION_RESOLUTION = (640, 360)
 STILL_SAMPLES = 32
@@ -250,6 +249,6 @@ def main(argv: list[str] | None = None) -> int:
                                  progress=not args.quiet)
     except RuntimeError as exc:
         print(f"warp-cloth preview: error: {exc}; nothing in place was replaced", file=sys.stderr)
-        return EXIT_FAILED
+        return EXIT_OUTPUT_FAILED
     print(f"{usd.name}: {describe(preview)}")
     return 0

@@ -33,14 +33,15 @@ def main(job_path: str) -> None:
     meshes = [o for o in scene.objects if o.type == "MESH"]
     if not meshes:
         raise SystemExit(f"preview: no mesh in {job['usd']}")
+    role = {}
     for obj in meshes:
-        role, color = job["prims"].get(obj.name, ("cloth", [0.7, 0.7, 0.7]))
+        role[obj.name], color = job["prims"].get(obj.name, ("cloth", [0.7, 0.7, 0.7]))
         obj.data.materials.clear()
-        obj.data.materials.append(material(obj.name, role, color))
-        if role != "ground":
+        obj.data.materials.append(material(obj.name, role[obj.name], color))
+        if role[obj.name] != "ground":
             obj.data.shade_smooth()
-    framed = [o for o in meshes if job["prims"].get(o.name, ("cloth",))[0] != "ground"] or meshes
-    cloths = [o for o in meshes if job["prims"].get(o.name, ("cloth",))[0] == "cloth"]
+    framed = [o for o in meshes if role[o.name] != "ground"] or meshes
+    cloths = [o for o in meshes if role[o.name] == "cloth"]
     scene.frame_set(job["still_frame"])
     view = view_direction(cloths)
     light(scene, view)

@@ -261,8 +261,7 @@ class Simulator:
         allowed = self.INITIAL_COLLIDER_DEPTH_LIMIT * cells[self.model.cloth_id]
         worlds = self.model.worlds if self.model.worlds is not None else Worlds.of_scene(scene)
         world = self.model.particle_world
-        # A collider is checked against its own world's particles only: each world's are contiguous.
-        world_start = np.searchsorted(world, np.arange(worlds.count + 1))
+        world_start = self.model.world_start  # a collider is checked against its own world's particles only
         depths = []  # (the first particle, the depths from it on, collider)
         if worlds.ground.any():
             depths.append((0, np.where(worlds.ground[world] != 0, worlds.ground_height[world] - x[:, 1], -np.inf),

@@ -10,11 +10,12 @@ uniformly in the range and a list draws one of its values, N times from ``--seed
 
 Variants that can share a step (see ``batch.step_key``) run together as the worlds of one batch, at most
 ``--worlds`` at a time; those with another step (another integrator, substeps, solve settings) or another
-number of frames in batches of their own. Each writes its USD, named by its settings, into the output folder, and one row of
-``results.jsonl`` as its batch ends: its settings, its worst edge stretch and compression over every frame, its kinetic energy and closest
-contact at the end, the frame it blew up in if it did, and the wall time. ``results.csv`` holds the same
-table. A sweep started again over the same folder skips the variants the table already has, so an
-interrupted sweep goes on where it stopped, and nothing is computed twice.
+number of frames in batches of their own. Each writes its USD, named by its settings, into the output
+folder, and one row of ``results.jsonl`` as its batch ends: its settings, its worst edge stretch and
+compression over every frame, its kinetic energy and closest contact at the end, the frame it blew up in
+if it did, and the wall time. ``results.csv`` holds the same table. A sweep started again over the same
+folder skips the variants the table already has, so an interrupted sweep goes on where it stopped, and
+nothing is computed twice.
 
 With ``--cluster ADDRESS`` (a running Ray cluster's, or ``local`` for one started on this machine with
 ``--cluster-workers`` workers), each batch is a Ray task, on a GPU where the cluster has them (else on a
@@ -45,12 +46,11 @@ from typing import Any
 
 import numpy as np
 
+from .cli import EXIT_BAD_INPUT, EXIT_SIGNAL_BASE
 from .errors import SceneError
 from .progress import Progress
 
-EXIT_BAD_INPUT = 2
 EXIT_FAILED = 4
-EXIT_SIGNAL_BASE = 128  # a sweep stopped by a signal exits with 128 + the signal's number, as run does
 DEFAULT_WORLDS = 1024
 RESULTS = "results.jsonl"
 TABLE = "results.csv"
