@@ -1,8 +1,25 @@
 """The benchmark reports, beside each case's speed, how far its cloth stretched or compressed over the run."""
 
+import numpy as np
+import pytest
+
 import warp_cloth as wc
 from warp_cloth.bench import Case, format_table, matrix_scene, time_case
-from warp_cloth.newton_compare import max_edge_strain
+from warp_cloth.newton_compare import SIZE, grid_strain
+
+
+def test_grid_strain_reads_every_structural_and_shear_edge():
+    n = 5
+    cell = SIZE / (n - 1)
+    rows, columns = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+    flat = np.stack([1.2 * cell * columns, 0.9 * cell * rows, np.zeros_like(rows)], axis=-1).reshape(-1, 3)
+    assert grid_strain(flat, n) == pytest.approx((0.2, 0.1))  # rows 20% long, columns 10% short
+    assert grid_strain(np.concatenate([flat, flat / 1.2]), n) == pytest.approx((0.2, 0.25))  # two cloths
+    bent = flat.reshape(n, n, 3).copy()
+    bent[2, 2] += (0.0, 0.0, 0.5 * cell)
+    stretch, _ = grid_strain(bent.reshape(-1, 3), n)
+    diagonal = np.hypot(np.hypot(1.2 * cell, 0.9 * cell), 0.5 * cell) / (cell * 2**0.5) - 1.0
+    assert stretch == pytest.approx(max(0.2, np.hypot(1.2 * cell, 0.5 * cell) / cell - 1.0, diagonal))
 
 
 def test_case_reports_the_worst_edge_strain_over_every_frame_of_its_run():
@@ -10,13 +27,17 @@ def test_case_reports_the_worst_edge_strain_over_every_frame_of_its_run():
     scene = matrix_scene("hanging", n, "symplectic")
     result = time_case(Case("hanging 8^2 symplectic", scene, frames=4, fresh=False), "cpu", repeats=1)
     same = wc.Simulator(scene, device="cpu")
-    worst_structural = 0.0
+    stretch = compression = 0.0
     for _ in range(2 + 4):  # the warm-up frames, then the timed ones, on one simulator as the case runs them
         same.step()
-        worst_structural = max(worst_structural, max_edge_strain(same.positions(), n))
+        frame_stretch, frame_compression = grid_strain(same.positions(), n)
+        stretch, compression = max(stretch, frame_stretch), max(compression, frame_compression)
     assert result.strain["frames"] == 2 + 4 + 1  # frame 0 too
     assert result.max_strain == max(result.strain["stretch"], result.strain["compression"])
-    assert worst_structural - 1e-6 <= result.strain["stretch"] <= 0.1 + 1e-5  # the attachments hold the cloth
+    # Newton's rows are measured by grid_strain: the same edges, the same figures
+    assert result.strain["stretch"] == pytest.approx(stretch, abs=1e-5)
+    assert result.strain["compression"] == pytest.approx(compression, abs=1e-5)
+    assert result.strain["stretch"] <= 0.1 + 1e-5  # the attachments hold the cloth
     table = format_table([result])
     assert "worst strain" in table.splitlines()[0]
     assert f"{100 * result.max_strain:.1f}%" in table.splitlines()[2]

@@ -10,7 +10,8 @@ pytest.importorskip("newton")
 
 import warp_cloth as wc  # noqa: E402
 from warp_cloth.bench import matrix_scene  # noqa: E402
-from warp_cloth.newton_compare import SOLVERS, SPHERE_CENTER, SPHERE_RADIUS, NewtonCloth, time_newton  # noqa: E402
+from warp_cloth.newton_compare import (SOLVERS, SPHERE_CENTER, SPHERE_RADIUS, NewtonCloth, grid_strain,  # noqa: E402
+                                       time_newton)
 
 N = 16
 
@@ -84,6 +85,17 @@ def test_time_newton_reports_a_finite_graphed_run(solver):
     assert result["ms_per_frame"] == pytest.approx(1e3 * result["median_seconds"] / 2)
     assert result["particle_substeps_per_second"] == pytest.approx(N * N * 10 * 2 / result["median_seconds"])
     assert "self contact" in result["notes"]
+
+
+def test_time_newton_measures_strain_over_every_frame_as_ours_is():
+    result = time_newton("sphere", N, "semi_implicit", "cpu", frames=3, repeats=2)
+    cloth = NewtonCloth("sphere", N, "semi_implicit", "cpu")
+    per_frame = [grid_strain(run(cloth, 1), N) for _ in range(2 + 2 * 3)]
+    assert result["strain_frames"] == 8
+    assert result["stretch"] == pytest.approx(max(s for s, _ in per_frame), abs=1e-6)
+    assert result["compression"] == pytest.approx(max(c for _, c in per_frame), abs=1e-6)
+    assert result["max_strain"] == max(result["stretch"], result["compression"])
+    assert result["max_strain"] > max(per_frame[-1])  # the swing onto the sphere stretches more than the end
 
 
 def test_unknown_names_are_refused():

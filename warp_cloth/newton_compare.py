@@ -163,13 +163,32 @@ def swung_origin(degrees: float) -> tuple[float, float, float]:
     return 0.0, float(SIZE * (1.0 - np.cos(angle))), float(-SIZE * np.sin(angle))
 
 
-def max_edge_strain(positions: np.ndarray, n: int) -> float:
-    """The largest strain of the grid's structural edges (row and column neighbours) of n x n cloths of
-    this module's size, one after another; particles in row-major grid order, as both engines number them."""
+def grid_strain(positions: np.ndarray, n: int) -> tuple[float, float]:
+    """The worst stretch and compression (a positive fraction) of the structural (row and column) and shear
+    (both diagonals) edges of n x n cloths of this module's size, one after another: the edges ours limits
+    and ``StrainMonitor`` measures; particles in row-major grid order, as both engines number them."""
     grid = positions.reshape(-1, n, n, 3)
-    across = np.linalg.norm(grid[:, :, 1:] - grid[:, :, :-1], axis=3).max()
-    down = np.linalg.norm(grid[:, 1:] - grid[:, :-1], axis=3).max()
-    return float(max(across, down) / (SIZE / (n - 1)) - 1.0)
+    cell = SIZE / (n - 1)
+    edges = ((grid[:, :, 1:], grid[:, :, :-1], cell), (grid[:, 1:], grid[:, :-1], cell),
+             (grid[:, 1:, 1:], grid[:, :-1, :-1], cell * 2**0.5), (grid[:, 1:, :-1], grid[:, :-1, 1:], cell * 2**0.5))
+    strains = [np.linalg.norm(a - b, axis=3) / rest - 1.0 for a, b, rest in edges]
+    return max(0.0, float(max(s.max() for s in strains))), max(0.0, float(-min(s.min() for s in strains)))
+
+
+def strain_over_run(variant: str, n: int, solver: str, device: str, frames: int, substeps: int = 10,
+                    worlds: int = 1) -> tuple[float, float]:
+    """The worst stretch and compression (``grid_strain``) over every frame of a fresh run of ``frames``
+    frames, as ours is measured (inf once a position is not finite)."""
+    cloth = NewtonCloth(variant, n, solver, device, substeps, worlds)
+    stretch = compression = 0.0
+    for _ in range(frames):
+        cloth.frame()
+        x = cloth.positions()
+        if not np.isfinite(x).all():
+            return np.inf, np.inf
+        frame_stretch, frame_compression = grid_strain(x, n)
+        stretch, compression = max(stretch, frame_stretch), max(compression, frame_compression)
+    return stretch, compression
 
 
 def time_newton(variant: str, n: int, solver: str, device: str, frames: int = 24, substeps: int = 10,
@@ -177,7 +196,8 @@ def time_newton(variant: str, n: int, solver: str, device: str, frames: int = 24
     """Median wall time of ``frames`` frames of one scene in one Newton solver (as ``worlds`` copies, its
     worlds), after 2 warm-up frames, replaying one frame captured as a graph where the solver allows it.
     Repeats continue the same run, as bench's warmed cases do. ``build_seconds`` (not timed) is Newton's
-    Python model build."""
+    Python model build. The strain is measured over every frame of a second run as long as the timed one
+    (2 + ``repeats`` x ``frames`` frames from the start): ``strain_over_run``."""
     started = time.perf_counter()
     cloth = NewtonCloth(variant, n, solver, device, substeps, worlds)
     build_seconds = time.perf_counter() - started
@@ -205,10 +225,11 @@ def time_newton(variant: str, n: int, solver: str, device: str, frames: int = 24
         seconds.append(time.perf_counter() - started)
     median = statistics.median(seconds)
     particles = cloth.model.particle_count
+    stretch, compression = strain_over_run(variant, n, solver, device, 2 + repeats * frames, substeps, worlds)
     return {"solver": solver, "variant": variant, "n": n, "worlds": worlds, "particles": particles,
             "device": str(dev),
             "substeps": substeps, "frames": frames, "median_seconds": median, "ms_per_frame": 1e3 * median / frames,
             "particle_substeps_per_second": particles * substeps * frames / median, "graph": graph is not None,
             "self_contact": cloth.self_contact, "finite": cloth.finite(), "build_seconds": build_seconds,
-            "max_strain": max_edge_strain(cloth.positions(), n),
-            "notes": notes}
+            "max_strain": max(stretch, compression), "stretch": stretch, "compression": compression,
+            "strain_frames": 2 + repeats * frames, "notes": notes}
