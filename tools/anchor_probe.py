@@ -101,6 +101,26 @@ class Cloth:
                 return k
         return CAP
 
+    def chebyshev(self, x: np.ndarray, rho: float) -> int:
+        """Passes to within tolerance of Jacobi pairs accelerated as the converged solve does with
+        ``limit_chebyshev_rho = rho`` (restarted where a pair leaves 1.5 times the residual before)."""
+        start, before, omega, k, last = x.copy(), x.copy(), 1.0, 0, np.inf
+        for passes in range(2, CAP + 1, 2):
+            k += 1
+            omega = 1.0 if k == 1 else 2.0 / (2.0 - rho * rho) if k == 2 else 4.0 / (4.0 - rho * rho * omega)
+            paired = self.one_pass(self.one_pass(x))
+            base = start if k == 1 else before
+            x = np.where(self.free[:, None], omega * (paired - base) + base, paired)
+            before, start = start, x.copy()
+            x = self.out_of_sphere(x, self.free)
+            residual = self.residual(x)
+            if residual <= TOLERANCE:
+                return passes
+            if residual > 1.5 * last:
+                k = 0
+            last = residual
+        return CAP
+
 
 def held_within(p: np.ndarray, x: np.ndarray, other: np.ndarray, reach: np.ndarray) -> np.ndarray:
     """Each particle with an other end (>= 0) put back within ``reach`` of where that end was."""
@@ -113,26 +133,40 @@ def held_within(p: np.ndarray, x: np.ndarray, other: np.ndarray, reach: np.ndarr
     return p
 
 
-def converged_sphere_cloth(n: int) -> wc.Simulator:
-    """The speed matrix's sphere cloth at n^2 with the converged limit solve, at most CAP passes."""
+def converged_sphere_cloth(n: int, device: str = "cpu", rho: float = 0.0) -> wc.Simulator:
+    """The speed matrix's sphere cloth at n^2 with the converged limit solve, at most CAP passes, accelerated
+    by Chebyshev at ``rho`` (0: plain Jacobi)."""
     scene = matrix_scene("sphere", n, "symplectic")
     return wc.Simulator(dataclasses.replace(scene, simulation=dataclasses.replace(
-        scene.simulation, limit_solve="converged", limit_max_passes=CAP)), device="cpu")
+        scene.simulation, limit_solve="converged", limit_max_passes=CAP, limit_chebyshev_rho=rho)), device=device)
 
 
-def predictions(sim: wc.Simulator, cloth: Cloth, frames: int = 120, every: int = 5):
-    """Every ``every`` frames of the run: the frame, the real solve's stats over the frames since the last,
-    the positions, and one symplectic substep's prediction from them (x + h (v + h g), pins held)."""
-    gravity = np.array([0.0, -9.81, 0.0])
+def states(sim: wc.Simulator, frames: int = 120, every: int = 5):
+    """Every ``every`` frames of the run: the frame, the real solve's most and mean passes a substep in that
+    frame, the positions and the velocities."""
     for frame in range(1, frames + 1):
         sim.step()
         stats = sim.solver_stats()
-        if frame % every:
-            continue
-        x, v = sim.positions().astype(np.float64), sim.velocities().astype(np.float64)
-        v += sim.dt * gravity
+        if frame % every == 0:
+            yield frame, stats.limit_passes, stats.limit_mean_passes, sim.positions(), sim.velocities()
+
+
+def saved_states(paths: list[str]):
+    """The states tools/sphere_states.py saved, in the order of ``states``."""
+    for path in paths:
+        with np.load(path) as saved:
+            yield from zip(saved["frame"].tolist(), saved["most"].tolist(), saved["mean"].tolist(), saved["x"],
+                           saved["v"])
+
+
+def predictions(sim: wc.Simulator, cloth: Cloth, saved: list[str] | None = None):
+    """From each of the run's states (or those ``saved``): the frame, the real solve's most and mean passes,
+    the positions, and one symplectic substep's prediction from them (x + h (v + h g), pins held)."""
+    gravity = np.array([0.0, -9.81, 0.0])
+    for frame, most, mean, x, v in (saved_states(saved) if saved else states(sim)):
+        x, v = x.astype(np.float64), v.astype(np.float64) + sim.dt * gravity
         v[~cloth.free] = 0.0
-        yield frame, stats, x, x + sim.dt * v
+        yield frame, most, mean, x, x + sim.dt * v
 
 
 def main() -> None:
@@ -140,9 +174,9 @@ def main() -> None:
     sim = converged_sphere_cloth(n)
     cloth = Cloth(sim)
     print("frame  passes of the real solve (mean / most)  copy, as it is  copy, with tethers  tethered particles")
-    for frame, stats, x, predicted in predictions(sim, cloth):
+    for frame, most, mean, x, predicted in predictions(sim, cloth):
         tethers = cloth.tethers(x)
-        print(f"{frame:5d}  {stats.limit_mean_passes:6.1f} / {stats.limit_passes:4d}  {cloth.passes(predicted):14d}  "
+        print(f"{frame:5d}  {mean:6.1f} / {most:4d}  {cloth.passes(predicted):14d}  "
               f"{cloth.passes(predicted, tethers):18d}  {int((tethers[0] >= 0).sum()):18d}", flush=True)
 
 
