@@ -5,8 +5,8 @@
 variant is hanging, sphere or self; engine is ours (the matrix's fixed 2 limit passes), ours_sequential
 (the self rows' collision passes with ``projection = "sequential"``), ours_METHOD for a method of
 tools/strain_solve_probe.py (``ours_chebyshev``: the limit solved, Chebyshev 0.95, at most 400 passes a
-substep; ``ours_chebyshev+long_range``), semi_implicit, xpbd or vbd; substeps (Newton only, default 10)
-sets Newton's step, its springs stiffening with 1/dt^2 as newton_compare sets them, and worlds (Newton
+substep; ``ours_chebyshev+long_range``), semi_implicit, xpbd or vbd; substeps (default 10) sets the step,
+the springs stiffening with 1/dt^2 in both engines (``matrix_scene``, newton_compare), and worlds (Newton
 only, default 1) runs that many copies as Newton's worlds of one model. Each row is 2 warm-up
 frames, then the median of 3 x 48 timed frames (8 for VBD from 1024^2 on), then the strain over every frame
 of a second run of as many frames from the start (2 + 3 x 48), on the structural and shear edges, stretch
@@ -33,8 +33,8 @@ MAX_PASSES = 400
 RHO = 0.95
 
 
-def time_ours(variant: str, n: int, device: str, frames: int, engine: str) -> dict:
-    scene = matrix_scene(variant, n, "symplectic")
+def time_ours(variant: str, n: int, device: str, frames: int, engine: str, substeps: int) -> dict:
+    scene = matrix_scene(variant, n, "symplectic", substeps)
     method = engine.partition("_")[2] or "fixed"
     if method == "sequential":
         scene = dataclasses.replace(scene, collision=dataclasses.replace(scene.collision, projection="sequential"))
@@ -71,7 +71,7 @@ def main(out_path: str, items: list[str]) -> None:
             frames = 8 if engine == "vbd" and n >= 1024 else 48
             started = time.perf_counter()
             try:
-                row = (time_ours(variant, n, device, frames, engine)
+                row = (time_ours(variant, n, device, frames, engine, substeps)
                        if engine.startswith("ours") else
                        time_newton(variant, n, engine, device, frames=frames, substeps=substeps, repeats=REPEATS,
                                    worlds=worlds))

@@ -257,15 +257,16 @@ SPRINGS_ONLY = "springs"  # the hanging cloth without its strain limit: springs 
 MATRIX_FPS, MATRIX_SUBSTEPS = 24, 10
 
 
-def matrix_scene(variant: str, n: int, integrator: str) -> Scene:
+def matrix_scene(variant: str, n: int, integrator: str, substeps: int = MATRIX_SUBSTEPS) -> Scene:
     """The speed matrix's cloth (the same as ``newton_compare`` builds in Newton): n x n particles, 10 m
     square, in the XY plane hanging from its whole top edge at y = 10, z = 0, 2.5 kg in all, 10 substeps a
-    frame; ``sphere`` adds a 2 m sphere at (5, 5, 1.5), ``self`` adds self collision to that. The sphere
-    pokes 0.5 m through the plane the cloth hangs in, so in those two the cloth starts swung back by
-    ``SWING_DEGREES`` about its top edge, clear of the sphere, and swings onto it. Springs are as stiff as
-    the explicit step allows at this resolution (h w = 0.7), 50 times that for the implicit integrator;
-    the 10% strain limit, with long-range attachments to the pinned edge, holds the shape either way."""
-    h = 1.0 / (MATRIX_FPS * MATRIX_SUBSTEPS)
+    frame (or ``substeps``); ``sphere`` adds a 2 m sphere at (5, 5, 1.5), ``self`` adds self collision to
+    that. The sphere pokes 0.5 m through the plane the cloth hangs in, so in those two the cloth starts
+    swung back by ``SWING_DEGREES`` about its top edge, clear of the sphere, and swings onto it. Springs are
+    as stiff as the explicit step allows at this resolution and step (h w = 0.7: stiffer as 1/h^2 with more
+    substeps, as Newton's are), 50 times that for the implicit integrator; the 10% strain limit, with
+    long-range attachments to the pinned edge, holds the shape either way."""
+    h = 1.0 / (MATRIX_FPS * substeps)
     mass = 2.5 / (n * n)
     cell = 10.0 / (n - 1)
     stiffness = 0.5 * mass * cell / (8.0 * h * h) * (50.0 if integrator == "implicit" else 1.0)
@@ -281,7 +282,7 @@ def matrix_scene(variant: str, n: int, integrator: str) -> Scene:
     spheres = (Sphere(name="ball", center=SPHERE_CENTER, radius=SPHERE_RADIUS),) if with_sphere else ()
     return Scene(name=f"{variant}_{n}x{n}", cloths=(cloth,), spheres=spheres,
                  collision=Collision(iterations=2) if variant == "self" else None,
-                 simulation=fixed_solve(fps=MATRIX_FPS, frames=48, substeps=MATRIX_SUBSTEPS, integrator=integrator,
+                 simulation=fixed_solve(fps=MATRIX_FPS, frames=48, substeps=substeps, integrator=integrator,
                                        limit_iterations=2))
 
 
