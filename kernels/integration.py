@@ -9,15 +9,23 @@ import warp as wp
 
 
 @wp.func
-def explicit_step(x: wp.vec3, v: wp.vec3, w: float, f: wp.vec3, acceleration: wp.vec3, h: float,
-                  semi_implicit: int):
-    """Position and velocity after one step of a particle of inverse mass w under the internal force f and
-    the external ``acceleration``: v' = v + h (acceleration + w f); x' = x + h v (forward Euler, the
-    seed's) or x' = x + h v' (``semi_implicit`` = 1, symplectic Euler)."""
+def explicit_move(v: wp.vec3, w: float, f: wp.vec3, acceleration: wp.vec3, h: float, semi_implicit: int):
+    """The move and the velocity after one step of a particle of inverse mass w under the internal force f
+    and the external ``acceleration``: v' = v + h (acceleration + w f); the move h v (forward Euler, the
+    seed's) or h v' (``semi_implicit`` = 1, symplectic Euler)."""
     if w == 0.0:
-        return x, v
+        return wp.vec3(0.0), v
     v_new = v + h * (acceleration + w * f)
     if semi_implicit != 0:
-        return x + h * v_new, v_new
-    return x + h * v, v_new
+        return h * v_new, v_new
+    return h * v, v_new
 
+
+@wp.func
+def compensated_sum(x: wp.vec3, dx: wp.vec3, carried: wp.vec3):
+    """x + dx by Kahan's compensated summation: ``carried`` is what the sum before rounded away (0 at the
+    start); returns the sum and what this one rounded away. A float32 position far from the origin loses
+    most of a small move to rounding, and over thousands of substeps that loss adds up."""
+    y = dx - carried
+    t = x + y
+    return t, (t - x) - y

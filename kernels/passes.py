@@ -14,7 +14,7 @@ import warp as wp
 from .colliders import RigidColliders, collide_and_mark, collide_particle
 from .forces import ExternalForces, external_acceleration, external_damping
 from .gathering import BLOCK, FAST_MATH, gathering_kernel, sum_over_threads, thread_layout
-from .integration import explicit_step
+from .integration import compensated_sum, explicit_move
 from .limits import StrainLimits, hold_to_pin, limit_correction, limit_corrections, limit_violation, mean_of
 from .particle_collision import (Contacts, ListState, PairRules, add_candidate, begin_contact, deepest_overlap,
                                  end_remake, is_candidate, mean_push, pushes, sort_and_drop_repeats, velocity_changes)
@@ -45,6 +45,8 @@ class ExplicitStepArgs:
     inv_mass: wp.array(dtype=float)
     h: float
     semi_implicit: int  # 1: symplectic Euler
+    compensated: int  # 1: positions summed with compensation (``rounded_away``, one per particle)
+    rounded_away: wp.array(dtype=wp.vec3)
 
 
 @wp.struct
@@ -77,8 +79,13 @@ def gather_spring_forces(step: ExplicitStepArgs, i: int, first: int, stride: int
 def stepped(step: ExplicitStepArgs, i: int, f: wp.vec3, x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3)):
     xi = x[i]
     vi = v[i]
-    return explicit_step(xi, vi, step.inv_mass[i], f, external_acceleration(step.forces, i, xi, vi), step.h,
-                         step.semi_implicit)
+    move, v_new = explicit_move(vi, step.inv_mass[i], f, external_acceleration(step.forces, i, xi, vi), step.h,
+                                step.semi_implicit)
+    if step.compensated == 0:
+        return xi + move, v_new
+    p, rounded = compensated_sum(xi, move, step.rounded_away[i])
+    step.rounded_away[i] = rounded
+    return p, v_new
 
 
 @wp.func

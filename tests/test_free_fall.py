@@ -36,3 +36,21 @@ def test_free_fall_matches_exact_discrete_and_analytic_solutions(integrator, sig
     np.testing.assert_allclose(x, discrete, rtol=0, atol=2e-4)
     np.testing.assert_allclose(x - analytic, np.broadcast_to(sign * g * h * t / 2, x.shape), rtol=0, atol=2e-4)
     np.testing.assert_allclose(sim.velocities(), np.broadcast_to(v0 + g * t, x.shape), rtol=0, atol=1e-4)
+
+
+def test_compensated_summation_keeps_a_cloth_far_from_the_origin_on_its_exact_path():
+    # 9600 symplectic substeps 1.7 km from the origin, where a float32 position's last bit is 61 um: each
+    # step's move loses its low bits, and the loss adds up; summed with compensation it does not.
+    errors = {}
+    for compensated in (False, True):
+        cloth = wc.Cloth(resolution=(4, 3), size=(2.0, 1.5), origin=(1000.0, 1000.0, -1000.0),
+                         velocity=(1.0, 4.0, -0.5), structural=OFF, shear=OFF, bend=OFF)
+        sim = wc.Simulator(wc.Scene(name="far", cloths=(cloth,), simulation=wc.Simulation(
+            fps=24, frames=24, substeps=400, integrator="symplectic", compensated=compensated)), device="cpu")
+        x0 = sim.positions().astype(np.float64)
+        sim.run(24)
+        n, h = sim.substep_count, sim.dt
+        exact = x0 + np.array([1.0, 4.0, -0.5]) * n * h + np.array([0.0, -9.81, 0.0]) * h * h * n * (n + 1) / 2
+        errors[compensated] = float(np.abs(sim.positions() - exact).max())
+    assert errors[True] < 1e-4  # the velocity's own rounding (as at the origin), not the position's
+    assert errors[False] > 1e-2  # measured 0.17 m

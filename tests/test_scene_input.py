@@ -79,6 +79,8 @@ BAD = [
     (VALID.replace('substeps = 2', 'integrator = "rk4"'), "simulation.integrator", "one of 'explicit'"),
     (VALID + "\n[[sphere]]\nradius = 0\n", "sphere[0].radius", "> 0"),
     (VALID.replace("frames = 2", "frames = 2.5"), "simulation.frames", "a whole number"),
+    (VALID.replace("substeps = 2", 'integrator = "implicit"\ncompensated = true'), "simulation.compensated",
+     "false with the implicit integrator"),
     (VALID.replace("[simulation]", "[simulation\n"), "", "valid TOML"),
 ]
 

@@ -684,7 +684,12 @@ class Simulation:
     says how many it took); ``limit_chebyshev_rho`` > 0 accelerates each pair of passes by Chebyshev's
     semi-iterative method with that spectral radius; ``limit_multilevel`` begins each pair with passes
     over coarser and coarser levels of the limits, coarsest first, each finer level following its coarse
-    neighbours' moves (warp_cloth/hierarchy.py, docs/strain-solve.md)."""
+    neighbours' moves (warp_cloth/hierarchy.py, docs/strain-solve.md).
+
+    ``compensated`` adds each explicit or symplectic step's move to the positions by Kahan's compensated
+    summation: positions are float32, so far from the origin a small step's move loses its low bits, and
+    over thousands of substeps that loss outgrows the step's own error (the study's references use it;
+    one more vector read and written a particle a substep)."""
 
     fps: float = 24.0
     frames: int = 240
@@ -700,6 +705,7 @@ class Simulation:
     limit_chebyshev_rho: float = 0.0
     limit_multilevel: bool = False
     max_speed: float = 1000.0
+    compensated: bool = False
 
     def __post_init__(self) -> None:
         check_fields(self)
@@ -726,6 +732,9 @@ class Simulation:
         _whole_in(self.limit_max_passes, 2, MAX_ITERATIONS, "limit_max_passes")
         _require(0.0 <= self.limit_chebyshev_rho < 1.0, "limit_chebyshev_rho",
                  "0 (no acceleration) or a spectral radius in (0, 1)", self.limit_chebyshev_rho)
+        _require(not self.compensated or self.integrator != "implicit", "compensated",
+                 "false with the implicit integrator (it sums the explicit and symplectic steps' moves)",
+                 self.compensated)
         _require(not self.limit_multilevel or self.limit_solve == "converged", "limit_multilevel",
                  'false, or true with limit_solve = "converged"', self.limit_multilevel)
         _require(not (self.limit_multilevel and self.limit_chebyshev_rho), "limit_chebyshev_rho",

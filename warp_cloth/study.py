@@ -11,9 +11,12 @@ went unstable. Writes
 The reference is the same scene and resolution run with symplectic Euler at a step much smaller than the
 study's, checked against the same run at half that step; a run's error is resolved when it is at least 10
 times the difference between the two, and the reference is converged when every stable run's error is
-resolved. Positions are float32, so refining further is not always better: past some step the rounding
-error of many small steps outgrows the truncation error (on the seed's hanging cloth, below about 0.15 ms
-the difference between a step and its half grows as the step shrinks). So the study chooses the reference
+resolved. Positions are float32, so the reference adds each step's move with compensation
+(``Simulation.compensated``): without it, the thousands of small moves of a cloth far from the origin lose
+their low bits (seed_default's, 66 m up, stopped converging below 0.65 ms). Refining further is still not
+always better: past some step the rounding of the velocities and of the limit's passes outgrows the
+truncation error (on the seed's hanging cloth, below about 0.15 ms the difference between a step and its
+half grew as the step shrank, before compensation). So the study chooses the reference
 step: it divides the smallest study step by 2, 4, 8, ... 32 while the difference between each step and
 the next keeps shrinking, and takes the step of the smallest difference (``--reference-refinement N``
 fixes the step at the smallest study step / N instead). Where a scene's motion amplifies small
@@ -346,7 +349,9 @@ def _plan(scene: Scene, integrators: Sequence[str], dts: Sequence[float], resolu
 def _reference_run(scene: Scene, device: str, frames: int, substeps: int, tick: Callable[[int], None],
                    compared_with: Trajectory | None = None) -> Trajectory:
     """A candidate reference (kept frame by frame), compared with the one at twice its step where given."""
-    run = simulate(with_step(scene, REFERENCE_INTEGRATOR, frames, substeps=substeps), device, frames,
+    stepped = with_step(scene, REFERENCE_INTEGRATOR, frames, substeps=substeps)
+    compensated = dataclasses.replace(stepped, simulation=dataclasses.replace(stepped.simulation, compensated=True))
+    run = simulate(compensated, device, frames,
                    None if compared_with is None else compared_with.positions, keep_positions=True, tick=tick)
     if run.unstable_frame is not None:
         raise SceneError("reference", f"a scene that stays stable with {REFERENCE_INTEGRATOR} Euler at dt "
@@ -480,7 +485,8 @@ def study_json(study: Study) -> dict:
             "reference": {"integrator": REFERENCE_INTEGRATOR, "refinements": study.reference_refinements,
                           "rule": "same scene and resolution, smallest study step / refinement (for each "
                                   "resolution, of 2, 4, ..., 32 the one whose difference from half its step is the "
-                                  "smallest, unless given); checked against half its step",
+                                  "smallest, unless given), positions summed with compensation; checked against "
+                                  "half its step",
                           "converged": study.converged,
                           "checks": [dataclasses.asdict(r) for r in study.references]},
             "orders": study.orders, "runs": [dataclasses.asdict(r) for r in study.runs]}
