@@ -4,6 +4,7 @@ code 2, no traceback and nothing written."""
 import dataclasses
 import math
 import os
+import tomllib
 import typing
 
 import pytest
@@ -289,7 +290,7 @@ TOO_MUCH_WORK = [
     (("[simulation]", "[implicit]\ncg_max_iterations = 1000000\n[simulation]"), "implicit.cg_max_iterations",
      "in [1, 100000]"),
     # Each within its own bound, together past what a frame may take (checked at start-up).
-    (("substeps = 2", 'substeps = 10000\nlimit_iterations = 1000'), "simulation.substeps",
+    (("substeps = 2", 'substeps = 10000\nlimit_solve = "fixed"\nlimit_iterations = 1000'), "simulation.substeps",
      "at most 50,000 passes a frame"),
     (("substeps = 2", 'substeps = 100\nlimit_solve = "fixed"\nlimit_iterations = 999'),
      "simulation.limit_iterations", "at most 50,000 passes a frame"),
@@ -305,6 +306,16 @@ def test_absurd_amounts_of_work_are_refused_before_running(tmp_path, change, key
     limited = VALID.replace("size = [1.0, 1.0]", "size = [1.0, 1.0]\nlimit = {}")
     message = refused_in_one_line(tmp_path, limited.replace(*change))
     assert message.startswith(f"{key}: expected ") and expected in message
+
+
+def test_an_unset_limit_cap_is_chosen_within_the_frame_bound():
+    # 1000 substeps a frame: the default 200 passes a substep would be 201,000 passes a frame; unset, the cap
+    # becomes what fits (49), where a cap the scene sets is refused (above).
+    limited = VALID.replace("size = [1.0, 1.0]", "size = [1.0, 1.0]\nlimit = {}")
+    for substeps, cap in ((1000, 49), (2, 200)):
+        scene = wc.scene_from_dict(tomllib.loads(limited.replace("substeps = 2", f"substeps = {substeps}")))
+        assert scene.simulation.limit_max_passes is None
+        assert wc.Simulator(scene, device="cpu").scene.simulation.limit_max_passes == cap
 
 
 def test_work_bounds_leave_every_built_in_scene_and_benchmark_valid():

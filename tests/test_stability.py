@@ -2,9 +2,12 @@
 
 Each hard case (tests/hard_cases.py) asserts numbers after every frame: finite, speed and kinetic energy
 bounded, strain within the stated bound, no collider penetration, particles kept apart, no crossing
-triangles. Bounds are what this CPU measured plus about 25%. The strain bounds of the violent cases are
-well above the 10% limit: Jacobi projection moves a correction one cell per pass, so a cloth shaken or
-struck hard stays stretched (or bunched) for a while; that is stated, not hidden.
+triangles. Bounds are what this CPU measured plus about 25% (the strain bounds, where the limit is
+solved, plus about 40%: a solve that stops at its cap leaves more). fast_sphere runs the fixed passes (see
+hard_cases.fast_sphere), whose strain bound is well above the 10% limit: Jacobi projection moves a
+correction one cell per pass, so a cloth struck hard stays stretched for a while; that is stated, not
+hidden. (Measured before the limit was solved by default, with the fixed passes: fast_pins 18.7 m/s and
+37% strain, twisted 11.5 m/s and 17%.)
 """
 
 import math
@@ -28,9 +31,9 @@ OFF = wc.SpringKind(enabled=False)
 # case: (max speed m/s, max strain after the first 12 frames, min closest contact); measured values beside
 BOUNDS = {
     "stiff_implicit": (15.0, 0.105, None),    # measured 11.1 m/s (free fall from 11 m: 14.7), strain 0.009
-    "fast_sphere": (40.0, 0.30, 0.9),         # measured 26.2 m/s (the sphere: 20), strain 0.24, contact 0.999
-    "fast_pins": (25.0, 0.45, 0.9),           # measured 18.7 m/s (the pins: 3.8, the hem whips), strain 0.37
-    "twisted": (22.0, 0.25, 0.9),             # measured 11.5 m/s (H200: 17.4), strain 0.17 (0.19), contact 0.95
+    "fast_sphere": (40.0, 0.30, 0.9),         # fixed passes: measured 23.4 m/s (the sphere: 20), strain 0.24
+    "fast_pins": (25.0, 0.15, 0.9),           # measured 18.3 m/s (the pins: 3.8, the hem whips), strain 0.114
+    "twisted": (22.0, 0.15, 0.9),             # measured 15.3 m/s, strain 0.105, contact 0.998
     "heavy_and_light": (10.0, 0.105, 0.9),    # measured 4.1 m/s, strain 0.100, contact 1.000
 }
 CASES = {name: getattr(hard_cases, name) for name in BOUNDS}
@@ -76,6 +79,22 @@ def test_hard_case_stays_stable(name):
 @pytest.mark.parametrize("name", sorted(CASES))
 def test_hard_case_stays_stable_on_cuda(name):
     check_hard_case(CASES[name](), "cuda")
+
+
+def test_fast_sphere_with_the_limit_solved_stays_finite_and_reports_the_solves_it_could_not_finish():
+    # The limit and the sphere cannot both hold here (see hard_cases.fast_sphere): the solve must neither
+    # blow up nor hide that it stopped at its cap.
+    scene = with_simulation(hard_cases.fast_sphere(), limit_solve="converged")
+    sim = wc.Simulator(scene, device="cpu")
+    deepest = np.inf
+    for _ in range(scene.simulation.frames):
+        sim.step()
+        assert np.isfinite(sim.positions()).all() and np.isfinite(sim.velocities()).all()
+        center = sim.sphere_centers()[0]
+        deepest = min(deepest, float(np.linalg.norm(sim.positions() - center, axis=1).min()) / 0.5)
+    stats = sim.solver_stats(since_start=True)
+    assert deepest >= 1.0 - 1e-5
+    assert stats.limit_passes == sim.scene.simulation.limit_max_passes and stats.limit_residual > 1.0
 
 
 def test_pile_of_six_cloths_is_a_hard_case_too():

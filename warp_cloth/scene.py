@@ -676,15 +676,17 @@ class Simulation:
     a particle's state is not finite or faster than ``max_speed`` (m/s).
 
     The strain limits (with particle collision, together with the contacts; with the rigid colliders in
-    every pass) are projected in Jacobi passes: ``limit_solve = "fixed"`` runs ``limit_iterations`` of them
-    a substep, however far that leaves the cloth from its limits (the run's summary says how far);
-    ``"converged"`` runs them in pairs until no limited spring is more than ``limit_tolerance`` of its
+    every pass) are projected in Jacobi passes: ``limit_solve = "converged"`` (the default) runs them in
+    pairs until no limited spring is more than ``limit_tolerance`` of its
     allowed length outside it (and no pair of particles more than ``collision.tolerance`` of their
     contact distance inside it), at most ``limit_max_passes`` a substep (``Simulator.solver_stats()``
-    says how many it took); ``limit_chebyshev_rho`` > 0 accelerates each pair of passes by Chebyshev's
+    says how many it took; unset: 200, or as many as keep a frame within the simulator's bound on a frame's
+    passes at its substeps); ``limit_chebyshev_rho`` > 0 accelerates each pair of passes by Chebyshev's
     semi-iterative method with that spectral radius; ``limit_multilevel`` begins each pair with passes
     over coarser and coarser levels of the limits, coarsest first, each finer level following its coarse
-    neighbours' moves (warp_cloth/hierarchy.py, docs/strain-solve.md).
+    neighbours' moves (warp_cloth/hierarchy.py, docs/strain-solve.md). ``"fixed"``, a fast mode to be
+    chosen explicitly, runs ``limit_iterations`` passes a substep, however far that leaves the cloth from its
+    limits (the run's summary says how far).
 
     ``compensated`` adds each explicit or symplectic step's move to the positions by Kahan's compensated
     summation: positions are float32, so far from the origin a small step's move loses its low bits, and
@@ -699,9 +701,9 @@ class Simulation:
     gravity: Vec3 = (0.0, -9.81, 0.0)
     drag: float = 0.0
     limit_iterations: int = 4
-    limit_solve: Literal["fixed", "converged"] = "fixed"
+    limit_solve: Literal["fixed", "converged"] = "converged"
     limit_tolerance: float = 0.005
-    limit_max_passes: int = 200
+    limit_max_passes: int | None = None
     limit_chebyshev_rho: float = 0.0
     limit_multilevel: bool = False
     max_speed: float = 1000.0
@@ -729,7 +731,8 @@ class Simulation:
         _whole_in(self.limit_iterations, 1, MAX_ITERATIONS, "limit_iterations")
         _require(0.0 < self.limit_tolerance <= 0.1, "limit_tolerance", "a fraction of an allowed length in (0, 0.1]",
                  self.limit_tolerance)
-        _whole_in(self.limit_max_passes, 2, MAX_ITERATIONS, "limit_max_passes")
+        if self.limit_max_passes is not None:
+            _whole_in(self.limit_max_passes, 2, MAX_ITERATIONS, "limit_max_passes")
         _require(0.0 <= self.limit_chebyshev_rho < 1.0, "limit_chebyshev_rho",
                  "0 (no acceleration) or a spectral radius in (0, 1)", self.limit_chebyshev_rho)
         _require(not self.compensated or self.integrator != "implicit", "compensated",

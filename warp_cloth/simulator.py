@@ -51,6 +51,7 @@ DEVICE_BYTES_PER_SAMPLED_VERTEX = 12
 # seem hung: at the bound a 2x2 cloth's frame takes seconds on this project's CPU. The study's finest
 # references (10000 substeps a frame of 4 limit passes) fit.
 MAX_PASSES_PER_FRAME = 50_000
+DEFAULT_LIMIT_MAX_PASSES = 200  # a converged limit solve's passes a substep at most, where the scene sets none
 
 
 class FrameWriter(Protocol):
@@ -134,10 +135,20 @@ def check_memory(scene: Scene, device: wp.context.Device) -> None:
                                   f"{free / 2**30:.1f} GiB is free", has_got=False)
 
 
+def with_passes_cap(scene: Scene, substeps: int) -> Scene:
+    """The scene with its converged limit solve's cap chosen where it sets none: ``DEFAULT_LIMIT_MAX_PASSES``
+    a substep, or fewer where that many would take a frame past ``MAX_PASSES_PER_FRAME`` (at least 2)."""
+    simulation = scene.simulation
+    if simulation.limit_max_passes is not None:
+        return scene
+    cap = max(2, min(DEFAULT_LIMIT_MAX_PASSES, MAX_PASSES_PER_FRAME // substeps - 1))
+    return dataclasses.replace(scene, simulation=dataclasses.replace(simulation, limit_max_passes=cap))
+
+
 def check_work(scene: Scene, substeps: int) -> None:
     """Refuse a frame that would take too long to end: substeps x passes a substep (the strain limit's or
     the collision's iterations, whichever is more; the implicit solve's Newton x CG iterations at most)."""
-    sim = scene.simulation
+    sim = with_passes_cap(scene, substeps).simulation
     factors = {"simulation.dt" if sim.dt is not None else "simulation.substeps": substeps}
     limited = any(c.limit for c in scene.cloths)
     converged = sim.limit_solve == "converged" and (limited or scene.collision is not None)
@@ -212,6 +223,7 @@ class Simulator:
         self.model: Model = build_model(scene, worlds)
         # The step, chosen here where the scene sets none: from now on the scene is the one with that step.
         self.scene, self.step_choice = resolve_step(scene, self.model)
+        self.scene = with_passes_cap(self.scene, self.step_choice.substeps)
         check_work(self.scene, self.step_choice.substeps)
         if self.step_choice.beyond_bound:
             warnings.warn(UnstableStepWarning(beyond_bound_message(self.step_choice, scene.simulation)), stacklevel=2)

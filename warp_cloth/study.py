@@ -165,14 +165,15 @@ def _cloth_at(cloth: Cloth, resolution: int) -> Cloth:
 
 def with_step(scene: Scene, integrator: str, frames: int, dt: float | None = None,
               substeps: int | None = None) -> Scene:
-    """The scene at a step; a converged limit solve's cap lowered where the step's substeps times it would
-    pass the bound on a frame's passes (``check_work``, which counts the cap): the fine steps of a
-    reference take a few passes a substep, far below any cap."""
+    """The scene at a step; a converged limit solve's cap, where the scene sets one, lowered where the step's
+    substeps times it would pass the bound on a frame's passes (``check_work``, which counts the cap; an
+    unset cap the simulator chooses within it): the fine steps of a reference take a few passes a
+    substep, far below any cap."""
     simulation = dataclasses.replace(scene.simulation, integrator=integrator, frames=frames, dt=dt,
                                      substeps=substeps)
     if simulation.limit_solve == "converged" and simulation.substeps_per_frame is not None:
         fitting = MAX_PASSES_PER_FRAME // simulation.substeps_per_frame - 1
-        if 2 <= fitting < simulation.limit_max_passes:
+        if simulation.limit_max_passes is not None and 2 <= fitting < simulation.limit_max_passes:
             simulation = dataclasses.replace(simulation, limit_max_passes=fitting)
     return dataclasses.replace(scene, simulation=simulation)
 
