@@ -341,6 +341,17 @@ def test_restore_refuses_a_checkpoint_of_another_scene(tmp_path):
         other.restore(tmp_path / "state.npz")
 
 
+def test_a_scene_read_again_matches_its_checkpoint_where_the_simulator_chose_its_step_and_cap():
+    from warp_cloth.checkpoint import scene_fingerprint
+
+    # no step and no limit cap set: the simulator chooses both, and its scene holds them
+    scene = with_simulation(wc.load_scene("hanging"), dt=None, substeps=None, limit_max_passes=None)
+    sim = wc.Simulator(scene, device="cpu")
+    assert sim.scene != scene and sim.scene.simulation.limit_max_passes is not None
+    assert scene_fingerprint(scene) == scene_fingerprint(sim.scene)
+    assert scene_fingerprint(with_simulation(scene, limit_max_passes=50)) != scene_fingerprint(sim.scene)
+
+
 def test_a_killed_run_resumes_to_the_frames_of_an_uninterrupted_run(tmp_path):
     scene = scene_file(tmp_path)
     frames = "1200"

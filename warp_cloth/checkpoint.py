@@ -25,9 +25,15 @@ FORMAT = 2  # 2: the state's arrays by name (1 named them by the stage that held
 def scene_fingerprint(scene) -> str:
     """A hash of everything that decides the frames: the scene without its frame count and output
     settings (a resumed run may ask for more frames), the step it runs at, the meshes that mesh cloths
-    were read from (their content, not only their paths) and this package's version."""
+    were read from (their content, not only their paths) and this package's version. The scene is taken
+    as a simulator runs it, with what it leaves to the simulator chosen (the step, the limit solve's cap),
+    so that a scene file read again and the simulator's scene give the same hash."""
     from . import __version__
+    from .simulator import with_passes_cap
+    from .stability import scene_with_step
 
+    scene = scene_with_step(scene)
+    scene = with_passes_cap(scene, scene.simulation.substeps_per_frame)
     fields = dataclasses.asdict(scene)
     del fields["simulation"]["frames"]
     for key in ("dir", "usd", "poly"):
