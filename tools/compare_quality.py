@@ -70,24 +70,29 @@ def held(row: dict, target: float) -> bool:
     return "error" not in row and row["max_strain"] <= target
 
 
+def cloth_of(row: dict) -> tuple[str, int, int]:
+    return row["variant"], row["n"], row.get("worlds", 1)
+
+
 def equal_quality(rows: list[dict], target: float) -> list[str]:
-    """Each variant's cheapest row of each engine that holds ``target``, and ours' speed over each."""
+    """Each cloth's cheapest row of each engine that holds ``target``, and ours' speed over each."""
     lines = []
-    for key in dict.fromkeys((r["variant"], r["n"], r.get("worlds", 1)) for r in rows):
+    for cloth in dict.fromkeys(map(cloth_of, rows)):
+        mine = [r for r in rows if cloth_of(r) == cloth]
         best = {}
-        for r in rows:
-            if (r["variant"], r["n"], r.get("worlds", 1)) == key and held(r, target):
-                if r["solver"] not in best or r["ms_per_frame"] < best[r["solver"]]["ms_per_frame"]:
-                    best[r["solver"]] = r
+        for r in filter(lambda r: held(r, target), mine):
+            if r["solver"] not in best or r["ms_per_frame"] < best[r["solver"]]["ms_per_frame"]:
+                best[r["solver"]] = r
         ours = min((r for e, r in best.items() if e.startswith("ours")), key=lambda r: r["ms_per_frame"], default=None)
-        for engine in dict.fromkeys(r["solver"] for r in rows if (r["variant"], r["n"], r.get("worlds", 1)) == key):
+        name = f"{cloth[0]} {cloth[1]}^2 x{cloth[2]}"
+        for engine in dict.fromkeys(r["solver"] for r in mine):
             r = best.get(engine)
             if r is None:
-                lines.append(f"{key[0]} {key[1]}^2 x{key[2]}: {engine} does not hold {target:.1%} at the substeps tried")
+                lines.append(f"{name}: {engine} does not hold {target:.1%} at the substeps tried")
                 continue
             ratio = f", ours {r['ms_per_frame'] / ours['ms_per_frame']:.1f}x its speed" \
                 if ours is not None and not engine.startswith("ours") else ""
-            lines.append(f"{key[0]} {key[1]}^2 x{key[2]}: {engine} holds {target:.1%} at {r['substeps']} substeps, "
+            lines.append(f"{name}: {engine} holds {target:.1%} at {r['substeps']} substeps, "
                          f"{r['ms_per_frame']:.3f} ms a frame, +{r['stretch']:.1%} / -{r['compression']:.1%}{ratio}")
     return lines
 
