@@ -29,11 +29,9 @@ def scene_fingerprint(scene) -> str:
     as a simulator runs it, with what it leaves to the simulator chosen (the step, the limit solve's cap),
     so that a scene file read again and the simulator's scene give the same hash."""
     from . import __version__
-    from .simulator import with_passes_cap
     from .stability import scene_with_step
 
     scene = scene_with_step(scene)
-    scene = with_passes_cap(scene, scene.simulation.substeps_per_frame)
     fields = dataclasses.asdict(scene)
     del fields["simulation"]["frames"]
     for key in ("dir", "usd", "poly"):

@@ -225,11 +225,12 @@ def time_newton(variant: str, n: int, solver: str, device: str, frames: int = 24
         seconds.append(time.perf_counter() - started)
     median = statistics.median(seconds)
     particles = cloth.model.particle_count
-    stretch, compression = strain_over_run(variant, n, solver, device, 2 + repeats * frames, substeps, worlds)
+    strain_frames = 2 + repeats * frames  # the warm-up and timed frames, from the start
+    stretch, compression = strain_over_run(variant, n, solver, device, strain_frames, substeps, worlds)
     return {"solver": solver, "variant": variant, "n": n, "worlds": worlds, "particles": particles,
             "device": str(dev),
             "substeps": substeps, "frames": frames, "median_seconds": median, "ms_per_frame": 1e3 * median / frames,
             "particle_substeps_per_second": particles * substeps * frames / median, "graph": graph is not None,
             "self_contact": cloth.self_contact, "finite": cloth.finite(), "build_seconds": build_seconds,
             "max_strain": max(stretch, compression), "stretch": stretch, "compression": compression,
-            "strain_frames": 2 + repeats * frames, "notes": notes}
+            "strain_frames": strain_frames, "notes": notes}

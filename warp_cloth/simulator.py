@@ -28,7 +28,7 @@ from .implicit import SolveStats
 from .pin_reach import check_pins_within_reach
 from .plan import Plan, build_plan
 from .scene import Scene
-from .stability import UnstableStepWarning, beyond_bound_message, resolve_step
+from .stability import MAX_PASSES_PER_FRAME, UnstableStepWarning, beyond_bound_message, resolve_step
 from .state import DeviceState
 from .warp_init import init_warp
 
@@ -45,13 +45,6 @@ COLLIDER_BYTES_PER_VERTEX = 24
 HOST_BYTES_PER_SAMPLED_VERTEX = 36
 DEVICE_BYTES_PER_SAMPLED_VERTEX = 12
 
-# Passes over the particles in one frame (substeps x the passes of a substep). Ctrl-C stops a run only
-# between frames, and a captured frame holds every launch (about 0.4 kB and 50 us of capture each on the
-# CPU; a pass of a tiny cloth runs in about 80 us), so a frame past this is refused rather than left to
-# seem hung: at the bound a 2x2 cloth's frame takes seconds on this project's CPU. The study's finest
-# references (10000 substeps a frame of 4 limit passes) fit.
-MAX_PASSES_PER_FRAME = 50_000
-DEFAULT_LIMIT_MAX_PASSES = 200  # a converged limit solve's passes a substep at most, where the scene sets none
 
 
 class FrameWriter(Protocol):
@@ -135,20 +128,11 @@ def check_memory(scene: Scene, device: wp.context.Device) -> None:
                                   f"{free / 2**30:.1f} GiB is free", has_got=False)
 
 
-def with_passes_cap(scene: Scene, substeps: int) -> Scene:
-    """The scene with its converged limit solve's cap chosen where it sets none: ``DEFAULT_LIMIT_MAX_PASSES``
-    a substep, or fewer where that many would take a frame past ``MAX_PASSES_PER_FRAME`` (at least 2)."""
-    simulation = scene.simulation
-    if simulation.limit_max_passes is not None:
-        return scene
-    cap = max(2, min(DEFAULT_LIMIT_MAX_PASSES, MAX_PASSES_PER_FRAME // substeps - 1))
-    return dataclasses.replace(scene, simulation=dataclasses.replace(simulation, limit_max_passes=cap))
-
-
 def check_work(scene: Scene, substeps: int) -> None:
     """Refuse a frame that would take too long to end: substeps x passes a substep (the strain limit's or
-    the collision's iterations, whichever is more; the implicit solve's Newton x CG iterations at most)."""
-    sim = with_passes_cap(scene, substeps).simulation
+    the collision's iterations, whichever is more; the implicit solve's Newton x CG iterations at most), of a
+    scene as ``resolve_step`` leaves it."""
+    sim = scene.simulation
     factors = {"simulation.dt" if sim.dt is not None else "simulation.substeps": substeps}
     limited = any(c.limit for c in scene.cloths)
     converged = sim.limit_solve == "converged" and (limited or scene.collision is not None)
@@ -221,9 +205,9 @@ class Simulator:
                              f"got {threads_per_particle!r}")
         check_memory(scene, self.device)
         self.model: Model = build_model(scene, worlds)
-        # The step, chosen here where the scene sets none: from now on the scene is the one with that step.
+        # The step (and the limit solve's cap), chosen here where the scene sets none: from now on the scene
+        # is the one with them.
         self.scene, self.step_choice = resolve_step(scene, self.model)
-        self.scene = with_passes_cap(self.scene, self.step_choice.substeps)
         check_work(self.scene, self.step_choice.substeps)
         if self.step_choice.beyond_bound:
             warnings.warn(UnstableStepWarning(beyond_bound_message(self.step_choice, scene.simulation)), stacklevel=2)

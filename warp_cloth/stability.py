@@ -41,6 +41,14 @@ from .model import (FLAG_DAMPING_COMPRESSION, FLAG_DAMPING_TENSION, FLAG_ELASTIC
                     FLAG_ELASTIC_TENSION, Model, build_model)
 from .scene import Scene, Simulation
 
+# Passes over the particles in one frame (substeps x the passes of a substep). Ctrl-C stops a run only
+# between frames, and a captured frame holds every launch (about 0.4 kB and 50 us of capture each on the
+# CPU; a pass of a tiny cloth runs in about 80 us), so a frame past this is refused rather than left to
+# seem hung: at the bound a 2x2 cloth's frame takes seconds on this project's CPU. The study's finest
+# references (10000 substeps a frame of 4 limit passes) fit.
+MAX_PASSES_PER_FRAME = 50_000
+DEFAULT_LIMIT_MAX_PASSES = 200  # a converged limit solve's passes a substep at most, where the scene sets none
+
 SAFETY = 0.8  # the automatic step is this fraction of the bound: the bound is of the linearised cloth
 # ... and this where a spring has no damping: switching springs (tension only, limits, contacts) pump energy
 # into an undamped cloth at 0.8 (an undamped cloth on the ground: 22 m/s at 0.8, 7 m/s at 0.4 and at 0.2)
@@ -211,18 +219,35 @@ def choose_step(model: Model, sim: Simulation) -> StepChoice:
     return StepChoice(substeps, 1.0 / (sim.fps * substeps), True, bound)
 
 
+def passes_that_fit(substeps: int) -> int:
+    """Passes a substep that keep a frame of ``substeps`` within ``MAX_PASSES_PER_FRAME`` (a step included)."""
+    return MAX_PASSES_PER_FRAME // substeps - 1
+
+
+def with_passes_cap(scene: Scene, substeps: int) -> Scene:
+    """The scene with its converged limit solve's cap chosen where it sets none: ``DEFAULT_LIMIT_MAX_PASSES``
+    a substep, or fewer where that many would not fit a frame (at least 2)."""
+    simulation = scene.simulation
+    if simulation.limit_max_passes is not None:
+        return scene
+    cap = max(2, min(DEFAULT_LIMIT_MAX_PASSES, passes_that_fit(substeps)))
+    return dataclasses.replace(scene, simulation=dataclasses.replace(simulation, limit_max_passes=cap))
+
+
 def resolve_step(scene: Scene, model: Model) -> tuple[Scene, StepChoice]:
-    """The scene with its step fixed (automatic substeps filled in), and the choice made."""
+    """The scene as a simulator runs it, and the step choice made: its step fixed (automatic substeps filled
+    in) and its limit solve's cap chosen where it sets none (``with_passes_cap``)."""
     choice = choose_step(model, scene.simulation)
-    if not choice.automatic:
-        return scene, choice
-    return dataclasses.replace(scene, simulation=dataclasses.replace(scene.simulation, substeps=choice.substeps)), choice
+    if choice.automatic:
+        scene = dataclasses.replace(scene, simulation=dataclasses.replace(scene.simulation, substeps=choice.substeps))
+    return with_passes_cap(scene, choice.substeps), choice
 
 
 def scene_with_step(scene: Scene) -> Scene:
-    """The scene with its step fixed: as it is if it sets one, else with the step a simulator would choose."""
-    if scene.simulation.substeps_per_frame is not None:
-        return scene
+    """The scene as a simulator runs it (``resolve_step``), without building its model where it sets a step."""
+    substeps = scene.simulation.substeps_per_frame
+    if substeps is not None:
+        return with_passes_cap(scene, substeps)
     return resolve_step(scene, build_model(scene))[0]
 
 

@@ -49,8 +49,8 @@ from .model import FLAG_ELASTIC_COMPRESSION, FLAG_ELASTIC_TENSION, Model, Spring
 from .progress import Progress
 from .scene import INTEGRATORS, MAX_SUBSTEPS, Cloth, Scene
 from .scene_file import load_scene
-from .simulator import MAX_PASSES_PER_FRAME, Simulator, resolve_device
-from .stability import UnstableStepWarning, scene_with_step
+from .simulator import Simulator, resolve_device
+from .stability import UnstableStepWarning, passes_that_fit, scene_with_step
 
 EXIT_BAD_INPUT = 2
 REFERENCE_INTEGRATOR = "symplectic"
@@ -164,15 +164,16 @@ def _cloth_at(cloth: Cloth, resolution: int) -> Cloth:
 
 
 def with_step(scene: Scene, integrator: str, frames: int, dt: float | None = None,
-              substeps: int | None = None) -> Scene:
+              substeps: int | None = None, compensated: bool = False) -> Scene:
     """The scene at a step; a converged limit solve's cap, where the scene sets one, lowered where the step's
     substeps times it would pass the bound on a frame's passes (``check_work``, which counts the cap; an
     unset cap the simulator chooses within it): the fine steps of a reference take a few passes a
-    substep, far below any cap."""
+    substep, far below any cap. ``compensated``: its moves summed with compensation (the references'), as
+    they are anyway where the scene says so."""
     simulation = dataclasses.replace(scene.simulation, integrator=integrator, frames=frames, dt=dt,
-                                     substeps=substeps)
+                                     substeps=substeps, compensated=compensated or scene.simulation.compensated)
     if simulation.limit_solve == "converged" and simulation.substeps_per_frame is not None:
-        fitting = MAX_PASSES_PER_FRAME // simulation.substeps_per_frame - 1
+        fitting = passes_that_fit(simulation.substeps_per_frame)
         if simulation.limit_max_passes is not None and 2 <= fitting < simulation.limit_max_passes:
             simulation = dataclasses.replace(simulation, limit_max_passes=fitting)
     return dataclasses.replace(scene, simulation=simulation)
@@ -350,10 +351,9 @@ def _plan(scene: Scene, integrators: Sequence[str], dts: Sequence[float], resolu
 def _reference_run(scene: Scene, device: str, frames: int, substeps: int, tick: Callable[[int], None],
                    compared_with: Trajectory | None = None) -> Trajectory:
     """A candidate reference (kept frame by frame), compared with the one at twice its step where given."""
-    stepped = with_step(scene, REFERENCE_INTEGRATOR, frames, substeps=substeps)
-    compensated = dataclasses.replace(stepped, simulation=dataclasses.replace(stepped.simulation, compensated=True))
-    run = simulate(compensated, device, frames,
-                   None if compared_with is None else compared_with.positions, keep_positions=True, tick=tick)
+    reference = with_step(scene, REFERENCE_INTEGRATOR, frames, substeps=substeps, compensated=True)
+    run = simulate(reference, device, frames, None if compared_with is None else compared_with.positions,
+                   keep_positions=True, tick=tick)
     if run.unstable_frame is not None:
         raise SceneError("reference", f"a scene that stays stable with {REFERENCE_INTEGRATOR} Euler at dt "
                          f"{run.dt:.3g} s (at frame {run.unstable_frame}: {run.unstable_reason})",
