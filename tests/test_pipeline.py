@@ -37,9 +37,8 @@ def launches(monkeypatch):
 
 
 LIMIT_ITERATIONS = 4
-# With limit_solve = "fixed" (the counts below; the converged solve's passes depend on the state, see
-# test_the_converged_solve_repeats_its_pair_of_passes_and_check_until_within_tolerance). The scenes set
-# it explicitly, as it is not meant to stay the default (docs/strain-solve.md).
+# With limit_solve = "fixed" (the counts below; the converged solve's passes, the default, depend on the
+# state, see test_the_converged_solve_repeats_its_pair_of_passes_and_check_until_within_tolerance).
 # Fixed pins cost nothing (a pinned particle has inverse mass 0 and nothing moves it); the colliders run
 # inside the strain limit's last pass.
 EXPECTED = {
@@ -47,14 +46,12 @@ EXPECTED = {
     "ground": {"explicit_step": 1, "limit_pass": LIMIT_ITERATIONS},
     "drape": {"explicit_step": 1, "limit_pass": LIMIT_ITERATIONS},
     "sphere_push": {"explicit_step": 1, "limit_pass": LIMIT_ITERATIONS, "move_spheres": 1, "advance_clock": 1},
-    "oscillating_pins": {"explicit_step": 1, "drive_pins": 1, "limit_pass": LIMIT_ITERATIONS, "advance_clock": 1},
 }
 EXPECTED_PLANS = {
     "hanging": ["integrate:explicit", *["limits"] * LIMIT_ITERATIONS],
     "ground": ["integrate:symplectic", *["limits"] * (LIMIT_ITERATIONS - 1), "limits+colliders"],
     "sphere_push": ["spheres:move", "integrate:explicit", *["limits"] * (LIMIT_ITERATIONS - 1), "limits+colliders",
                     "clock"],
-    "oscillating_pins": ["integrate:symplectic", "pins:oscillating", *["limits"] * LIMIT_ITERATIONS, "clock"],
 }
 # With particle collision, limits, separation and colliders are projected together in 8 passes (the
 # larger of the collision's 8 and the limit's 4 iterations): colliders once before the passes (in the
@@ -85,6 +82,16 @@ def test_substep_launches_only_declared_effects(name, launches):
     sim.step()  # a frame: its substeps, each followed by the blow-up guard's check
     frame = {kernel: count * sim.substeps_per_frame for kernel, count in EXPECTED[name].items()}
     assert dict(launches) == {**frame, "check_state": sim.substeps_per_frame}
+
+
+def test_driven_pins_move_before_the_contacts_start():
+    """oscillating_pins: its pins move after the step, so the contacts start in a pass of their own after
+    them (in the other collision scenes the integration step starts them); 4 limit passes, the last 2
+    with the collision's 2 separations."""
+    sim = wc.Simulator(fixed(wc.load_scene("oscillating_pins")), device="cpu")
+    assert sim.plan.pass_names == ["integrate:symplectic", "pins:oscillating", "contact_start",
+                                   "lists:remake-if-moved", "limits", "limits", "limits+separation",
+                                   "limits+separation", "contact_velocities+end_remake", "clock"]
 
 
 @pytest.mark.parametrize("name", sorted(EXPECTED_WITH_COLLISION))
