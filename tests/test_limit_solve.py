@@ -83,6 +83,21 @@ def test_run_summary_says_what_the_solve_took(tmp_path):
     assert 2 <= mean <= most
 
 
+def test_the_command_line_sets_the_cap_and_is_named_where_the_cap_breaks_the_frame_bound(tmp_path):
+    capped = run_cli("run", "hanging", "--frames", "24", "--integrator", "implicit", "--dt", "0.04165",
+                     "--limit-max-passes", "4", "--no-usd", "--no-poly", cwd=tmp_path)
+    assert capped.returncode == 0, capped.stderr
+    assert "4 at most, some reached the cap of 4 passes" in capped.stdout.strip().splitlines()[-1]
+    # 100 substeps x (1 + 1000) passes is past the 50,000 a frame: the option that set the cap is named
+    refused = run_cli("run", "hanging", "--substeps", "100", "--limit-max-passes", "1000", "--no-usd", "--no-poly",
+                      cwd=tmp_path)
+    assert refused.returncode == 2 and refused.stdout == ""
+    assert refused.stderr.strip() == ("warp-cloth: error: command line: --limit-max-passes: expected at most 50,000 "
+                                      "passes a frame, so that a frame ends: 100 substeps x 1001 passes a substep "
+                                      "is 100,100, got 1000")
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_long_range_limits_are_implied_by_the_springs_limits():
     """A cloth stretched uniformly to its limit holds every long-range limit exactly: they never ask for
     more than the springs' limits do."""

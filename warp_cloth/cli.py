@@ -43,6 +43,9 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--limit-solve", choices=("fixed", "converged"), dest="limit_solve",
                      help="strain limits in the scene's limit_iterations passes a substep, or until within "
                           "limit_tolerance (at most limit_max_passes)")
+    run.add_argument("--limit-max-passes", type=int, dest="limit_max_passes", metavar="N",
+                     help="the converged limit solve's passes a substep at most (default: the scene's; where it "
+                          "sets none, 200, or as many as keep a frame within 50,000 passes)")
     run.add_argument("--out", help="output folder (default: the scene's, 'out')")
     usd = run.add_mutually_exclusive_group()
     usd.add_argument("--usd", metavar="PATH", help="USD file to write (default: OUT/SCENE.usdc)")
@@ -90,7 +93,7 @@ def _parser() -> argparse.ArgumentParser:
 
 def _with_step_overrides(scene: Scene, args: argparse.Namespace) -> Scene:
     """The scene with the command line's frames, step, integrator and limit solve."""
-    sim_changes = {k: getattr(args, k, None) for k in ("frames", "integrator", "limit_solve")
+    sim_changes = {k: getattr(args, k, None) for k in ("frames", "integrator", "limit_solve", "limit_max_passes")
                    if getattr(args, k, None) is not None}
     if args.substeps is not None:
         sim_changes.update(substeps=args.substeps, dt=None)
@@ -99,7 +102,18 @@ def _with_step_overrides(scene: Scene, args: argparse.Namespace) -> Scene:
     try:
         return dataclasses.replace(scene, simulation=dataclasses.replace(scene.simulation, **sim_changes))
     except SceneError as exc:
-        raise SceneError(f"--{exc.key}", exc.expected, exc.got, source="command line") from None
+        raise SceneError(f"--{exc.key.replace('_', '-')}", exc.expected, exc.got, source="command line") from None
+
+
+def _named_as_given(exc: SceneError, args: argparse.Namespace) -> SceneError:
+    """A refusal of the scene as a whole (``exc``, without a source), named where its key's value came
+    from: the command line's option that set it, or else the scene's file."""
+    from .scene_file import resolve_scene_path
+
+    option = exc.key.removeprefix("simulation.")
+    if exc.key.startswith("simulation.") and getattr(args, option, None) is not None:
+        return SceneError(f"--{option.replace('_', '-')}", exc.expected, exc.got, "command line", exc.has_got)
+    return exc.in_file(str(resolve_scene_path(args.scene)))
 
 
 def _with_overrides(scene: Scene, args: argparse.Namespace) -> Scene:
@@ -227,7 +241,6 @@ def _kept(writers: list) -> str:
 def _simulator(scene: Scene, device: str, args: argparse.Namespace):
     """The scene's simulator with its kernels compiled; says first the step it takes, and warns of a step
     set past the stable bound."""
-    from .scene_file import resolve_scene_path
     from .simulator import Simulator
     from .stability import UnstableStepWarning
 
@@ -237,8 +250,8 @@ def _simulator(scene: Scene, device: str, args: argparse.Namespace):
             warnings.simplefilter("always", UnstableStepWarning)
             try:
                 sim = Simulator(scene, device=device, graph=not args.no_graph)
-            except SceneError as exc:  # checks of the scene as a whole (overlaps, colliders, size): name its file
-                raise (exc.in_file(str(resolve_scene_path(args.scene))) if exc.source is None else exc) from None
+            except SceneError as exc:  # checks of the scene as a whole (overlaps, colliders, size, work)
+                raise (_named_as_given(exc, args) if exc.source is None else exc) from None
         sim.prepare()
     print(f"{scene.name}: {sim.step_choice.describe()}", flush=True)
     meshes = [("cloth", c) for c in scene.cloths if c.mesh is not None] + [("collider", c) for c in scene.colliders]
