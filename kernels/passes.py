@@ -45,8 +45,7 @@ class ExplicitStepArgs:
     inv_mass: wp.array(dtype=float)
     h: float
     semi_implicit: int  # 1: symplectic Euler
-    compensated: int  # 1: positions summed with compensation (``rounded_away``, one per particle)
-    rounded_away: wp.array(dtype=wp.vec3)
+    rounded_away: wp.array(dtype=wp.vec3)  # (n,): positions summed with compensation; empty: plainly
 
 
 @wp.struct
@@ -81,7 +80,7 @@ def stepped(step: ExplicitStepArgs, i: int, f: wp.vec3, x: wp.array(dtype=wp.vec
     vi = v[i]
     move, v_new = explicit_move(vi, step.inv_mass[i], f, external_acceleration(step.forces, i, xi, vi), step.h,
                                 step.semi_implicit)
-    if step.compensated == 0:
+    if step.rounded_away.shape[0] == 0:
         return xi + move, v_new
     p, rounded = compensated_sum(xi, move, step.rounded_away[i])
     step.rounded_away[i] = rounded

@@ -102,7 +102,12 @@ def _with_step_overrides(scene: Scene, args: argparse.Namespace) -> Scene:
     try:
         return dataclasses.replace(scene, simulation=dataclasses.replace(scene.simulation, **sim_changes))
     except SceneError as exc:
-        raise SceneError(f"--{exc.key.replace('_', '-')}", exc.expected, exc.got, source="command line") from None
+        raise _from_option(exc.key, exc) from None
+
+
+def _from_option(option: str, exc: SceneError) -> SceneError:
+    """``exc`` named as the command line's ``--option`` (an attribute's name, as argparse keeps it)."""
+    return SceneError(f"--{option.replace('_', '-')}", exc.expected, exc.got, "command line", exc.has_got)
 
 
 def _named_as_given(exc: SceneError, args: argparse.Namespace) -> SceneError:
@@ -112,7 +117,7 @@ def _named_as_given(exc: SceneError, args: argparse.Namespace) -> SceneError:
 
     option = exc.key.removeprefix("simulation.")
     if exc.key.startswith("simulation.") and getattr(args, option, None) is not None:
-        return SceneError(f"--{option.replace('_', '-')}", exc.expected, exc.got, "command line", exc.has_got)
+        return _from_option(option, exc)
     return exc.in_file(str(resolve_scene_path(args.scene)))
 
 

@@ -29,7 +29,7 @@ def explicit_step_args(model: DeviceModel) -> fused.ExplicitStepArgs:
     args = fused.ExplicitStepArgs()
     args.springs, args.forces, args.inv_mass, args.h = model.springs, model.forces, model.inv_mass, model.h
     args.semi_implicit = int(model.integrator == "symplectic")
-    args.compensated, args.rounded_away = int(model.compensated), model.rounded_away
+    args.rounded_away = model.rounded_away
     return args
 
 

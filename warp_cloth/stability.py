@@ -219,18 +219,19 @@ def choose_step(model: Model, sim: Simulation) -> StepChoice:
     return StepChoice(substeps, 1.0 / (sim.fps * substeps), True, bound)
 
 
-def passes_that_fit(substeps: int) -> int:
-    """Passes a substep that keep a frame of ``substeps`` within ``MAX_PASSES_PER_FRAME`` (a step included)."""
-    return MAX_PASSES_PER_FRAME // substeps - 1
+def cap_that_fits(cap: int, substeps: int) -> int:
+    """``cap`` passes a substep, or fewer where that many would not keep a frame of ``substeps`` within
+    ``MAX_PASSES_PER_FRAME`` (a step included; at least 2)."""
+    return max(2, min(cap, MAX_PASSES_PER_FRAME // substeps - 1))
 
 
 def with_passes_cap(scene: Scene, substeps: int) -> Scene:
     """The scene with its converged limit solve's cap chosen where it sets none: ``DEFAULT_LIMIT_MAX_PASSES``
-    a substep, or fewer where that many would not fit a frame (at least 2)."""
+    a substep, or fewer where that many would not fit a frame (``cap_that_fits``)."""
     simulation = scene.simulation
     if simulation.limit_max_passes is not None:
         return scene
-    cap = max(2, min(DEFAULT_LIMIT_MAX_PASSES, passes_that_fit(substeps)))
+    cap = cap_that_fits(DEFAULT_LIMIT_MAX_PASSES, substeps)
     return dataclasses.replace(scene, simulation=dataclasses.replace(simulation, limit_max_passes=cap))
 
 

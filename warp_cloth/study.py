@@ -50,7 +50,7 @@ from .progress import Progress
 from .scene import INTEGRATORS, MAX_SUBSTEPS, Cloth, Scene
 from .scene_file import load_scene
 from .simulator import Simulator, resolve_device
-from .stability import UnstableStepWarning, passes_that_fit, scene_with_step
+from .stability import UnstableStepWarning, cap_that_fits, scene_with_step
 
 EXIT_BAD_INPUT = 2
 REFERENCE_INTEGRATOR = "symplectic"
@@ -172,10 +172,9 @@ def with_step(scene: Scene, integrator: str, frames: int, dt: float | None = Non
     they are anyway where the scene says so."""
     simulation = dataclasses.replace(scene.simulation, integrator=integrator, frames=frames, dt=dt,
                                      substeps=substeps, compensated=compensated or scene.simulation.compensated)
-    if simulation.limit_solve == "converged" and simulation.substeps_per_frame is not None:
-        fitting = passes_that_fit(simulation.substeps_per_frame)
-        if simulation.limit_max_passes is not None and 2 <= fitting < simulation.limit_max_passes:
-            simulation = dataclasses.replace(simulation, limit_max_passes=fitting)
+    cap, substeps = simulation.limit_max_passes, simulation.substeps_per_frame
+    if simulation.limit_solve == "converged" and cap is not None and substeps is not None:
+        simulation = dataclasses.replace(simulation, limit_max_passes=cap_that_fits(cap, substeps))
     return dataclasses.replace(scene, simulation=simulation)
 
 
