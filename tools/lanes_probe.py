@@ -71,7 +71,7 @@ def main() -> None:
     for n in sizes:
         sim = Simulator(matrix_scene("hanging", n, "symplectic"), device=device)
         sim.run(2)
-        args = explicit_step_args(sim.device_model)
+        args = explicit_step_args(sim.device_model, sim.state)
         x, v = sim.state.x, sim.state.v
         x_out, v_out = wp.empty_like(x), wp.empty_like(v)
         particles = sim.device_model.particle_count

@@ -142,7 +142,7 @@ class DeviceModel:
         self.forces.drag = simulation.drag
         self.wind = self._wind(model, scene.wind)
         self.forces.wind = wp.zeros(n if self.wind is not None else 0, dtype=wp.vec3, device=device)
-        self.rounded_away = wp.zeros(n if simulation.compensated else 0, dtype=wp.vec3, device=device)
+        self.compensated = simulation.compensated
         self.springs = self._springs(model, n)
         self.limits = self._limits(model)
         self.hierarchy = self._hierarchy(model) if model.hierarchy is not None and self.limits is not None else None

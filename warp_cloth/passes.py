@@ -25,11 +25,11 @@ def launch(kernel, dim: int, state: DeviceState, inputs=(), outputs=()) -> None:
     wp.launch(kernel, dim=dim, inputs=inputs, outputs=outputs, device=state.device)
 
 
-def explicit_step_args(model: DeviceModel) -> fused.ExplicitStepArgs:
+def explicit_step_args(model: DeviceModel, state: DeviceState) -> fused.ExplicitStepArgs:
     args = fused.ExplicitStepArgs()
     args.springs, args.forces, args.inv_mass, args.h = model.springs, model.forces, model.inv_mass, model.h
     args.semi_implicit = int(model.integrator == "symplectic")
-    args.rounded_away = model.rounded_away
+    args.rounded_away = state.rounded_away
     return args
 
 
@@ -74,16 +74,17 @@ class GatheringPass:
             state.swap_velocities()
 
 
-def explicit_step(model: DeviceModel, threads: int, start: fused.ContactStartArgs | None) -> GatheringPass:
+def explicit_step(model: DeviceModel, state: DeviceState, threads: int,
+                  start: fused.ContactStartArgs | None) -> GatheringPass:
     """Spring and external forces and one explicit or symplectic Euler step; where ``start`` is given, the
     particle collision's contact start too (the colliders, the velocities the contacts start from, the
     lists' remake check), which saves a pass over the particles."""
     name = f"integrate:{model.integrator}"
     if start is None:
-        return GatheringPass(name, fused.explicit_step_kernel(threads), threads, explicit_step_args(model),
+        return GatheringPass(name, fused.explicit_step_kernel(threads), threads, explicit_step_args(model, state),
                              model.device, new_velocities=True)
     args = fused.ExplicitStepAndContactStartArgs()
-    args.step, args.start = explicit_step_args(model), start
+    args.step, args.start = explicit_step_args(model, state), start
     return GatheringPass(f"{name}+contact_start", fused.explicit_step_and_contact_start_kernel(threads), threads,
                          args, model.device, new_velocities=True)
 

@@ -90,7 +90,7 @@ def build_plan(model: DeviceModel, state: DeviceState, implicit_settings: Implic
         passes.append(implicit)
     start_in_step = start is not None and implicit is None and not driven_pins
     if implicit is None:
-        passes.append(explicit_step(model, chosen, start if start_in_step else None))
+        passes.append(explicit_step(model, state, chosen, start if start_in_step else None))
     if oscillating_pins:
         passes.append(DrivePins(model))
     if model.pin_targets:

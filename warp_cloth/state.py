@@ -73,6 +73,8 @@ class DeviceState:
         start = model.sphere_start if model.sphere_start is not None else np.zeros((0, 3), dtype=np.float32)
         self.sphere_center = wp.array(start, dtype=wp.vec3, device=device)
         self.sphere_velocity = wp.zeros(len(start), dtype=wp.vec3, device=device)
+        # what each position's compensated sum has rounded away so far (empty where the moves add plainly)
+        self.rounded_away = wp.zeros(len(positions) if model.compensated else 0, dtype=wp.vec3, device=device)
         self.contacts = None if model.contacts is None else self._contact_state(model)
 
     def _contact_state(self, model: DeviceModel) -> ContactState:
@@ -113,6 +115,8 @@ class DeviceState:
         """Every array a substep reads before writing it, by name: what a checkpoint keeps."""
         arrays = {"x": self.x, "v": self.v, "clock": self.clock, "sphere_center": self.sphere_center,
                   "sphere_velocity": self.sphere_velocity}
+        if self.rounded_away.shape[0] > 0:
+            arrays["rounded_away"] = self.rounded_away
         if self.contacts is not None:
             arrays.update({f"contacts.{name}": getattr(self.contacts, name) for name in ContactState.CARRIED})
         return arrays
