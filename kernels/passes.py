@@ -12,6 +12,7 @@ from typing import Any
 import warp as wp
 
 from .colliders import RigidColliders, collide_and_mark, collide_particle
+from .edge_collision import EdgeContacts, EdgeRules, edge_pushes, may_touch, segment_gap
 from .forces import ExternalForces, external_acceleration, external_damping
 from .gathering import BLOCK, FAST_MATH, gathering_kernel, sum_over_threads, thread_layout
 from .integration import compensated_sum, explicit_move
@@ -285,6 +286,46 @@ def limit_and_separation_pass_kernel(threads: int) -> wp.Kernel:
                             finish_limit_and_separation_pass, threads)
 
 
+# --- edge separation: triangle edges moved a thickness apart (edge_collision.py), ending with the colliders ---
+
+@wp.struct
+class EdgeSeparationPassArgs:
+    edges: EdgeContacts
+    inv_mass: wp.array(dtype=float)
+    h: float
+    colliders: RigidColliders
+
+
+@wp.func
+def gather_edge_pushes(args: EdgeSeparationPassArgs, i: int, first: int, stride: int, x: wp.array(dtype=wp.vec3),
+                       v: wp.array(dtype=wp.vec3)) -> wp.vec4:
+    if not gathers(args, i):
+        return wp.vec4(0.0)
+    return edge_pushes(args.edges, i, first, stride, x, args.inv_mass)
+
+
+@wp.func
+def finish_edge_separation_pass(args: EdgeSeparationPassArgs, i: int, total: wp.vec4, x: wp.array(dtype=wp.vec3),
+                                v: wp.array(dtype=wp.vec3), x_out: wp.array(dtype=wp.vec3),
+                                v_out: wp.array(dtype=wp.vec3)):
+    """Moves free particle i by the mean of its edges' moves (its velocity by that over h), then out of the
+    rigid colliders."""
+    xi = x[i]
+    if args.inv_mass[i] == 0.0 or total[3] == 0.0:
+        x_out[i] = xi
+        return
+    move = mean_of(total)
+    p, vel, hit = collide_particle(i, xi + move, v[i] + move / args.h, args.colliders, args.h)
+    x_out[i] = p
+    v_out[i] = vel
+
+
+@functools.cache
+def edge_separation_pass_kernel(threads: int) -> wp.Kernel:
+    return gathering_kernel("edge_separation_pass", EdgeSeparationPassArgs, gather_edge_pushes,
+                            finish_edge_separation_pass, threads)
+
+
 # --- Chebyshev's acceleration of a converged projection's iteration, ending with the colliders -------------
 
 @wp.kernel
@@ -496,6 +537,36 @@ def launch_gather_neighbors(threads: int, x: wp.array, inputs: list) -> None:
         wp.launch(kernel, dim=(blocks, BLOCK), inputs=[x, *inputs], device=x.device)
     else:
         wp.launch_tiled(kernel, dim=[blocks], inputs=[x, *inputs], block_dim=BLOCK, device=x.device)
+
+
+@wp.kernel
+def gather_edge_candidates(x: wp.array(dtype=wp.vec3), midpoint: wp.array(dtype=wp.vec3),
+                           edge_world: wp.array(dtype=int), edges: EdgeContacts, rules: EdgeRules, lists: ListState,
+                           inv_cell: float, mask: int, capacity: int, bucket_size: wp.array(dtype=int),
+                           bucket_items: wp.array(dtype=int)):
+    """Each edge's candidates from the hash of its midpoint's 27 cells, where ``rebuild`` is set: edges that
+    may touch it whose segments lie within ``reach``, in index order."""
+    if lists.rebuild[0] == 0:
+        return
+    e = wp.tid()
+    ends_e = edges.ends[e]
+    center = cell_of(midpoint[e], inv_cell)
+    stamp = stamp_of(lists.epoch[0])
+    start = e * edges.max_neighbors
+    count = int(0)
+    for k in range(27):
+        bucket = neighbour_bucket(center, edge_world[e], k, mask)
+        for s in range(wp.min(count_in(bucket_size[bucket], stamp), capacity)):
+            f = bucket_items[bucket * capacity + s]
+            ends_f = edges.ends[f]
+            if f != e and may_touch(rules, ends_e, ends_f):
+                if segment_gap(x, ends_e, ends_f) < edges.reach:
+                    if count < edges.max_neighbors:
+                        edges.neighbors[start + count] = f
+                        count += 1
+                    else:
+                        wp.atomic_add(lists.overflow, 0, 1)
+    edges.counts[e] = sort_and_drop_repeats(edges.neighbors, start, count)
 
 
 # --- the implicit step's system: the springs' Jacobians with the external forces' part ----------------------

@@ -2,6 +2,7 @@
 collision scenes after every frame, determinism, and the triangle-intersection diagnostic."""
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -13,7 +14,8 @@ from warp_cloth.diagnostics import ContactGaps, TriangleIntersections
 from warp_cloth.kernels import particle_collision, spatial_hash
 from warp_cloth.cloth_grid import build_grid
 from warp_cloth.cloth_mesh import rest_adjacent_pairs
-from warp_cloth.model import collision_radii, needs_adjacent_exclusion
+from warp_cloth.checkpoint import Checkpoint, scene_fingerprint
+from warp_cloth.model import collision_radii, long_triangle_edges, needs_adjacent_exclusion
 from warp_cloth.device_model import no_colliders
 from warp_cloth.kernels import passes as fused
 from warp_cloth.kernels.gathering import launch_gathering
@@ -183,6 +185,56 @@ def check_scene_every_frame(name: str, frames: int, device: str, threads: int | 
     assert worst_gap >= CLOSEST_CONTACT
     assert worst_crossings <= KNOWN_INTERSECTIONS.get((name, device), 0)
     assert sim.plan.lists.overflow == 0
+
+
+FOLDS = Path(__file__).parent / "data" / "seed_default_folds.npz"
+
+
+def seed_default_at_a_fold(k: int, edges: bool) -> wc.Simulator:
+    """seed_default, gravity scaled by 1 + k 1e-6, from the state an H100 run of it had at the start of a
+    frame in which a triangle diagonal of the falling cloth, folded flat, passed through another
+    (``python tools/capture_crossing.py OUT cuda 240 1 7``; one crossing pair, every particle apart), with
+    edge contacts or without; its lists are remade at the first substep."""
+    base = wc.load_scene("seed_default")
+    gravity = tuple(g * (1.0 + 1e-6 * k) for g in base.simulation.gravity)
+    simulation = dataclasses.replace(base.simulation, gravity=gravity)
+    scene = dataclasses.replace(base, simulation=simulation,
+                                collision=dataclasses.replace(base.collision, edges=edges))
+    sim = wc.Simulator(scene, device="cpu", graph=False)
+    arrays = {name: array.numpy() for name, array in sim.state.carried().items()}
+    with np.load(FOLDS) as state:
+        for name in ("x", "v", "clock", "sphere_center", "sphere_velocity"):
+            arrays[name] = state[f"k{k}.{name}"]
+        frame, substeps = int(state[f"k{k}.frame"]), int(state[f"k{k}.substeps"])
+    arrays["contacts.rebuild"] = np.ones(1, dtype=np.int32)
+    sim.restore(Checkpoint(frame, substeps, scene_fingerprint(scene), arrays, {}))
+    return sim
+
+
+@pytest.mark.parametrize("k", [1, 7])
+def test_edge_contacts_keep_a_folded_diagonal_from_passing_through_another(k):
+    crossings = {}
+    for edges in (False, True):
+        sim = seed_default_at_a_fold(k, edges)
+        count, most = TriangleIntersections(sim), 0
+        for _ in range(2 * sim.substeps_per_frame):
+            sim.substep()
+            most = max(most, count(sim))
+        crossings[edges] = most
+        assert ContactGaps(sim)(sim) >= CLOSEST_CONTACT and sim.plan.lists.overflow == 0
+    assert crossings == {False: 1, True: 0}
+
+
+def test_only_edges_too_long_for_the_particles_are_contact_edges():
+    """On the seed's grid (contact 0.82 of a cell at a 10% stretch limit) the triangles' diagonals, 1.41
+    cells long, are contact edges, and the structural edges, 1 cell, are not: two crossing at their middles
+    keep their ends 0.71 cells apart, inside the particles' contact distance."""
+    cloth = wc.Cloth(name="grid", resolution=(4, 3), size=(4.0, 3.0), limit=wc.Limit())
+    mesh = build_grid(cloth)
+    radii = collision_radii(cloth, mesh, None)
+    edges = long_triangle_edges(cloth, mesh, radii, wc.Collision().separation)
+    lengths = np.linalg.norm(mesh.positions[edges[:, 0]] - mesh.positions[edges[:, 1]], axis=1)
+    assert len(edges) == 4 * 3 and np.allclose(lengths, np.sqrt(2.0))
 
 
 def test_collision_run_is_deterministic_on_cpu():

@@ -192,9 +192,12 @@ def integrator_cases(device: str) -> list[Case]:
 
 
 def collision_cases(device: str) -> list[Case]:
-    cases = [Case("seed_25x25+self", seed_cloth_scene(25, self_collision=True), 240),
-             Case("seed_default_60x60x2", load_scene("seed_default"), 240)]
-    return cases
+    seed_default = load_scene("seed_default")
+    no_edges = dataclasses.replace(seed_default.collision, edges=False)
+    return [Case("seed_25x25+self", seed_cloth_scene(25, self_collision=True), 240),
+            Case("seed_default_60x60x2", seed_default, 240),
+            Case("seed_default_60x60x2 without edge contacts", dataclasses.replace(seed_default, collision=no_edges),
+                 240)]
 
 
 @dataclass(frozen=True)
@@ -347,7 +350,8 @@ SUITES = {
                               "output, and large cloths falling onto a sphere and the ground (64^2 and 256^2 on the "
                               "CPU, 256^2 to 2048^2 on a GPU)"),
     "collision": Suite(collision_cases, "the seed's 25x25 loop with its self collision and the seed's default scene "
-                                        "(two 60x60 cloths, a moving sphere), against the seed's C++ times; then the "
+                                        "(two 60x60 cloths, a moving sphere), against the seed's C++ times, and that "
+                                        "scene without its edge contacts (what they cost); then the "
                                         "substep of stacked layers (mostly particle collision) of 1k to 64k "
                                         "particles (to 4M on a GPU), hash grid against brute force, in ms per substep"),
     "integrators": Suite(integrator_cases, "what stability and accuracy cost: the seed's sweeps with self collision, "

@@ -11,6 +11,7 @@ import warp as wp
 
 from warp_cloth.kernels import motion
 from warp_cloth.kernels.colliders import RigidColliders, depth_in_mesh
+from warp_cloth.kernels.edge_collision import EdgeRules
 from warp_cloth.kernels.forces import ExternalForces
 from warp_cloth.kernels.limits import StrainLimits
 from warp_cloth.kernels.particle_collision import Contacts, PairRules
@@ -76,6 +77,20 @@ class SphereMotion:
 
 
 @dataclass(frozen=True)
+class DeviceContactEdges:
+    """Edge contacts' constants (kernels/edge_collision.py)."""
+    ends: wp.array  # (m,) vec2i
+    incident_offsets: wp.array  # (n + 1,) each particle's edges (CSR)
+    incident: wp.array
+    rules: EdgeRules
+    thickness: float  # how far apart edges are held
+    longest: float  # the longest edge at its stretch limit
+
+
+EDGE_THICKNESS = 0.25  # contact distances: below the midpoints' gap across the tightest fold the particles allow
+
+
+@dataclass(frozen=True)
 class ParticleContacts:
     """Particle collision's settings and per-particle constants."""
     settings: Collision
@@ -83,6 +98,7 @@ class ParticleContacts:
     rules: PairRules
     max_radius: float
     min_radius: float
+    edges: DeviceContactEdges | None
 
 
 @dataclass(frozen=True)
@@ -240,7 +256,18 @@ class DeviceModel:
             rules.exclude_adjacent = upload(contacts.exclude_adjacent, int, device)
         rules.search_scale = settings.search_scale
         return ParticleContacts(settings, upload(contacts.radius, float, device), rules, contacts.max_radius,
-                                float(contacts.radius.min()))
+                                float(contacts.radius.min()), self._contact_edges(contacts, rules, settings))
+
+    def _contact_edges(self, contacts, particle_rules: PairRules, settings: Collision) -> DeviceContactEdges | None:
+        edges, device = contacts.edges, self.device
+        if edges is None:
+            return None
+        rules = EdgeRules()
+        rules.world, rules.cloth_id = particle_rules.world, particle_rules.cloth_id
+        rules.self_collision, rules.between_cloths = particle_rules.self_collision, particle_rules.between_cloths
+        return DeviceContactEdges(upload(edges.ends, wp.vec2i, device), upload(edges.incidence.offsets, int, device),
+                                  upload(edges.incidence.spring, int, device), rules,
+                                  EDGE_THICKNESS * settings.separation * contacts.max_radius, edges.longest)
 
     def no_limits(self) -> StrainLimits:
         """No limited spring: for checks of scenes without strain limits."""

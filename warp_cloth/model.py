@@ -20,6 +20,7 @@ from .cloth_mesh import BEND, SHEAR, STRUCTURAL, ClothMesh, enclosing_radii, res
 from .errors import SceneError
 from .hierarchy import Hierarchy, build_hierarchy
 from .mesh_cloth import build_mesh_cloth, mesh_positions
+from .mesh_io import unique_pairs
 from .scene import Cloth, Scene, SpringKind, TransformKey
 from .spring_paths import nearest_along_edges
 
@@ -155,6 +156,15 @@ class MeshColliders:
 
 
 @dataclass(frozen=True)
+class ContactEdges:
+    """The triangle edges that edge contacts keep apart (kernels/edge_collision.py)."""
+
+    ends: np.ndarray  # (m, 2) int32, particles
+    incidence: Adjacency  # each particle's edges (its ``spring`` entries are edge numbers)
+    longest: float  # the longest edge at its cloth's stretch limit
+
+
+@dataclass(frozen=True)
 class ParticleContacts:
     """What particle collision needs: each particle's sphere radius and, only where some cloth's
     strain limit cannot keep the particles of a face apart, those pairs to skip."""
@@ -162,6 +172,7 @@ class ParticleContacts:
     radius: np.ndarray  # (n,) float32
     exclude_adjacent: np.ndarray | None  # (cloths,) int32, 1 where rest-adjacent pairs are skipped
     rest_adjacent: Adjacency | None  # particles that share a face, both ways, each list sorted
+    edges: ContactEdges | None = None  # where the scene asks for edge contacts
 
     @property
     def max_radius(self) -> float:
@@ -581,18 +592,45 @@ def needs_adjacent_exclusion(cloth: Cloth, positions: np.ndarray, pairs: np.ndar
     return bool(np.any((1.0 - cloth.limit.compression) * rest <= contact))
 
 
+def long_triangle_edges(cloth: Cloth, mesh: ClothMesh, radii: np.ndarray, separation: float) -> np.ndarray:
+    """(k, 2) the cloth's triangle edges that particle contacts cannot keep from passing through one another:
+    those longer, at the stretch limit, than sqrt(2) contact distances, since two crossing at their middles
+    keep every end that far from the other's (on a grid with the seed's radii, the diagonals)."""
+    triangles = mesh.triangles
+    sides = np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
+    pairs = unique_pairs(sides, len(mesh.positions))[0]
+    a, b = pairs[:, 0], pairs[:, 1]
+    stretch = cloth.limit.stretch if cloth.limit is not None else 0.0
+    length = (1.0 + stretch) * np.linalg.norm(mesh.positions[a] - mesh.positions[b], axis=1)
+    return pairs[length > np.sqrt(2.0) * separation * 0.5 * (radii[a] + radii[b])]
+
+
+def _contact_edges(scene: Scene, meshes, radii, offsets: np.ndarray) -> ContactEdges | None:
+    collision = scene.collision
+    per_cloth = [long_triangle_edges(c, m, r, collision.separation) for c, m, r in zip(scene.cloths, meshes, radii)]
+    ends = np.concatenate([e + o for e, o in zip(per_cloth, offsets)]).astype(np.int32)
+    if len(ends) == 0:
+        return None
+    stretch = np.concatenate([np.full(len(e), c.limit.stretch if c.limit is not None else 0.0)
+                              for c, e in zip(scene.cloths, per_cloth)])
+    positions = np.concatenate([m.positions for m in meshes])
+    longest = float(np.max((1.0 + stretch) * np.linalg.norm(positions[ends[:, 0]] - positions[ends[:, 1]], axis=1)))
+    return ContactEdges(ends, Adjacency.of(ends, int(offsets[-1])), longest)
+
+
 def _contacts(scene: Scene, meshes) -> ParticleContacts | None:
     collision = scene.collision
     if collision is None:
         return None
     radii = [collision_radii(c, m, collision.radius) for c, m in zip(scene.cloths, meshes)]
     radius = np.concatenate(radii).astype(np.float32)
+    offsets = np.cumsum([0] + [len(m.positions) for m in meshes])
+    edges = _contact_edges(scene, meshes, radii, offsets) if collision.edges else None
     adjacent = [rest_adjacent_pairs(m.face_counts, m.face_indices) for m in meshes]
     exclude = np.array([needs_adjacent_exclusion(c, m.positions, a, r, collision.separation)
                         and collision.self_collision
                         for c, m, a, r in zip(scene.cloths, meshes, adjacent, radii)], dtype=np.int32)
     if not exclude.any():
-        return ParticleContacts(radius, None, None)
-    offsets = np.cumsum([0] + [len(m.positions) for m in meshes])
+        return ParticleContacts(radius, None, None, edges)
     pairs = np.concatenate([a + o for a, o in zip(adjacent, offsets)])
-    return ParticleContacts(radius, exclude, Adjacency.of(pairs, int(offsets[-1])))
+    return ParticleContacts(radius, exclude, Adjacency.of(pairs, int(offsets[-1])), edges)

@@ -1,18 +1,20 @@
-"""Particle collision's candidate lists: remade inside a substep where a particle has moved far enough since
-they were made, or on demand outside one; and the closest contact they show."""
+"""Particle collision's candidate lists, and edge contacts' where the scene has them: remade inside a substep
+where a particle has moved far enough since they were made, or on demand outside one; and the closest
+contact they show."""
 
 from __future__ import annotations
 
 import numpy as np
 import warp as wp
 
-from warp_cloth.kernels import particle_collision, spatial_hash
+from warp_cloth.kernels import edge_collision, particle_collision, spatial_hash
 from warp_cloth.kernels.gathering import load_gathering
-from warp_cloth.kernels.passes import HashGrid, gather_neighbors_kernel, launch_gather_neighbors
+from warp_cloth.kernels.passes import (HashGrid, gather_edge_candidates, gather_neighbors_kernel,
+                                       launch_gather_neighbors)
 
 from .device_model import DeviceModel
-from .passes import contacts_args
-from .state import BUCKET_CAPACITY, DeviceState, hash_table_size, uses_hash
+from .passes import contacts_args, edge_contacts_args
+from .state import BUCKET_CAPACITY, EDGE_BUCKET_CAPACITY, DeviceState, hash_table_size, uses_hash
 
 # The remake has more to gather (27 cells) than the other gathering passes: 16 threads a particle are
 # fastest at 64^2, 4 at 256^2, one at 1024^2 (docs/results/list-probe-h200.json).
@@ -52,6 +54,9 @@ class NeighbourLists:
         self.appended = wp.zeros(n if several else 0, dtype=int, device=model.device)
         if self.use_hash:
             load_gathering(gather_neighbors_kernel(self.threads), self.threads, model.device)
+        self.edges = EdgeLists(model, state, self.rebuild_distance) if state.edges is not None else None
+        if self.edges is not None:
+            self.name += "+edges"
 
     def run(self, state: DeviceState) -> None:
         if self.every_substep:
@@ -69,6 +74,8 @@ class NeighbourLists:
         else:
             wp.launch(particle_collision.gather_neighbors_brute_force, dim=self.n,
                       inputs=[x, self.contacts, self.rules, self.lists], device=x.device)
+        if self.edges is not None:
+            self.edges.remake_if_asked(x, self.lists)
 
     def remake_now(self, x: wp.array) -> None:
         """Remake every particle's list from positions ``x`` now, outside a substep."""
@@ -98,3 +105,33 @@ class NeighbourLists:
         counts = self.state.counts.numpy()
         table = self.state.neighbors.numpy().reshape(len(counts), -1)
         return [table[i, :count] for i, count in enumerate(counts)]
+
+
+class EdgeLists:
+    """Each contact edge's candidates (kernels/edge_collision.py), remade with the particle lists: from a
+    spatial hash of the edges' midpoints, whose cells are as wide as the longest edge at its limit plus
+    the reach, so that the 27 around an edge's midpoint hold every edge within reach.
+    An edge's list holds the edges within the pass's thickness plus twice ``rebuild_distance``: until a
+    particle has moved that far and the lists are remade, no edge left out can come within it."""
+
+    def __init__(self, model: DeviceModel, state: DeviceState, rebuild_distance: float) -> None:
+        self.edges = edge_contacts_args(model, state)
+        self.edges.reach = self.edges.thickness + 2.0 * rebuild_distance
+        self.rules = model.contacts.edges.rules
+        self.state = state.edges
+        self.m = model.contacts.edges.ends.shape[0]
+        self.inv_cell = 1.0 / (model.contacts.edges.longest + self.edges.reach)
+        self.mask = hash_table_size(self.m) - 1
+        self.particle_world = model.contacts.rules.world
+
+    def remake_if_asked(self, x: wp.array, lists) -> None:
+        edges, state, device = self.edges, self.state, x.device
+        wp.launch(edge_collision.edge_midpoints, dim=self.m, inputs=[x, edges.ends, lists.rebuild, self.particle_world],
+                  outputs=[state.midpoint, state.world], device=device)
+        wp.launch(spatial_hash.insert_points, dim=self.m,
+                  inputs=[state.midpoint, state.world, self.inv_cell, self.mask, EDGE_BUCKET_CAPACITY, lists.epoch,
+                          lists.rebuild],
+                  outputs=[state.bucket_size, state.bucket_items, lists.overflow], device=device)
+        wp.launch(gather_edge_candidates, dim=self.m,
+                  inputs=[x, state.midpoint, state.world, edges, self.rules, lists, self.inv_cell, self.mask,
+                          EDGE_BUCKET_CAPACITY, state.bucket_size, state.bucket_items], device=device)

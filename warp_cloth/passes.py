@@ -9,10 +9,11 @@ import warp as wp
 
 from warp_cloth.kernels import colliders, gathering, motion, passes as fused, wind
 from warp_cloth.kernels.colliders import RigidColliders
+from warp_cloth.kernels.edge_collision import EdgeContacts
 from warp_cloth.kernels.particle_collision import Contacts
 
 from .device_model import DeviceModel
-from .state import DeviceState
+from .state import EDGE_NEIGHBORS, DeviceState
 
 
 class Pass(Protocol):
@@ -50,6 +51,17 @@ def contacts_args(model: DeviceModel, state: DeviceState) -> Contacts:
     contacts.max_neighbors = settings.max_neighbors
     contacts.resting, contacts.pushed = state.contacts.resting, state.contacts.pushed
     return contacts
+
+
+def edge_contacts_args(model: DeviceModel, state: DeviceState) -> EdgeContacts:
+    """Edge contacts' constants and lists as the kernels take them (``reach``: the lists' to set)."""
+    edges, constants = EdgeContacts(), model.contacts.edges
+    edges.ends = constants.ends
+    edges.incident_offsets, edges.incident = constants.incident_offsets, constants.incident
+    edges.neighbors, edges.counts = state.edges.neighbors, state.edges.counts
+    edges.max_neighbors = EDGE_NEIGHBORS
+    edges.thickness, edges.reach = constants.thickness, 0.0
+    return edges
 
 
 class GatheringPass:
@@ -135,6 +147,17 @@ def limit_and_separation_pass(model: DeviceModel, state: DeviceState, threads: i
     args.limits, args.contacts = model.limits, contacts_args(model, state)
     return projection_pass("limits+separation", fused.limit_and_separation_pass_kernel(threads), args, model,
                            threads, bundle, read_bit)
+
+
+def edge_separation_pass(model: DeviceModel, state: DeviceState, threads: int,
+                         bundle: RigidColliders | None) -> GatheringPass:
+    """One Jacobi pass moving contact edges a thickness apart (kernels/edge_collision.py), then the
+    colliders in ``bundle`` (None: none)."""
+    args = fused.EdgeSeparationPassArgs()
+    args.edges, args.inv_mass, args.h = edge_contacts_args(model, state), model.inv_mass, model.h
+    args.colliders = bundle if bundle is not None else model.no_colliders()
+    return GatheringPass("edge_separation" + ("+colliders" if bundle is not None else ""),
+                         fused.edge_separation_pass_kernel(threads), threads, args, model.device)
 
 
 CONTACT_SLACK = 1.01  # pairs within 1% of contact count as touching in the velocity pass

@@ -14,8 +14,8 @@ from .implicit import BackwardEuler
 from .limit_solve import ConvergedProjection
 from .neighbour_lists import LIST_THREADS_BY_SIZE, NeighbourLists
 from .passes import (AdvanceClock, Collide, ContactStart, DrivePins, FollowKeys, FollowTargets, MoveMeshColliders,
-                     MoveSpheres, Pass, WindForces, contact_start_args, contact_velocities, explicit_step,
-                     limit_and_separation_pass, limit_pass, separation_pass)
+                     MoveSpheres, Pass, WindForces, contact_start_args, contact_velocities, edge_separation_pass,
+                     explicit_step, limit_and_separation_pass, limit_pass, separation_pass)
 from .scene import ImplicitSolver
 from .state import DeviceState
 
@@ -64,8 +64,9 @@ def build_plan(model: DeviceModel, state: DeviceState, implicit_settings: Implic
     """The substep, in order: moving spheres and animated mesh colliders to the substep's end (nothing
     before the colliders reads them); the wind's forces; integration; driven pins (oscillating, on
     colliders, on keys); then, with particle collision, the contacts' start (in the explicit step where
-    nothing comes between), the candidate lists, the projection passes and the contact velocities; without
-    it, the strain limit's passes or the colliders alone; the clock last, where something moves with it.
+    nothing comes between), the candidate lists, the projection passes, the edge contacts' pass where the
+    scene has them, and the contact velocities; without it, the strain limit's passes or the colliders
+    alone; the clock last, where something moves with it.
     ``threads``: per particle on the gathering passes (None: by size)."""
     chosen = threads_per_particle(model.particle_count, model.device) if threads is None else threads
     rigid = model.colliders(state.sphere_center, state.sphere_velocity) if model.has_colliders else None
@@ -106,6 +107,8 @@ def build_plan(model: DeviceModel, state: DeviceState, implicit_settings: Implic
             passes.append(projection)
         else:
             passes.extend(projection_passes(model, state, chosen, rigid))
+        if state.edges is not None:
+            passes.append(edge_separation_pass(model, state, chosen, rigid))
         passes.append(contact_velocities(model, state, chosen))
     elif model.limits is not None and converged:
         projection = ConvergedProjection(model, state, [limit_pass(model, chosen, rigid, None, 1)] * 2, rigid)

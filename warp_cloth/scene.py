@@ -606,7 +606,10 @@ class Collision:
     measuring the broad phase). A larger ``search_scale`` remakes less often and makes longer lists
     (tools/skin_probe.py measures the trade). With ``simulation.limit_solve = "converged"`` the passes go on
     (``iterations`` is not used) until no candidate pair is more than ``tolerance`` of its contact distance
-    inside it, and the strain limits hold to theirs.
+    inside it, and the strain limits hold to theirs. ``edges`` adds edge contacts: triangle edges too long
+    for the particles' spheres to keep from passing through each other (a grid's diagonals, where a cloth
+    folds flat onto itself) are held a quarter of a contact distance apart, in a pass after the projection
+    (kernels/edge_collision.py).
     """
 
     self_collision: bool = field(default=True, metadata={"toml": "self"})
@@ -621,6 +624,7 @@ class Collision:
     lists: Literal["when_moved", "every_substep"] = "when_moved"
     search_scale: float = 1.5
     tolerance: float = 0.05
+    edges: bool = False
 
     def __post_init__(self) -> None:
         check_fields(self)

@@ -41,6 +41,24 @@ class ContactState:
         return lists
 
 
+@dataclass
+class EdgeListState:
+    """Edge contacts' arrays (kernels/edge_collision.py): each edge's candidate list, and the spatial hash
+    of the edges' midpoints they are made from (stamped with the particle lists' epoch)."""
+
+    neighbors: wp.array
+    counts: wp.array
+    midpoint: wp.array
+    world: wp.array
+    bucket_size: wp.array
+    bucket_items: wp.array
+
+    CARRIED = ("neighbors", "counts")  # what the next substep reads before it writes
+
+
+EDGE_NEIGHBORS = 32  # candidates an edge's list holds (overflow is counted with the particles')
+EDGE_BUCKET_CAPACITY = 64  # edges a bucket of their hash holds: its cells are two edges wide
+
 BUCKET_CAPACITY = 16  # particles a spatial-hash bucket holds (overflow is counted, tests keep it 0)
 BRUTE_FORCE_UP_TO = 512  # particles; below, checking all pairs costs less than the hash
 
@@ -76,6 +94,7 @@ class DeviceState:
         # what each position's compensated sum has rounded away so far (empty where the moves add plainly)
         self.rounded_away = wp.zeros(len(positions) if model.compensated else 0, dtype=wp.vec3, device=device)
         self.contacts = None if model.contacts is None else self._contact_state(model)
+        self.edges = None if model.contacts is None or model.contacts.edges is None else self._edge_state(model)
 
     def _contact_state(self, model: DeviceModel) -> ContactState:
         n, device = model.particle_count, model.device
@@ -88,6 +107,16 @@ class DeviceState:
                             rebuild=zeros(1), epoch=zeros(1), overflow=zeros(1), bucket_size=zeros(table),
                             bucket_items=zeros(table * BUCKET_CAPACITY), pushed=zeros(n, float),
                             resting=zeros(n if model.has_colliders else 0), v_start=zeros(n, wp.vec3))
+
+    def _edge_state(self, model: DeviceModel) -> EdgeListState:
+        m, device = model.contacts.edges.ends.shape[0], model.device
+        table = hash_table_size(m)
+        return EdgeListState(neighbors=wp.zeros(m * EDGE_NEIGHBORS, dtype=int, device=device),
+                             counts=wp.zeros(m, dtype=int, device=device),
+                             midpoint=wp.zeros(m, dtype=wp.vec3, device=device),
+                             world=wp.zeros(m, dtype=int, device=device),
+                             bucket_size=wp.zeros(table, dtype=int, device=device),
+                             bucket_items=wp.zeros(table * EDGE_BUCKET_CAPACITY, dtype=int, device=device))
 
     @property
     def x(self) -> wp.array:
@@ -119,4 +148,6 @@ class DeviceState:
             arrays["rounded_away"] = self.rounded_away
         if self.contacts is not None:
             arrays.update({f"contacts.{name}": getattr(self.contacts, name) for name in ContactState.CARRIED})
+        if self.edges is not None:
+            arrays.update({f"edges.{name}": getattr(self.edges, name) for name in EdgeListState.CARRIED})
         return arrays

@@ -1,0 +1,162 @@
+"""Edge contacts: triangle edges kept a thickness apart, where particle contacts alone let them cross.
+
+Particle contacts keep points apart, not the edges between them. Two edges of length L crossing at their
+middles keep every end sqrt(2) L / 2 from the other's: past the contact distance for a grid's triangle
+diagonals (1.41 cells against the seed's 0.82), so a cloth folded flat onto itself can pass a diagonal
+through another while every particle stays apart. The model lists the triangle edges long enough for this
+(warp_cloth/model.py, ``long_triangle_edges``); each edge's candidates are the listed edges whose segments lie
+within ``reach``, found through a spatial hash of the edges' midpoints (passes.py) whenever the particle
+lists are remade, so that they stay valid as long as those do; a pass then moves each pair's
+closest points apart to ``thickness``, each end by its share (its barycentric weight over the pair's
+inverse mass), every particle by the mean of its edges' moves (Jacobi, as the particle contacts).
+"""
+
+import warp as wp
+
+wp.set_module_options({"fast_math": True})  # as the gathering kernels (see gathering.py)
+
+
+@wp.struct
+class EdgeContacts:
+    ends: wp.array(dtype=wp.vec2i)  # (m,) each contact edge's two particles
+    incident_offsets: wp.array(dtype=int)  # (n + 1,) the contact edges at each particle (CSR)
+    incident: wp.array(dtype=int)
+    neighbors: wp.array(dtype=int)  # (m * max_neighbors,) each edge's candidates, in index order
+    counts: wp.array(dtype=int)  # (m,)
+    max_neighbors: int
+    thickness: float  # how far apart the pass holds two edges
+    reach: float  # candidates lie within this distance when listed
+
+
+@wp.struct
+class EdgeRules:
+    """Which edges may touch: as particles' (particle_collision.may_collide), but any two edges that share
+    no particle, however close they lie in the cloth at rest."""
+    world: wp.array(dtype=int)  # (n,) each particle's
+    cloth_id: wp.array(dtype=int)
+    self_collision: int
+    between_cloths: int
+
+
+@wp.func
+def closest_points(p1: wp.vec3, q1: wp.vec3, p2: wp.vec3, q2: wp.vec3) -> wp.vec2:
+    """Where segments p1-q1 and p2-q2 come closest, as fractions (s, t) along each (Ericson, Real-Time
+    Collision Detection, 5.1.9)."""
+    d1 = q1 - p1
+    d2 = q2 - p2
+    r = p1 - p2
+    a = wp.dot(d1, d1)
+    e = wp.dot(d2, d2)
+    f = wp.dot(d2, r)
+    c = wp.dot(d1, r)
+    b = wp.dot(d1, d2)
+    denominator = a * e - b * b
+    s = float(0.0)
+    if denominator > 1.0e-12 * a * e:
+        s = wp.clamp((b * f - c * e) / denominator, 0.0, 1.0)
+    t = (b * s + f) / e
+    if t < 0.0:
+        t = 0.0
+        s = wp.clamp(-c / a, 0.0, 1.0)
+    elif t > 1.0:
+        t = 1.0
+        s = wp.clamp((b - c) / a, 0.0, 1.0)
+    return wp.vec2(s, t)
+
+
+@wp.func
+def shares_particle(a: wp.vec2i, b: wp.vec2i) -> bool:
+    return a[0] == b[0] or a[0] == b[1] or a[1] == b[0] or a[1] == b[1]
+
+
+@wp.func
+def may_touch(rules: EdgeRules, a: wp.vec2i, b: wp.vec2i) -> bool:
+    if shares_particle(a, b):
+        return False
+    i = a[0]
+    j = b[0]
+    if rules.world[i] != rules.world[j]:
+        return False
+    if rules.cloth_id[i] != rules.cloth_id[j]:
+        return rules.between_cloths != 0
+    return rules.self_collision != 0
+
+
+@wp.func
+def segment_gap(x: wp.array(dtype=wp.vec3), a: wp.vec2i, b: wp.vec2i) -> float:
+    st = closest_points(x[a[0]], x[a[1]], x[b[0]], x[b[1]])
+    pa = wp.lerp(x[a[0]], x[a[1]], st[0])
+    pb = wp.lerp(x[b[0]], x[b[1]], st[1])
+    return wp.length(pa - pb)
+
+
+@wp.kernel
+def edge_midpoints(x: wp.array(dtype=wp.vec3), ends: wp.array(dtype=wp.vec2i), rebuild: wp.array(dtype=int),
+                   world: wp.array(dtype=int), midpoint: wp.array(dtype=wp.vec3), edge_world: wp.array(dtype=int)):
+    """Each edge's midpoint and world, for the hash, where ``rebuild`` is set."""
+    if rebuild[0] == 0:
+        return
+    e = wp.tid()
+    ends_e = ends[e]
+    midpoint[e] = 0.5 * (x[ends_e[0]] + x[ends_e[1]])
+    edge_world[e] = world[ends_e[0]]
+
+
+@wp.func
+def apart_direction(d: wp.vec3, gap: float, p1: wp.vec3, q1: wp.vec3, p2: wp.vec3, q2: wp.vec3, e: int,
+                    f: int) -> wp.vec3:
+    """The unit direction from edge f's closest point to edge e's; for segments that meet, the normal of
+    the two, its sign decided by the edges' indices so that both ends of a pair agree."""
+    if gap > 1.0e-9:
+        return d / gap
+    n = wp.cross(q1 - p1, q2 - p2)
+    if wp.length_sq(n) < 1.0e-18:
+        n = wp.vec3(0.267, 0.535, 0.802)
+    n = wp.normalize(n)
+    if e < f:
+        return n
+    return -n
+
+
+@wp.func
+def edge_push(edges: EdgeContacts, i: int, e: int, f: int, x: wp.array(dtype=wp.vec3),
+              inv_mass: wp.array(dtype=float)):
+    """Particle i's move (an end of edge e) out of edge f's thickness, and 1 if the two are closer than
+    it (else zero and 0)."""
+    ends_e = edges.ends[e]
+    ends_f = edges.ends[f]
+    p1 = x[ends_e[0]]
+    q1 = x[ends_e[1]]
+    p2 = x[ends_f[0]]
+    q2 = x[ends_f[1]]
+    st = closest_points(p1, q1, p2, q2)
+    s = st[0]
+    t = st[1]
+    d = wp.lerp(p1, q1, s) - wp.lerp(p2, q2, t)
+    gap = wp.length(d)
+    if gap >= edges.thickness:
+        return wp.vec3(0.0), 0
+    w_e = (1.0 - s) * (1.0 - s) * inv_mass[ends_e[0]] + s * s * inv_mass[ends_e[1]]
+    w_f = (1.0 - t) * (1.0 - t) * inv_mass[ends_f[0]] + t * t * inv_mass[ends_f[1]]
+    if w_e + w_f == 0.0:
+        return wp.vec3(0.0), 0
+    weight = 1.0 - s
+    if i == ends_e[1]:
+        weight = s
+    n = apart_direction(d, gap, p1, q1, p2, q2, e, f)
+    return (inv_mass[i] * weight * (edges.thickness - gap) / (w_e + w_f)) * n, 1
+
+
+@wp.func
+def edge_pushes(edges: EdgeContacts, i: int, first: int, stride: int, x: wp.array(dtype=wp.vec3),
+                inv_mass: wp.array(dtype=float)) -> wp.vec4:
+    """Sum of particle i's moves out of the pairs its contact edges are in (candidates first, first +
+    stride, ... of each edge), and how many pairs are closer than the thickness (w)."""
+    total = wp.vec4(0.0)
+    for k in range(edges.incident_offsets[i], edges.incident_offsets[i + 1]):
+        e = edges.incident[k]
+        for c in range(first, edges.counts[e], stride):
+            move, close = edge_push(edges, i, e, edges.neighbors[e * edges.max_neighbors + c], x, inv_mass)
+            total = total + wp.vec4(move[0], move[1], move[2], float(close))
+    return total
+
