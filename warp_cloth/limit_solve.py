@@ -73,9 +73,10 @@ class ConvergedProjection:
     within tolerance, or ``limit_max_passes`` passes have run."""
 
     def __init__(self, model: DeviceModel, state: DeviceState, body: list[Pass],
-                 colliders: RigidColliders | None) -> None:
+                 colliders: RigidColliders | None, counted: int | None = None) -> None:
         assert len(body) % 2 == 0, "a loop's body must leave the positions where it found them"
         self.body = body
+        self.counted = len(body) if counted is None else counted  # the body's passes that count to the cap
         self.cascade = Cascade(model, model.hierarchy, colliders) if model.hierarchy is not None else None
         steps = ([self.cascade] if self.cascade is not None else []) + body
         self.name = f"until within tolerance, {len(body)} at a time: " + ", ".join(p.name for p in steps)
@@ -125,10 +126,10 @@ class ConvergedProjection:
                       outputs=[self.residual], device=device)
             bookkeeping = [self.active, self.counts, self.residual, self.stats]
             if self.rho is not None:
-                wp.launch(solve_loop.continue_chebyshev_solve, dim=1, inputs=[1.0, len(self.body)],
+                wp.launch(solve_loop.continue_chebyshev_solve, dim=1, inputs=[1.0, self.counted],
                           outputs=[*bookkeeping, self.omega], device=device)
             else:
-                wp.launch(solve_loop.continue_solve, dim=1, inputs=[1.0, len(self.body)], outputs=bookkeeping,
+                wp.launch(solve_loop.continue_solve, dim=1, inputs=[1.0, self.counted], outputs=bookkeeping,
                           device=device)
 
         wp.capture_while(self.active, iteration)

@@ -64,9 +64,10 @@ def build_plan(model: DeviceModel, state: DeviceState, implicit_settings: Implic
     """The substep, in order: moving spheres and animated mesh colliders to the substep's end (nothing
     before the colliders reads them); the wind's forces; integration; driven pins (oscillating, on
     colliders, on keys); then, with particle collision, the contacts' start (in the explicit step where
-    nothing comes between), the candidate lists, the projection passes, the edge contacts' pass where the
-    scene has them, and the contact velocities; without it, the strain limit's passes or the colliders
-    alone; the clock last, where something moves with it.
+    nothing comes between), the candidate lists, the projection passes (where the scene has edge contacts,
+    each of a converged solve after an edge pass, so that the check after the last sees what the edges
+    moved; with fixed passes, one edge pass before them) and the contact velocities; without it, the
+    strain limit's passes or the colliders alone; the clock last, where something moves with it.
     ``threads``: per particle on the gathering passes (None: by size)."""
     chosen = threads_per_particle(model.particle_count, model.device) if threads is None else threads
     rigid = model.colliders(state.sphere_center, state.sphere_velocity) if model.has_colliders else None
@@ -102,13 +103,14 @@ def build_plan(model: DeviceModel, state: DeviceState, implicit_settings: Implic
         if not start_in_step:
             passes.append(ContactStart(start))
         passes.append(lists)
+        edges = [edge_separation_pass(model, state, chosen, rigid)] if state.edges is not None else []
         if converged:
-            projection = ConvergedProjection(model, state, projection_pair(model, state, chosen, rigid), rigid)
+            pair = projection_pair(model, state, chosen, rigid)
+            body = [p for each in pair for p in edges + [each]]
+            projection = ConvergedProjection(model, state, body, rigid, counted=len(pair))
             passes.append(projection)
         else:
-            passes.extend(projection_passes(model, state, chosen, rigid))
-        if state.edges is not None:
-            passes.append(edge_separation_pass(model, state, chosen, rigid))
+            passes.extend(edges + projection_passes(model, state, chosen, rigid))
         passes.append(contact_velocities(model, state, chosen))
     elif model.limits is not None and converged:
         projection = ConvergedProjection(model, state, [limit_pass(model, chosen, rigid, None, 1)] * 2, rigid)
