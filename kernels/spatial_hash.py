@@ -21,12 +21,15 @@ def cell_of(p: wp.vec3, inv_width: float) -> wp.vec3i:
     return wp.vec3i(int(wp.floor(p[0] * inv_width)), int(wp.floor(p[1] * inv_width)), int(wp.floor(p[2] * inv_width)))
 
 
+WORLD_MIX = wp.constant(wp.uint32(2654435761))  # typed: as a plain literal it compiles as an int32, with a warning
+
+
 @wp.func
 def bucket_of(cell: wp.vec3i, world: int, mask: int) -> int:
     """The cell's bucket in ``world``: its 2 x 2 x 2 block's run of 8 (``mask`` + 1, the table size, a power
     of two of at least 8), then its place in the block."""
     h = (wp.uint32(cell[0] >> 1) * wp.uint32(73856093)) ^ (wp.uint32(cell[1] >> 1) * wp.uint32(19349663)) ^ (
-        wp.uint32(cell[2] >> 1) * wp.uint32(83492791)) ^ (wp.uint32(world) * wp.uint32(2654435761))
+        wp.uint32(cell[2] >> 1) * wp.uint32(83492791)) ^ (wp.uint32(world) * WORLD_MIX)
     within = (cell[0] & 1) | ((cell[1] & 1) << 1) | ((cell[2] & 1) << 2)
     return int(h & wp.uint32(mask >> 3)) * 8 + within
 
