@@ -321,7 +321,8 @@ def scene_file(tmp_path: Path) -> Path:
     lambda tmp: wc.load_scene("oscillating_pins"),
     lambda tmp: with_simulation(wc.load_scene("hanging"), integrator="implicit", dt=1 / 96),
     lambda tmp: with_simulation(wc.load_scene("hanging"), compensated=True),
-], ids=["collision-and-moving-sphere", "oscillating-pins", "implicit", "compensated"])
+    lambda tmp: wc.load_scene("seed_default"),
+], ids=["collision-and-moving-sphere", "oscillating-pins", "implicit", "compensated", "edge-contacts"])
 def test_a_restored_simulator_makes_the_same_frames(tmp_path, make_scene):
     scene = make_scene(tmp_path)
     sim = wc.Simulator(scene, device="cpu")
