@@ -106,16 +106,17 @@ def edge_midpoints(x: wp.array(dtype=wp.vec3), ends: wp.array(dtype=wp.vec2i), r
 def apart_direction(d: wp.vec3, gap: float, p1: wp.vec3, q1: wp.vec3, p2: wp.vec3, q2: wp.vec3, e: int,
                     f: int) -> wp.vec3:
     """The unit direction from edge f's closest point to edge e's; for segments that meet, the normal of
-    the two, its sign decided by the edges' indices so that both ends of a pair agree."""
+    the two (e's direction cross f's, which turns over when the pair is seen from f, so that the two are
+    pushed opposite ways), or for parallel ones a fixed direction whose sign the edges' indices decide."""
     if gap > 1.0e-9:
         return d / gap
     n = wp.cross(q1 - p1, q2 - p2)
-    if wp.length_sq(n) < 1.0e-18:
-        n = wp.vec3(0.267, 0.535, 0.802)
-    n = wp.normalize(n)
+    if wp.length_sq(n) > 1.0e-18:
+        return wp.normalize(n)
+    fixed = wp.normalize(wp.vec3(0.267, 0.535, 0.802))
     if e < f:
-        return n
-    return -n
+        return fixed
+    return -fixed
 
 
 @wp.func

@@ -20,7 +20,7 @@ from warp_cloth.device_model import no_colliders
 from warp_cloth.kernels import passes as fused
 from warp_cloth.kernels.gathering import launch_gathering
 from warp_cloth.kernels.limits import StrainLimits
-from warp_cloth.passes import separation_pass
+from warp_cloth.passes import edge_separation_pass, separation_pass
 
 # Jacobi passes with averaging leave pairs that are squeezed from several sides slightly inside contact;
 # the issue's bound is 0.9 of the contact distance. With the limit solved (every built-in scene's
@@ -220,6 +220,40 @@ def test_edge_contacts_keep_a_folded_diagonal_from_passing_through_another(k):
         crossings[edges] = most
         assert ContactGaps(sim)(sim) >= CLOSEST_CONTACT and sim.plan.lists.overflow == 0
     assert crossings == {False: 1, True: 0}
+
+
+@pytest.mark.parametrize("height", [0.0, 0.05], ids=["meeting", "apart"])
+def test_an_edge_pass_moves_two_crossing_diagonals_apart_to_the_thickness(height):
+    """Two one-quad cloths, the second turned a quarter about the first's centre so that their diagonals
+    cross at their middles (``height`` apart, or meeting), equal masses: one edge pass moves the four ends
+    opposite ways, each pair's closest points to the thickness apart, and keeps their momentum."""
+    quads = tuple(wc.Cloth(name=name, resolution=(1, 1), size=(1.0, 1.0), orientation="horizontal",
+                           origin=(-0.5, y, 0.5), limit=wc.Limit()) for name, y in (("a", 0.0), ("b", 2.0)))
+    scene = wc.Scene(name="crossing", cloths=quads, collision=wc.Collision(edges=True, self_collision=False))
+    sim = wc.Simulator(scene, device="cpu", graph=False)
+    a = sim.model.positions[:4].astype(np.float64)
+    turned = a[:, [2, 1, 0]] * np.array([-1.0, 1.0, 1.0]) + np.array([0.0, height, 0.0])
+    sim.state.x.assign(np.concatenate([a, turned]).astype(np.float32))
+    ends = sim.device_model.contacts.edges.ends.numpy()
+    sim.plan.lists.remake_now(sim.state.x)
+    before = sim.positions().astype(np.float64)
+    edge_separation_pass(sim.device_model, sim.state, 1, None).run(sim.state)
+    moved = sim.positions().astype(np.float64) - before
+    thickness = sim.device_model.contacts.edges.thickness
+    (p1, q1), (p2, q2) = (sim.positions()[e].astype(np.float64) for e in ends)
+    gap = segment_distance(p1, q1, p2, q2)
+    assert len(ends) == 2 and np.isclose(gap, thickness, rtol=1e-4)
+    assert np.allclose(moved.sum(axis=0), 0.0, atol=1e-6)
+    assert np.dot(moved[ends[0, 0]], moved[ends[1, 0]]) < 0.0
+
+
+def segment_distance(p1, q1, p2, q2, samples=2001) -> float:
+    """The closest approach of two segments, by sampling one and projecting onto the other."""
+    t = np.linspace(0.0, 1.0, samples)[:, None]
+    points = p1 + t * (q1 - p1)
+    d = q2 - p2
+    along = np.clip((points - p2) @ d / (d @ d), 0.0, 1.0)[:, None]
+    return float(np.min(np.linalg.norm(points - (p2 + along * d), axis=1)))
 
 
 def test_only_edges_too_long_for_the_particles_are_contact_edges():
