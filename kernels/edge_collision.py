@@ -25,7 +25,6 @@ class EdgeContacts:
     counts: wp.array(dtype=int)  # (m,)
     max_neighbors: int
     thickness: float  # how far apart the pass holds two edges
-    reach: float  # candidates lie within this distance when listed
 
 
 @wp.struct
@@ -41,18 +40,25 @@ class EdgeRules:
 @wp.func
 def closest_points(p1: wp.vec3, q1: wp.vec3, p2: wp.vec3, q2: wp.vec3) -> wp.vec2:
     """Where segments p1-q1 and p2-q2 come closest, as fractions (s, t) along each (Ericson, Real-Time
-    Collision Detection, 5.1.9)."""
+    Collision Detection, 5.1.9), a segment of no length taken as its point."""
     d1 = q1 - p1
     d2 = q2 - p2
     r = p1 - p2
     a = wp.dot(d1, d1)
     e = wp.dot(d2, d2)
     f = wp.dot(d2, r)
+    tiny = 1.0e-12
+    if a <= tiny and e <= tiny:
+        return wp.vec2(0.0, 0.0)
+    if a <= tiny:
+        return wp.vec2(0.0, wp.clamp(f / e, 0.0, 1.0))
     c = wp.dot(d1, r)
+    if e <= tiny:
+        return wp.vec2(wp.clamp(-c / a, 0.0, 1.0), 0.0)
     b = wp.dot(d1, d2)
     denominator = a * e - b * b
     s = float(0.0)
-    if denominator > 1.0e-12 * a * e:
+    if denominator > 1.0e-6 * a * e:  # else parallel to float32's precision: any s will do
         s = wp.clamp((b * f - c * e) / denominator, 0.0, 1.0)
     t = (b * s + f) / e
     if t < 0.0:
@@ -92,60 +98,68 @@ def segment_gap(x: wp.array(dtype=wp.vec3), a: wp.vec2i, b: wp.vec2i) -> float:
 
 @wp.kernel
 def edge_midpoints(x: wp.array(dtype=wp.vec3), ends: wp.array(dtype=wp.vec2i), rebuild: wp.array(dtype=int),
-                   world: wp.array(dtype=int), midpoint: wp.array(dtype=wp.vec3), edge_world: wp.array(dtype=int)):
-    """Each edge's midpoint and world, for the hash, where ``rebuild`` is set."""
+                   world: wp.array(dtype=int), longest: float, midpoint: wp.array(dtype=wp.vec3),
+                   edge_world: wp.array(dtype=int), overflow: wp.array(dtype=int)):
+    """Each edge's midpoint and world, for the hash, where ``rebuild`` is set; an edge longer than
+    ``longest``, which the hash's cells are sized for, counts as an overflow (its pairs may go unlisted)."""
     if rebuild[0] == 0:
         return
     e = wp.tid()
     ends_e = ends[e]
     midpoint[e] = 0.5 * (x[ends_e[0]] + x[ends_e[1]])
     edge_world[e] = world[ends_e[0]]
+    if wp.length(x[ends_e[1]] - x[ends_e[0]]) > longest:
+        wp.atomic_add(overflow, 0, 1)
 
 
 @wp.func
-def apart_direction(d: wp.vec3, gap: float, p1: wp.vec3, q1: wp.vec3, p2: wp.vec3, q2: wp.vec3, e: int,
-                    f: int) -> wp.vec3:
-    """The unit direction from edge f's closest point to edge e's; for segments that meet, the normal of
-    the two (e's direction cross f's, which turns over when the pair is seen from f, so that the two are
-    pushed opposite ways), or for parallel ones a fixed direction whose sign the edges' indices decide."""
-    if gap > 1.0e-9:
+def apart_direction(d: wp.vec3, gap: float, p1: wp.vec3, q1: wp.vec3, p2: wp.vec3, q2: wp.vec3,
+                    thickness: float) -> wp.vec3:
+    """The unit direction from the second edge's closest point to the first's; for segments that (to
+    float32's precision) meet, the normal of the two, or for parallel ones a fixed direction."""
+    if gap > 1.0e-6 * thickness:
         return d / gap
     n = wp.cross(q1 - p1, q2 - p2)
     if wp.length_sq(n) > 1.0e-18:
         return wp.normalize(n)
-    fixed = wp.normalize(wp.vec3(0.267, 0.535, 0.802))
-    if e < f:
-        return fixed
-    return -fixed
+    return wp.normalize(wp.vec3(0.267, 0.535, 0.802))
 
 
 @wp.func
 def edge_push(edges: EdgeContacts, i: int, e: int, f: int, x: wp.array(dtype=wp.vec3),
               inv_mass: wp.array(dtype=float)):
-    """Particle i's move (an end of edge e) out of edge f's thickness, and 1 if the two are closer than
-    it (else zero and 0)."""
-    ends_e = edges.ends[e]
-    ends_f = edges.ends[f]
-    p1 = x[ends_e[0]]
-    q1 = x[ends_e[1]]
-    p2 = x[ends_f[0]]
-    q2 = x[ends_f[1]]
+    """Particle i's move (an end of edge e) out of edge f's thickness, and 1 if it moves (else zero and 0).
+
+    The pair is worked out in one order, the lower-numbered edge first, whichever of its edges' particles
+    asks: in float32 two edges' closest points seen from each side differ by rounding, and where the edges
+    (nearly) meet, so would the directions each side pushes its edge."""
+    first = wp.min(e, f)
+    second = wp.max(e, f)
+    ends_1 = edges.ends[first]
+    ends_2 = edges.ends[second]
+    p1 = x[ends_1[0]]
+    q1 = x[ends_1[1]]
+    p2 = x[ends_2[0]]
+    q2 = x[ends_2[1]]
     st = closest_points(p1, q1, p2, q2)
-    s = st[0]
-    t = st[1]
-    d = wp.lerp(p1, q1, s) - wp.lerp(p2, q2, t)
+    d = wp.lerp(p1, q1, st[0]) - wp.lerp(p2, q2, st[1])
     gap = wp.length(d)
     if gap >= edges.thickness:
         return wp.vec3(0.0), 0
-    w_e = (1.0 - s) * (1.0 - s) * inv_mass[ends_e[0]] + s * s * inv_mass[ends_e[1]]
-    w_f = (1.0 - t) * (1.0 - t) * inv_mass[ends_f[0]] + t * t * inv_mass[ends_f[1]]
-    if w_e + w_f == 0.0:
+    w_1 = (1.0 - st[0]) * (1.0 - st[0]) * inv_mass[ends_1[0]] + st[0] * st[0] * inv_mass[ends_1[1]]
+    w_2 = (1.0 - st[1]) * (1.0 - st[1]) * inv_mass[ends_2[0]] + st[1] * st[1] * inv_mass[ends_2[1]]
+    n = apart_direction(d, gap, p1, q1, p2, q2, edges.thickness)
+    along = st[0]
+    if e == second:
+        n = -n
+        along = st[1]
+    weight = 1.0 - along
+    if i == edges.ends[e][1]:
+        weight = along
+    move = inv_mass[i] * weight
+    if move == 0.0:
         return wp.vec3(0.0), 0
-    weight = 1.0 - s
-    if i == ends_e[1]:
-        weight = s
-    n = apart_direction(d, gap, p1, q1, p2, q2, e, f)
-    return (inv_mass[i] * weight * (edges.thickness - gap) / (w_e + w_f)) * n, 1
+    return (move * (edges.thickness - gap) / (w_1 + w_2)) * n, 1
 
 
 @wp.func

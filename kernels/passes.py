@@ -315,7 +315,7 @@ def finish_edge_separation_pass(args: EdgeSeparationPassArgs, i: int, total: wp.
         x_out[i] = xi
         return
     move = mean_of(total)
-    p, vel, hit = collide_particle(i, xi + move, v[i] + move / args.h, args.colliders, args.h)
+    p, vel, unused_hit = collide_particle(i, xi + move, v[i] + move / args.h, args.colliders, args.h)
     x_out[i] = p
     v_out[i] = vel
 
@@ -440,7 +440,7 @@ def contact_velocities_kernel(threads: int) -> wp.Kernel:
                             finish_contact_velocities, threads)
 
 
-# --- neighbour lists from the spatial hash (spatial_hash.py) and the pair rules (particle_collision.py) ------
+# --- neighbour lists of particles and of contact edges, from spatial hashes (spatial_hash.py) ----------------
 
 @wp.struct
 class HashGrid:
@@ -542,30 +542,38 @@ def launch_gather_neighbors(threads: int, x: wp.array, inputs: list) -> None:
 @wp.kernel
 def gather_edge_candidates(x: wp.array(dtype=wp.vec3), midpoint: wp.array(dtype=wp.vec3),
                            edge_world: wp.array(dtype=int), edges: EdgeContacts, rules: EdgeRules, lists: ListState,
-                           inv_cell: float, mask: int, capacity: int, bucket_size: wp.array(dtype=int),
-                           bucket_items: wp.array(dtype=int)):
-    """Each edge's candidates from the hash of its midpoint's 27 cells, where ``rebuild`` is set: edges that
-    may touch it whose segments lie within ``reach``, in index order."""
+                           reach: float, inv_cell: float, mask: int, capacity: int,
+                           bucket_size: wp.array(dtype=int), bucket_items: wp.array(dtype=int)):
+    """Each edge's candidates from the hash of its midpoint's 27 cells (each bucket once), where ``rebuild``
+    is set: edges that may touch it whose segments lie within ``reach``, the gap worked out in the same
+    order from both edges (so that each lists the other), in index order."""
     if lists.rebuild[0] == 0:
         return
     e = wp.tid()
     ends_e = edges.ends[e]
     center = cell_of(midpoint[e], inv_cell)
+    world = edge_world[e]
     stamp = stamp_of(lists.epoch[0])
     start = e * edges.max_neighbors
     count = int(0)
     for k in range(27):
-        bucket = neighbour_bucket(center, edge_world[e], k, mask)
-        for s in range(wp.min(count_in(bucket_size[bucket], stamp), capacity)):
-            f = bucket_items[bucket * capacity + s]
-            ends_f = edges.ends[f]
-            if f != e and may_touch(rules, ends_e, ends_f):
-                if segment_gap(x, ends_e, ends_f) < edges.reach:
-                    if count < edges.max_neighbors:
-                        edges.neighbors[start + count] = f
-                        count += 1
+        bucket = neighbour_bucket(center, world, k, mask)
+        if first_visit(center, world, k, bucket, mask):
+            for s in range(wp.min(count_in(bucket_size[bucket], stamp), capacity)):
+                f = bucket_items[bucket * capacity + s]
+                ends_f = edges.ends[f]
+                if f != e and may_touch(rules, ends_e, ends_f):
+                    gap = float(0.0)
+                    if e < f:
+                        gap = segment_gap(x, ends_e, ends_f)
                     else:
-                        wp.atomic_add(lists.overflow, 0, 1)
+                        gap = segment_gap(x, ends_f, ends_e)
+                    if gap < reach:
+                        if count < edges.max_neighbors:
+                            edges.neighbors[start + count] = f
+                            count += 1
+                        else:
+                            wp.atomic_add(lists.overflow, 0, 1)
     edges.counts[e] = sort_and_drop_repeats(edges.neighbors, start, count)
 
 

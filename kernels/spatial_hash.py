@@ -1,16 +1,16 @@
-"""A spatial hash of particles, built from kernels alone so that it can be remade inside a captured graph:
-cells of a given width are hashed (Teschner et al. 2003) into a power-of-two table of buckets of fixed
-capacity, and each particle is appended to its cell's bucket. Cells are hashed in blocks of 2 x 2 x 2 to
-runs of 8 buckets, so that the 27 cells around a point lie in at most 8 runs of the table, not 27
-scattered places (a table of 4M particles' buckets outgrows a GPU's L2 cache). A query visits the 27
-cells around a point; points from other cells in a bucket are candidates like any other (callers test the
-distance), and a bucket that two of the 27 cells share is visited at the first of them (``first_visit``).
-Each world of a batch (warp_cloth/batch.py) hashes its cells apart from the others' (its number mixed into
-the hash), so that worlds simulated in one place do not crowd each other's buckets.
+"""A spatial hash of points (particles, or contact edges' midpoints), built from kernels alone so that it can
+be remade inside a captured graph: cells of a given width are hashed (Teschner et al. 2003) into a
+power-of-two table of buckets of fixed capacity, and each point is appended to its cell's bucket. Cells are hashed in
+blocks of 2 x 2 x 2 to runs of 8 buckets, so that the 27 cells around a point lie in at most 8 runs of the
+table, not 27 scattered places (a table of 4M particles' buckets outgrows a GPU's L2 cache). A query visits
+the 27 cells around a point; points from other cells in a bucket are candidates like any other (callers test
+the distance), and a bucket that two of the 27 cells share is visited at the first of them
+(``first_visit``). Each world of a batch (warp_cloth/batch.py) hashes its cells apart from the others' (its
+number mixed into the hash), so that worlds simulated in one place do not crowd each other's buckets.
 
-A bucket's size is stamped with the epoch of the table it belongs to (the caller counts epochs up), so a
-new table needs no clearing: a bucket whose stamp is not the current epoch's is empty. Stamps keep the
-epoch's low 24 bits; a bucket left untouched for 2^24 epochs would read as filled again.
+A bucket's size is stamped with the epoch of the table it belongs to (the caller counts epochs up), so a new
+table needs no clearing: a bucket whose stamp is not the current epoch's is empty. Stamps keep the epoch's
+low 24 bits; a bucket left untouched for 2^24 epochs would read as filled again.
 """
 
 import warp as wp

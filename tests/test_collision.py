@@ -263,9 +263,9 @@ def test_only_edges_too_long_for_the_particles_are_contact_edges():
     cloth = wc.Cloth(name="grid", resolution=(4, 3), size=(4.0, 3.0), limit=wc.Limit())
     mesh = build_grid(cloth)
     radii = collision_radii(cloth, mesh, None)
-    edges = long_triangle_edges(cloth, mesh, radii, wc.Collision().separation)
+    edges, at_limit = long_triangle_edges(cloth, mesh, radii, wc.Collision().separation)
     lengths = np.linalg.norm(mesh.positions[edges[:, 0]] - mesh.positions[edges[:, 1]], axis=1)
-    assert len(edges) == 4 * 3 and np.allclose(lengths, np.sqrt(2.0))
+    assert len(edges) == 4 * 3 and np.allclose(lengths, np.sqrt(2.0)) and np.allclose(at_limit, 1.1 * lengths)
 
 
 def test_collision_run_is_deterministic_on_cpu():

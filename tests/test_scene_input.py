@@ -82,6 +82,7 @@ BAD = [
     (VALID.replace("frames = 2", "frames = 2.5"), "simulation.frames", "a whole number"),
     (VALID.replace("substeps = 2", 'integrator = "implicit"\ncompensated = true'), "simulation.compensated",
      "false with the implicit integrator"),
+    (VALID + "\n[collision]\nedges = true\n", "collision.edges", "a strain limit on every cloth"),
     (VALID.replace("[simulation]", "[simulation\n"), "", "valid TOML"),
 ]
 

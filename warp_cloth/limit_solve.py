@@ -1,9 +1,10 @@
 """The converged projection: Jacobi passes of the strain limits (with particle collision, limits and
 separation together), every pass ending with the rigid colliders, run in pairs inside a device-side loop
-until the limits and contacts hold to their tolerances or the cap on passes is reached; each pair
-optionally accelerated by Chebyshev's semi-iterative method (``limit_chebyshev_rho``, the pair's
-spectral radius as estimated for it; docs/strain-solve.md measures both), and optionally begun by a
-cascade down the coarse levels of the limits (``limit_multilevel``, warp_cloth/hierarchy.py)."""
+(with an edge contacts' pass before each where the scene has them, which the cap does not count) until
+the limits and contacts hold to their tolerances or the cap on passes is reached; each pair optionally
+accelerated by Chebyshev's semi-iterative method (``limit_chebyshev_rho``, the pair's spectral radius as
+estimated for it; docs/strain-solve.md measures both), and optionally begun by a cascade down the coarse
+levels of the limits (``limit_multilevel``, warp_cloth/hierarchy.py)."""
 
 from __future__ import annotations
 

@@ -161,7 +161,7 @@ class ContactEdges:
 
     ends: np.ndarray  # (m, 2) int32, particles
     incidence: Adjacency  # each particle's edges (its ``spring`` entries are edge numbers)
-    longest: float  # the longest edge at its cloth's stretch limit
+    longest: float  # the longest an edge may get: at its cloth's stretch limit, with a margin
 
 
 @dataclass(frozen=True)
@@ -592,29 +592,31 @@ def needs_adjacent_exclusion(cloth: Cloth, positions: np.ndarray, pairs: np.ndar
     return bool(np.any((1.0 - cloth.limit.compression) * rest <= contact))
 
 
-def long_triangle_edges(cloth: Cloth, mesh: ClothMesh, radii: np.ndarray, separation: float) -> np.ndarray:
-    """(k, 2) the cloth's triangle edges that particle contacts cannot keep from passing through one another:
-    those longer, at the stretch limit, than sqrt(2) contact distances, since two crossing at their middles
-    keep every end that far from the other's (on a grid with the seed's radii, the diagonals)."""
+def long_triangle_edges(cloth: Cloth, mesh: ClothMesh, radii: np.ndarray,
+                        separation: float) -> tuple[np.ndarray, np.ndarray]:
+    """(k, 2) the cloth's triangle edges that particle contacts cannot keep from passing through one another,
+    and their lengths at the stretch limit: those longer there than sqrt(2) contact distances, since two
+    such crossing at their middles keep every end that far from the other's (on a grid with the seed's
+    radii, the diagonals). A shorter edge crossing a long one is not guarded (on the grid, a structural
+    edge crossing a diagonal at both middles keeps their ends 0.87 cells apart)."""
     triangles = mesh.triangles
     sides = np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
     pairs = unique_pairs(sides, len(mesh.positions))[0]
     a, b = pairs[:, 0], pairs[:, 1]
-    stretch = cloth.limit.stretch if cloth.limit is not None else 0.0
-    length = (1.0 + stretch) * np.linalg.norm(mesh.positions[a] - mesh.positions[b], axis=1)
-    return pairs[length > np.sqrt(2.0) * separation * 0.5 * (radii[a] + radii[b])]
+    length = (1.0 + cloth.limit.stretch) * np.linalg.norm(mesh.positions[a] - mesh.positions[b], axis=1)
+    long = length > np.sqrt(2.0) * separation * 0.5 * (radii[a] + radii[b])
+    return pairs[long], length[long]
+
+
+EDGE_OVERSHOOT = 1.1  # the hash's cells allow edges this much past their stretch limit (a solve's tolerance)
 
 
 def _contact_edges(scene: Scene, meshes, radii, offsets: np.ndarray) -> ContactEdges | None:
-    collision = scene.collision
-    per_cloth = [long_triangle_edges(c, m, r, collision.separation) for c, m, r in zip(scene.cloths, meshes, radii)]
-    ends = np.concatenate([e + o for e, o in zip(per_cloth, offsets)]).astype(np.int32)
+    found = [long_triangle_edges(c, m, r, scene.collision.separation) for c, m, r in zip(scene.cloths, meshes, radii)]
+    ends = np.concatenate([pairs + o for (pairs, _), o in zip(found, offsets)]).astype(np.int32)
     if len(ends) == 0:
         return None
-    stretch = np.concatenate([np.full(len(e), c.limit.stretch if c.limit is not None else 0.0)
-                              for c, e in zip(scene.cloths, per_cloth)])
-    positions = np.concatenate([m.positions for m in meshes])
-    longest = float(np.max((1.0 + stretch) * np.linalg.norm(positions[ends[:, 0]] - positions[ends[:, 1]], axis=1)))
+    longest = EDGE_OVERSHOOT * max(float(length.max()) for _, length in found if len(length))
     return ContactEdges(ends, Adjacency.of(ends, int(offsets[-1])), longest)
 
 

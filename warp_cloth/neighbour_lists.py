@@ -9,6 +9,7 @@ import warp as wp
 
 from warp_cloth.kernels import edge_collision, particle_collision, spatial_hash
 from warp_cloth.kernels.gathering import load_gathering
+from warp_cloth.kernels.particle_collision import ListState
 from warp_cloth.kernels.passes import (HashGrid, gather_edge_candidates, gather_neighbors_kernel,
                                        launch_gather_neighbors)
 
@@ -109,29 +110,33 @@ class NeighbourLists:
 
 class EdgeLists:
     """Each contact edge's candidates (kernels/edge_collision.py), remade with the particle lists: from a
-    spatial hash of the edges' midpoints, whose cells are as wide as the longest edge at its limit plus
-    the reach, so that the 27 around an edge's midpoint hold every edge within reach.
-    An edge's list holds the edges within the pass's thickness plus twice ``rebuild_distance``: until a
-    particle has moved that far and the lists are remade, no edge left out can come within it."""
+    spatial hash of the edges' midpoints, whose cells are as wide as the longest an edge may get plus the
+    reach, so that the 27 around an edge's midpoint hold every edge within reach (a longer edge counts as
+    an overflow). An edge's list holds the edges within the pass's thickness plus twice
+    ``rebuild_distance``: until a particle has moved that far and the lists are remade, no edge left out
+    can come within it."""
 
     def __init__(self, model: DeviceModel, state: DeviceState, rebuild_distance: float) -> None:
+        constants = model.contacts.edges
         self.edges = edge_contacts_args(model, state)
-        self.edges.reach = self.edges.thickness + 2.0 * rebuild_distance
-        self.rules = model.contacts.edges.rules
+        self.reach = constants.thickness + 2.0 * rebuild_distance
+        self.rules = constants.rules
         self.state = state.edges
-        self.m = model.contacts.edges.ends.shape[0]
-        self.inv_cell = 1.0 / (model.contacts.edges.longest + self.edges.reach)
+        self.m = constants.ends.shape[0]
+        self.longest = constants.longest
+        self.inv_cell = 1.0 / (constants.longest + self.reach)
         self.mask = hash_table_size(self.m) - 1
         self.particle_world = model.contacts.rules.world
 
-    def remake_if_asked(self, x: wp.array, lists) -> None:
+    def remake_if_asked(self, x: wp.array, lists: ListState) -> None:
         edges, state, device = self.edges, self.state, x.device
-        wp.launch(edge_collision.edge_midpoints, dim=self.m, inputs=[x, edges.ends, lists.rebuild, self.particle_world],
-                  outputs=[state.midpoint, state.world], device=device)
+        wp.launch(edge_collision.edge_midpoints, dim=self.m,
+                  inputs=[x, edges.ends, lists.rebuild, self.particle_world, self.longest],
+                  outputs=[state.midpoint, state.world, lists.overflow], device=device)
         wp.launch(spatial_hash.insert_points, dim=self.m,
                   inputs=[state.midpoint, state.world, self.inv_cell, self.mask, EDGE_BUCKET_CAPACITY, lists.epoch,
                           lists.rebuild],
                   outputs=[state.bucket_size, state.bucket_items, lists.overflow], device=device)
         wp.launch(gather_edge_candidates, dim=self.m,
-                  inputs=[x, state.midpoint, state.world, edges, self.rules, lists, self.inv_cell, self.mask,
-                          EDGE_BUCKET_CAPACITY, state.bucket_size, state.bucket_items], device=device)
+                  inputs=[x, state.midpoint, state.world, edges, self.rules, lists, self.reach, self.inv_cell,
+                          self.mask, EDGE_BUCKET_CAPACITY, state.bucket_size, state.bucket_items], device=device)

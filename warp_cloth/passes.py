@@ -54,13 +54,13 @@ def contacts_args(model: DeviceModel, state: DeviceState) -> Contacts:
 
 
 def edge_contacts_args(model: DeviceModel, state: DeviceState) -> EdgeContacts:
-    """Edge contacts' constants and lists as the kernels take them (``reach``: the lists' to set)."""
+    """Edge contacts' constants and lists as the kernels take them."""
     edges, constants = EdgeContacts(), model.contacts.edges
     edges.ends = constants.ends
     edges.incident_offsets, edges.incident = constants.incident_offsets, constants.incident
     edges.neighbors, edges.counts = state.edges.neighbors, state.edges.counts
     edges.max_neighbors = EDGE_NEIGHBORS
-    edges.thickness, edges.reach = constants.thickness, 0.0
+    edges.thickness = constants.thickness
     return edges
 
 

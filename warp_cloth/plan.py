@@ -65,9 +65,9 @@ def build_plan(model: DeviceModel, state: DeviceState, implicit_settings: Implic
     before the colliders reads them); the wind's forces; integration; driven pins (oscillating, on
     colliders, on keys); then, with particle collision, the contacts' start (in the explicit step where
     nothing comes between), the candidate lists, the projection passes (where the scene has edge contacts,
-    each of a converged solve after an edge pass, so that the check after the last sees what the edges
-    moved; with fixed passes, one edge pass before them) and the contact velocities; without it, the
-    strain limit's passes or the colliders alone; the clock last, where something moves with it.
+    an edge pass before each separating pass of a converged solve, so that its check follows a projection;
+    with fixed passes, one edge pass before them) and the contact velocities; without it, the strain
+    limit's passes or the colliders alone; the clock last, where something moves with it.
     ``threads``: per particle on the gathering passes (None: by size)."""
     chosen = threads_per_particle(model.particle_count, model.device) if threads is None else threads
     rigid = model.colliders(state.sphere_center, state.sphere_velocity) if model.has_colliders else None
@@ -103,14 +103,13 @@ def build_plan(model: DeviceModel, state: DeviceState, implicit_settings: Implic
         if not start_in_step:
             passes.append(ContactStart(start))
         passes.append(lists)
-        edges = [edge_separation_pass(model, state, chosen, rigid)] if state.edges is not None else []
+        edge_passes = [edge_separation_pass(model, state, chosen, rigid)] if state.edges is not None else []
         if converged:
-            pair = projection_pair(model, state, chosen, rigid)
-            body = [p for each in pair for p in edges + [each]]
-            projection = ConvergedProjection(model, state, body, rigid, counted=len(pair))
+            body = projection_pair(model, state, chosen, rigid, edge_passes)
+            projection = ConvergedProjection(model, state, body, rigid, counted=len(body) - 2 * len(edge_passes))
             passes.append(projection)
         else:
-            passes.extend(edges + projection_passes(model, state, chosen, rigid))
+            passes.extend(edge_passes + projection_passes(model, state, chosen, rigid))
         passes.append(contact_velocities(model, state, chosen))
     elif model.limits is not None and converged:
         projection = ConvergedProjection(model, state, [limit_pass(model, chosen, rigid, None, 1)] * 2, rigid)
@@ -127,17 +126,19 @@ def build_plan(model: DeviceModel, state: DeviceState, implicit_settings: Implic
     return Plan(tuple(passes), model.h, chosen, implicit, lists, projection)
 
 
-def projection_pair(model: DeviceModel, state: DeviceState, threads: int,
-                    rigid: RigidColliders | None) -> list[Pass]:
+def projection_pair(model: DeviceModel, state: DeviceState, threads: int, rigid: RigidColliders | None,
+                    edge_passes: list[Pass]) -> list[Pass]:
     """Two projection passes of particle collision (with the strain limits where the scene has them), for a
     converged solve to repeat: each ends with the colliders, the first reading the resting marks' first
-    bit, the second the other (see ``projection_passes``)."""
+    bit, the second the other (see ``projection_passes``); ``edge_passes`` (the edge contacts' pass, or
+    none) come before each pass that separates, so that the solve's check follows a projection."""
     if model.limits is None:
-        return [separation_pass(model, state, threads, rigid, bit) for bit in (1, 2)]
+        return [p for bit in (1, 2) for p in edge_passes + [separation_pass(model, state, threads, rigid, bit)]]
     if model.contacts.settings.projection == "joint":
-        return [limit_and_separation_pass(model, state, threads, rigid, bit) for bit in (1, 2)]
-    return [p for bit in (1, 2)
-            for p in (limit_pass(model, threads, None, None, 1), separation_pass(model, state, threads, rigid, bit))]
+        return [p for bit in (1, 2)
+                for p in edge_passes + [limit_and_separation_pass(model, state, threads, rigid, bit)]]
+    return [p for bit in (1, 2) for p in [limit_pass(model, threads, None, None, 1)] + edge_passes
+            + [separation_pass(model, state, threads, rigid, bit)]]
 
 
 def projection_passes(model: DeviceModel, state: DeviceState, threads: int,

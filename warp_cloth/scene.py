@@ -608,8 +608,9 @@ class Collision:
     (``iterations`` is not used) until no candidate pair is more than ``tolerance`` of its contact distance
     inside it, and the strain limits hold to theirs. ``edges`` adds edge contacts: triangle edges too long
     for the particles' spheres to keep from passing through each other (a grid's diagonals, where a cloth
-    folds flat onto itself) are held a quarter of a contact distance apart, in a pass after the projection
-    (kernels/edge_collision.py).
+    folds flat onto itself) are held a quarter of a contact distance apart, by an edge pass before each
+    separating pass of a converged solve, or once before fixed passes (kernels/edge_collision.py); every
+    cloth needs a strain limit.
     """
 
     self_collision: bool = field(default=True, metadata={"toml": "self"})
@@ -807,6 +808,7 @@ class Scene:
         self._check_names_unique()
         self._check_pin_targets()
         self._check_motion_in_bounds()
+        self._check_edge_contacts_limited()
         from .model import select_pins  # the pins' particles depend on the grid the model builds
 
         select_pins(self)
@@ -821,6 +823,14 @@ class Scene:
                 _require(other == f"{kind}[{k}]", f"{kind}[{k}].name",
                          f"a name that no other cloth, sphere or collider has, nor the ground (ignoring case; {other} "
                          "has it)", item.name)
+
+    def _check_edge_contacts_limited(self) -> None:
+        """Edge contacts find their pairs among edges as long as the stretch limit lets them get."""
+        if self.collision is None or not self.collision.edges:
+            return
+        for c, cloth in enumerate(self.cloths):
+            _require(cloth.limit is not None, "collision.edges", f"false, or a strain limit on every cloth (cloth[{c}] "
+                     "has none: edge contacts size their search by how far the limit lets an edge stretch)", True)
 
     def _check_pin_targets(self) -> None:
         colliders = [c.name for c in self.colliders]

@@ -57,7 +57,7 @@ class EdgeListState:
 
 
 EDGE_NEIGHBORS = 32  # candidates an edge's list holds (overflow is counted with the particles')
-EDGE_BUCKET_CAPACITY = 64  # edges a bucket of their hash holds: its cells are two edges wide
+EDGE_BUCKET_CAPACITY = 64  # edges a bucket of their hash holds: its cells are wider than an edge is long
 
 BUCKET_CAPACITY = 16  # particles a spatial-hash bucket holds (overflow is counted, tests keep it 0)
 BRUTE_FORCE_UP_TO = 512  # particles; below, checking all pairs costs less than the hash
