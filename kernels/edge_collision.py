@@ -58,8 +58,10 @@ def closest_points(p1: wp.vec3, q1: wp.vec3, p2: wp.vec3, q2: wp.vec3) -> wp.vec
     b = wp.dot(d1, d2)
     denominator = a * e - b * b
     s = float(0.0)
-    if denominator > 1.0e-6 * a * e:  # else parallel to float32's precision: any s will do
+    if denominator > 1.0e-6 * a * e:
         s = wp.clamp((b * f - c * e) / denominator, 0.0, 1.0)
+    else:  # parallel to float32's precision: the middle of where the two overlap, seen along the first
+        s = 0.5 * (wp.clamp(-c / a, 0.0, 1.0) + wp.clamp((b - c) / a, 0.0, 1.0))
     t = (b * s + f) / e
     if t < 0.0:
         t = 0.0
@@ -128,7 +130,8 @@ def apart_direction(d: wp.vec3, gap: float, p1: wp.vec3, q1: wp.vec3, p2: wp.vec
 @wp.func
 def edge_push(edges: EdgeContacts, i: int, e: int, f: int, x: wp.array(dtype=wp.vec3),
               inv_mass: wp.array(dtype=float)):
-    """Particle i's move (an end of edge e) out of edge f's thickness, and 1 if it moves (else zero and 0).
+    """Particle i's move (an end of edge e) out of edge f's thickness, and 1 if the two are closer than it
+    (else zero and 0).
 
     The pair is worked out in one order, the lower-numbered edge first, whichever of its edges' particles
     asks: in float32 two edges' closest points seen from each side differ by rounding, and where the edges
@@ -156,10 +159,9 @@ def edge_push(edges: EdgeContacts, i: int, e: int, f: int, x: wp.array(dtype=wp.
     weight = 1.0 - along
     if i == edges.ends[e][1]:
         weight = along
-    move = inv_mass[i] * weight
-    if move == 0.0:
+    if w_1 + w_2 == 0.0:
         return wp.vec3(0.0), 0
-    return (move * (edges.thickness - gap) / (w_1 + w_2)) * n, 1
+    return (inv_mass[i] * weight * (edges.thickness - gap) / (w_1 + w_2)) * n, 1
 
 
 @wp.func

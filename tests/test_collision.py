@@ -11,7 +11,7 @@ import warp as wp
 import warp_cloth as wc
 from conftest import run_cli, with_simulation
 from warp_cloth.diagnostics import ContactGaps, TriangleIntersections
-from warp_cloth.kernels import particle_collision, spatial_hash
+from warp_cloth.kernels import edge_collision, particle_collision, spatial_hash
 from warp_cloth.cloth_grid import build_grid
 from warp_cloth.cloth_mesh import rest_adjacent_pairs
 from warp_cloth.checkpoint import Checkpoint, scene_fingerprint
@@ -245,6 +245,24 @@ def test_an_edge_pass_moves_two_crossing_diagonals_apart_to_the_thickness(height
     assert len(ends) == 2 and np.isclose(gap, thickness, rtol=1e-4)
     assert np.allclose(moved.sum(axis=0), 0.0, atol=1e-6)
     assert np.dot(moved[ends[0, 0]], moved[ends[1, 0]]) < 0.0
+
+
+@wp.kernel
+def closest_points_of(p: wp.array(dtype=wp.vec3), st: wp.array(dtype=wp.vec2)):
+    st[0] = edge_collision.closest_points(p[0], p[1], p[2], p[3])
+
+
+@pytest.mark.parametrize("second, expected", [
+    (((0.5, 0.5, 0.1), (2.0, 2.0, 0.1)), (0.75, 1.0 / 6.0)),  # parallel: the middle of the overlap
+    (((0.0, 1.0, 0.0), (1.0, 0.0, 0.0)), (0.5, 0.5)),  # crossing at both middles
+    (((1.0, 0.0, 0.0), (1.0, 0.0, 0.0)), (0.5, 0.0)),  # a segment of no length: its point
+], ids=["parallel", "crossing", "point"])
+def test_closest_points_of_two_segments(second, expected):
+    points = wp.array(np.array([(0.0, 0.0, 0.0), (1.0, 1.0, 0.0), *second], dtype=np.float32), dtype=wp.vec3,
+                      device="cpu")
+    st = wp.zeros(1, dtype=wp.vec2, device="cpu")
+    wp.launch(closest_points_of, dim=1, inputs=[points], outputs=[st], device="cpu")
+    assert np.allclose(st.numpy()[0], expected, atol=1e-6)
 
 
 def segment_distance(p1, q1, p2, q2, samples=2001) -> float:
