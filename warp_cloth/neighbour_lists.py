@@ -15,7 +15,8 @@ from warp_cloth.kernels.passes import (HashGrid, gather_edge_candidates, gather_
 
 from .device_model import DeviceModel
 from .passes import contacts_args, edge_contacts_args
-from .state import BUCKET_CAPACITY, EDGE_BUCKET_CAPACITY, DeviceState, hash_table_size, uses_hash
+from .state import (BUCKET_CAPACITY, EDGE_BUCKET_CAPACITY, DeviceState, edge_hash_table_size, hash_table_size,
+                    uses_hash)
 
 # The remake has more to gather (27 cells) than the other gathering passes: 16 threads a particle are
 # fastest at 64^2, 4 at 256^2, one at 1024^2 (docs/results/list-probe-h200.json).
@@ -125,7 +126,7 @@ class EdgeLists:
         self.m = constants.ends.shape[0]
         self.longest = constants.longest
         self.inv_cell = 1.0 / (constants.longest + self.reach)
-        self.mask = hash_table_size(self.m) - 1
+        self.mask = edge_hash_table_size(self.m) - 1
         self.particle_world = model.contacts.rules.world
 
     def remake_if_asked(self, x: wp.array, lists: ListState) -> None:

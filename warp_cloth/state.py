@@ -75,6 +75,12 @@ def hash_table_size(particles: int) -> int:
     return table
 
 
+def edge_hash_table_size(edges: int) -> int:
+    """Buckets of the edges' spatial hash: a cell holds some five edges of a layer (it is over two edges
+    wide), so half as many buckets as edges leave most buckets to one cell."""
+    return hash_table_size(edges // 4)
+
+
 class DeviceState:
     """``x``/``v`` are the current state; ``x_next``/``v_next`` receive a pass's output, after which the
     pass swaps them. ``parity`` says which buffer of each pair is current: a captured graph replays fixed
@@ -110,7 +116,7 @@ class DeviceState:
 
     def _edge_state(self, model: DeviceModel) -> EdgeListState:
         m, device = model.contacts.edges.ends.shape[0], model.device
-        table = hash_table_size(m)
+        table = edge_hash_table_size(m)
         return EdgeListState(neighbors=wp.zeros(m * EDGE_NEIGHBORS, dtype=int, device=device),
                              counts=wp.zeros(m, dtype=int, device=device),
                              midpoint=wp.zeros(m, dtype=wp.vec3, device=device),
