@@ -91,25 +91,25 @@ def may_touch(rules: EdgeRules, a: wp.vec2i, b: wp.vec2i) -> bool:
 
 
 @wp.func
-def segment_gap(x: wp.array(dtype=wp.vec3), a: wp.vec2i, b: wp.vec2i) -> float:
+def pair_gap(ends: wp.array(dtype=wp.vec2i), x: wp.array(dtype=wp.vec3), e: int, f: int) -> float:
+    """How close edges e and f come, worked out lower-numbered edge first (as ``edge_push`` does), so that
+    both edges of a pair find the same gap."""
+    a = ends[wp.min(e, f)]
+    b = ends[wp.max(e, f)]
     st = closest_points(x[a[0]], x[a[1]], x[b[0]], x[b[1]])
-    pa = wp.lerp(x[a[0]], x[a[1]], st[0])
-    pb = wp.lerp(x[b[0]], x[b[1]], st[1])
-    return wp.length(pa - pb)
+    return wp.length(wp.lerp(x[a[0]], x[a[1]], st[0]) - wp.lerp(x[b[0]], x[b[1]], st[1]))
 
 
 @wp.kernel
 def edge_midpoints(x: wp.array(dtype=wp.vec3), ends: wp.array(dtype=wp.vec2i), rebuild: wp.array(dtype=int),
-                   world: wp.array(dtype=int), longest: float, midpoint: wp.array(dtype=wp.vec3),
-                   edge_world: wp.array(dtype=int), overflow: wp.array(dtype=int)):
-    """Each edge's midpoint and world, for the hash, where ``rebuild`` is set; an edge longer than
+                   longest: float, midpoint: wp.array(dtype=wp.vec3), overflow: wp.array(dtype=int)):
+    """Each edge's midpoint, for the hash, where ``rebuild`` is set; an edge longer than
     ``longest``, which the hash's cells are sized for, counts as an overflow (its pairs may go unlisted)."""
     if rebuild[0] == 0:
         return
     e = wp.tid()
     ends_e = ends[e]
     midpoint[e] = 0.5 * (x[ends_e[0]] + x[ends_e[1]])
-    edge_world[e] = world[ends_e[0]]
     if wp.length(x[ends_e[1]] - x[ends_e[0]]) > longest:
         wp.atomic_add(overflow, 0, 1)
 

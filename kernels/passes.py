@@ -12,7 +12,7 @@ from typing import Any
 import warp as wp
 
 from .colliders import RigidColliders, collide_and_mark, collide_particle
-from .edge_collision import EdgeContacts, EdgeRules, edge_pushes, may_touch, segment_gap
+from .edge_collision import EdgeContacts, EdgeRules, edge_pushes, may_touch, pair_gap
 from .forces import ExternalForces, external_acceleration, external_damping
 from .gathering import BLOCK, FAST_MATH, gathering_kernel, sum_over_threads, thread_layout
 from .integration import compensated_sum, explicit_move
@@ -545,8 +545,8 @@ def gather_edge_candidates(x: wp.array(dtype=wp.vec3), midpoint: wp.array(dtype=
                            reach: float, inv_cell: float, mask: int, capacity: int,
                            bucket_size: wp.array(dtype=int), bucket_items: wp.array(dtype=int)):
     """Each edge's candidates from the hash of its midpoint's 27 cells (each bucket once), where ``rebuild``
-    is set: edges that may touch it whose segments lie within ``reach``, the gap worked out in the same
-    order from both edges (so that each lists the other), in index order."""
+    is set: edges that may touch it whose segments lie within ``reach`` (``pair_gap``: each lists the other),
+    in index order."""
     if lists.rebuild[0] == 0:
         return
     e = wp.tid()
@@ -562,18 +562,12 @@ def gather_edge_candidates(x: wp.array(dtype=wp.vec3), midpoint: wp.array(dtype=
             for s in range(wp.min(count_in(bucket_size[bucket], stamp), capacity)):
                 f = bucket_items[bucket * capacity + s]
                 ends_f = edges.ends[f]
-                if f != e and may_touch(rules, ends_e, ends_f):
-                    gap = float(0.0)
-                    if e < f:
-                        gap = segment_gap(x, ends_e, ends_f)
+                if f != e and may_touch(rules, ends_e, ends_f) and pair_gap(edges.ends, x, e, f) < reach:
+                    if count < edges.max_neighbors:
+                        edges.neighbors[start + count] = f
+                        count += 1
                     else:
-                        gap = segment_gap(x, ends_f, ends_e)
-                    if gap < reach:
-                        if count < edges.max_neighbors:
-                            edges.neighbors[start + count] = f
-                            count += 1
-                        else:
-                            wp.atomic_add(lists.overflow, 0, 1)
+                        wp.atomic_add(lists.overflow, 0, 1)
     edges.counts[e] = sort_and_drop_repeats(edges.neighbors, start, count)
 
 

@@ -80,6 +80,7 @@ class SphereMotion:
 class DeviceContactEdges:
     """Edge contacts' constants (kernels/edge_collision.py)."""
     ends: wp.array  # (m,) vec2i
+    world: wp.array  # (m,) each edge's (its particles')
     incident_offsets: wp.array  # (n + 1,) each particle's edges (CSR)
     incident: wp.array
     rules: EdgeRules
@@ -256,16 +257,19 @@ class DeviceModel:
             rules.exclude_adjacent = upload(contacts.exclude_adjacent, int, device)
         rules.search_scale = settings.search_scale
         return ParticleContacts(settings, upload(contacts.radius, float, device), rules, contacts.max_radius,
-                                float(contacts.radius.min()), self._contact_edges(contacts, rules, settings))
+                                float(contacts.radius.min()), self._contact_edges(model, rules, settings))
 
-    def _contact_edges(self, contacts, particle_rules: PairRules, settings: Collision) -> DeviceContactEdges | None:
-        edges, device = contacts.edges, self.device
+    def _contact_edges(self, model: Model, particle_rules: PairRules, settings: Collision) -> DeviceContactEdges | None:
+        contacts, device = model.contacts, self.device
+        edges = contacts.edges
         if edges is None:
             return None
         rules = EdgeRules()
         rules.world, rules.cloth_id = particle_rules.world, particle_rules.cloth_id
         rules.self_collision, rules.between_cloths = particle_rules.self_collision, particle_rules.between_cloths
-        return DeviceContactEdges(upload(edges.ends, wp.vec2i, device), upload(edges.incidence.offsets, int, device),
+        return DeviceContactEdges(upload(edges.ends, wp.vec2i, device),
+                                  upload(model.particle_world[edges.ends[:, 0]], int, device),
+                                  upload(edges.incidence.offsets, int, device),
                                   upload(edges.incidence.spring, int, device), rules,
                                   EDGE_THICKNESS * settings.separation * contacts.max_radius, edges.longest)
 

@@ -127,17 +127,17 @@ class EdgeLists:
         self.longest = constants.longest
         self.inv_cell = 1.0 / (constants.longest + self.reach)
         self.mask = edge_hash_table_size(self.m) - 1
-        self.particle_world = model.contacts.rules.world
+        self.world = constants.world
 
     def remake_if_asked(self, x: wp.array, lists: ListState) -> None:
         edges, state, device = self.edges, self.state, x.device
         wp.launch(edge_collision.edge_midpoints, dim=self.m,
-                  inputs=[x, edges.ends, lists.rebuild, self.particle_world, self.longest],
-                  outputs=[state.midpoint, state.world, lists.overflow], device=device)
+                  inputs=[x, edges.ends, lists.rebuild, self.longest], outputs=[state.midpoint, lists.overflow],
+                  device=device)
         wp.launch(spatial_hash.insert_points, dim=self.m,
-                  inputs=[state.midpoint, state.world, self.inv_cell, self.mask, EDGE_BUCKET_CAPACITY, lists.epoch,
+                  inputs=[state.midpoint, self.world, self.inv_cell, self.mask, EDGE_BUCKET_CAPACITY, lists.epoch,
                           lists.rebuild],
                   outputs=[state.bucket_size, state.bucket_items, lists.overflow], device=device)
         wp.launch(gather_edge_candidates, dim=self.m,
-                  inputs=[x, state.midpoint, state.world, edges, self.rules, lists, self.reach, self.inv_cell,
+                  inputs=[x, state.midpoint, self.world, edges, self.rules, lists, self.reach, self.inv_cell,
                           self.mask, EDGE_BUCKET_CAPACITY, state.bucket_size, state.bucket_items], device=device)

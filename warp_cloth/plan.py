@@ -106,7 +106,7 @@ def build_plan(model: DeviceModel, state: DeviceState, implicit_settings: Implic
         edge_passes = [edge_separation_pass(model, state, chosen, rigid)] if state.edges is not None else []
         if converged:
             body = projection_pair(model, state, chosen, rigid, edge_passes)
-            projection = ConvergedProjection(model, state, body, rigid, counted=len(body) - 2 * len(edge_passes))
+            projection = ConvergedProjection(model, state, body, rigid, counted=sum(p not in edge_passes for p in body))
             passes.append(projection)
         else:
             passes.extend(edge_passes + projection_passes(model, state, chosen, rigid))

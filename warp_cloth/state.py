@@ -49,7 +49,6 @@ class EdgeListState:
     neighbors: wp.array
     counts: wp.array
     midpoint: wp.array
-    world: wp.array
     bucket_size: wp.array
     bucket_items: wp.array
 
@@ -120,7 +119,6 @@ class DeviceState:
         return EdgeListState(neighbors=wp.zeros(m * EDGE_NEIGHBORS, dtype=int, device=device),
                              counts=wp.zeros(m, dtype=int, device=device),
                              midpoint=wp.zeros(m, dtype=wp.vec3, device=device),
-                             world=wp.zeros(m, dtype=int, device=device),
                              bucket_size=wp.zeros(table, dtype=int, device=device),
                              bucket_items=wp.zeros(table * EDGE_BUCKET_CAPACITY, dtype=int, device=device))
 
