@@ -178,7 +178,7 @@ class LimitAndSeparationPassArgs:
 def held_and_collided(args: Any, i: int, p: wp.vec3, vel: wp.vec3, x: wp.array(dtype=wp.vec3),
                       resting: wp.array(dtype=int)):
     """The end of a pass that limits: the particle held to its pin, then put out of the colliders."""
-    p, vel = hold_to_pin(args.limits, i, p, vel, args.h, x)
+    p, vel = hold_to_pin(args.limits, args.colliders, i, p, vel, args.h, x)
     return collide_and_mark(i, p, vel, args.colliders, args.h, resting, args.read_bit)
 
 
@@ -357,6 +357,7 @@ class ResidualArgs:
     check_contacts: int  # 0: no particle collision
     contact_tolerance: float  # of a contact distance
     inv_mass: wp.array(dtype=float)
+    colliders: RigidColliders  # the spheres that attachments run around
 
 
 @wp.kernel
@@ -368,7 +369,7 @@ def projection_residual(x: wp.array(dtype=wp.vec3), args: ResidualArgs, residual
         return
     worst = float(0.0)
     if args.check_limits != 0:
-        worst = limit_violation(args.limits, i, x) / args.limit_tolerance
+        worst = limit_violation(args.limits, args.colliders, i, x) / args.limit_tolerance
     if args.check_contacts != 0:
         worst = wp.max(worst, deepest_overlap(args.contacts, i, x) / args.contact_tolerance)
     if worst > 1.0:

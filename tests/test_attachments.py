@@ -5,6 +5,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+import warp as wp
 
 import warp_cloth as wc
 from conftest import spring_strains
@@ -12,6 +13,7 @@ from warp_cloth.bench import matrix_scene
 from warp_cloth.bench_meshes import as_mesh_cloth
 from warp_cloth.model import _nearest_on_grid
 from warp_cloth.newton_compare import grid_strain
+from warp_cloth.kernels.wrapping import way_around_sphere
 from warp_cloth.spring_paths import nearest_along_edges
 
 
@@ -140,3 +142,105 @@ def test_a_mesh_cloth_is_attached_along_its_edges_and_hangs_within_its_limit(tri
     assert lowest >= 10.0 - 10.0 * 1.1 * 1.005
     if not triangles:
         assert lowest == pytest.approx(grid.positions()[:, 1].min(), abs=1e-3)
+
+
+def way_around_circle(a, p, c, r, samples=4001):
+    """The shortest way from a to p outside the ball (c, r), found by brute force in the plane of the three:
+    over every pair of points on the great circle, each seen from its end (the straight piece to it leaves
+    the ball outward), the two straight pieces and the arc between them; or the straight line if it misses."""
+    a, p, c = (np.asarray(v, dtype=np.float64) for v in (a, p, c))
+    straight = np.linalg.norm(p - a)
+    t = np.clip(np.dot(c - a, p - a) / straight**2, 0.0, 1.0)
+    if np.linalg.norm(a + t * (p - a) - c) >= r:
+        return straight
+    e1 = (a - c) / np.linalg.norm(a - c)
+    e2 = (p - c) - np.dot(p - c, e1) * e1
+    e2 = e2 / np.linalg.norm(e2)
+    angles = np.linspace(0.0, 2 * np.pi, samples, endpoint=False)
+    points = c + r * (np.cos(angles)[:, None] * e1 + np.sin(angles)[:, None] * e2)
+
+    def seen(end):
+        return np.einsum("ij,ij->i", points - c, end - points) >= -1e-12
+
+    from_a, to_p = seen(a), seen(p)
+    arc = np.abs(angles[:, None] - angles[None, :])
+    arc = r * np.minimum(arc, 2 * np.pi - arc)
+    total = np.linalg.norm(points - a, axis=1)[:, None] + arc + np.linalg.norm(points - p, axis=1)[None, :]
+    total[~from_a, :] = np.inf
+    total[:, ~to_p] = np.inf
+    return total.min()
+
+
+@wp.kernel
+def ways_around(a: wp.array(dtype=wp.vec3), p: wp.array(dtype=wp.vec3), centre: wp.vec3, radius: float,
+                length: wp.array(dtype=float), direction: wp.array(dtype=wp.vec3)):
+    i = wp.tid()
+    d, towards = way_around_sphere(a[i], p[i], centre, radius)
+    length[i] = d
+    direction[i] = towards
+
+
+def kernel_ways_around(a, p, centre, radius):
+    n = len(a)
+    length, direction = wp.zeros(n, dtype=float, device="cpu"), wp.zeros(n, dtype=wp.vec3, device="cpu")
+    wp.launch(ways_around, dim=n, inputs=[wp.array(a, dtype=wp.vec3, device="cpu"),
+                                          wp.array(p, dtype=wp.vec3, device="cpu"), wp.vec3(*centre), radius],
+              outputs=[length, direction], device="cpu")
+    return length.numpy().astype(np.float64), direction.numpy().astype(np.float64)
+
+
+def test_the_way_around_a_sphere_is_the_shortest_and_grows_along_its_direction():
+    rng = np.random.default_rng(3)
+    centre, radius = np.array([0.5, -1.0, 2.0]), 1.5
+    a = centre + rng.normal(size=(40, 3)) * 2.5
+    p = centre + rng.normal(size=(40, 3)) * 2.5
+    outside = (np.linalg.norm(a - centre, axis=1) > radius * 1.05) & (np.linalg.norm(p - centre, axis=1) > radius * 1.05)
+    a, p = a[outside], p[outside]
+    length, direction = kernel_ways_around(a, p, centre, radius)
+    reference = np.array([way_around_circle(ai, pi, centre, radius) for ai, pi in zip(a, p)])
+    wrapped = reference > np.linalg.norm(p - a, axis=1) + 1e-6
+    assert 5 <= wrapped.sum() < len(a)  # both kinds of pair are tested
+    np.testing.assert_allclose(length, reference, rtol=2e-4)  # the brute force's angle step: 1.6e-3 rad
+    # the direction is the gradient of the length as p moves (central differences of the brute force)
+    for i in np.nonzero(wrapped)[0][:3]:
+        step = 1e-3
+        gradient = [(way_around_circle(a[i], p[i] + step * e, centre, radius)
+                     - way_around_circle(a[i], p[i] - step * e, centre, radius)) / (2 * step) for e in np.eye(3)]
+        np.testing.assert_allclose(direction[i], gradient, atol=5e-3)
+    # an end inside the sphere: the straight distance
+    length, _ = kernel_ways_around(centre[None] + 0.5, p[:1], centre, radius)
+    np.testing.assert_allclose(length, np.linalg.norm(p[:1] - (centre + 0.5), axis=1), rtol=1e-6)
+
+
+def around_sphere(a, p, centre, radius):
+    """The closed form of the way around a sphere for many pairs at once (the brute force above checks it)."""
+    ca, cp = a - centre, p - centre
+    da, dp = np.linalg.norm(ca, axis=1), np.linalg.norm(cp, axis=1)
+    straight = np.linalg.norm(p - a, axis=1)
+    angle = np.arccos(np.clip(np.einsum("ij,ij->i", ca, cp) / (da * dp), -1.0, 1.0))
+    arc = angle - np.arccos(np.minimum(radius / da, 1.0)) - np.arccos(np.minimum(radius / dp, 1.0))
+    around = np.sqrt(np.maximum(da**2 - radius**2, 0)) + np.sqrt(np.maximum(dp**2 - radius**2, 0)) + radius * arc
+    return straight, np.where((arc > 0) & (da > radius) & (dp > radius), around, straight)
+
+
+def test_attachments_hold_the_cloth_below_a_sphere_around_it():
+    # The speed matrix's sphere cloth swings onto the sphere, which pokes through the plane it hangs in: the
+    # straight lines from the pinned top edge to the rows below the sphere run through it. Each attachment
+    # is held around the sphere instead (shrunk by a spring's chord, through which the cloth's path cannot
+    # cut), so the rows below hang within reach of their pins along the way over it.
+    n = 64
+    sim = wc.Simulator(matrix_scene("sphere", n, "symplectic"), device="cpu")
+    limits = sim.model.limits
+    attached = limits.attachment_pin >= 0
+    pins, reach = limits.attachment_pin[attached], limits.attachment_length[attached].astype(np.float64)
+    sphere = sim.scene.spheres[0]
+    chord_half = 0.5 * float(limits.max_length.max())
+    shrunk = np.sqrt(sphere.radius**2 - chord_half**2)
+    held_only_around = 0
+    for _ in range(12):
+        sim.run(5)
+        x = sim.positions().astype(np.float64)
+        straight, around = around_sphere(x[pins], x[attached], np.asarray(sphere.center), shrunk)
+        assert (around <= reach * (1 + 1e-4)).all()
+        held_only_around = max(held_only_around, int(((around > 0.999 * reach) & (straight < 0.99 * reach)).sum()))
+    assert held_only_around > n  # more than a row of particles hangs taut from its pin over the sphere

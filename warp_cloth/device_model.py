@@ -228,6 +228,7 @@ class DeviceModel:
         limits.max_length = upload(lim.max_length, float, device)
         limits.attachment_pin = upload(lim.attachment_pin, int, device)
         limits.attachment_length = upload(lim.attachment_length, float, device)
+        limits.chord_half = 0.5 * float(lim.max_length.max(initial=0.0))
         return limits
 
     def _hierarchy(self, model: Model) -> DeviceHierarchy:

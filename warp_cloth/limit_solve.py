@@ -93,6 +93,7 @@ class ConvergedProjection:
         args.contacts = contacts_args(model, state) if model.contacts is not None else model.no_contacts()
         args.contact_tolerance = model.contacts.settings.tolerance if model.contacts is not None else 1.0
         args.inv_mass = model.inv_mass
+        args.colliders = self.colliders
         self.args = args
         self.active = wp.zeros(1, dtype=int, device=device)
         self.counts = wp.zeros(2, dtype=int, device=device)

@@ -134,7 +134,9 @@ class Limit:
     distance across the cloth from its nearest pin (long-range attachments, Kim, Chentanez and Mueller
     2012; on a mesh, the shortest path along its edges), projected in every limit pass: the limit's passes
     then hold a hanging cloth's length whatever its resolution, where springs alone pass a pull on one row
-    per pass. They are off by default: they
+    per pass. The distance is measured around the world's spheres (the shortest way that stays outside
+    each, shrunk by a spring's chord: kernels/wrapping.py), so a cloth that drapes over a sphere still hangs
+    from its pins over it; meshes are not wrapped around. They are off by default: they
     fight a kinematic collider that pushes the cloth out of their reach (the fast_sphere hard case reached
     36 to 60 m/s and up to 23 crossing triangle pairs with them, 23 to 30 m/s and none without).
 
