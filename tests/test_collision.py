@@ -162,13 +162,17 @@ def test_collision_scene_over_its_whole_length_on_cuda(name, threads):
 # through another while every particle stays apart; with the limit solved, the most pairs crossing at once
 # over 240 frames on an H100 were 0, 1, 0, 0, 0, 0, 0 and 1 for k = 0..7
 # (docs/results/seed-default-crossings-converged-h100.jsonl), and with the scene's edge contacts none for
-# k = 0..15, the closest contact 0.993 or more (seed-default-crossings-edges-h100.jsonl).
+# k = 0..15, the closest contact 0.993 or more (seed-default-crossings-edges-h100.jsonl); on an H200 with the
+# sequential projection the scene now declares, none for k = 0..15, the closest contact 0.992 or more
+# (seed-default-crossings-sequential-h200.jsonl).
 
 
 def check_scene_every_frame(name: str, frames: int, device: str, threads: int | None = None,
-                            projection: str = "joint") -> None:
+                            projection: str | None = None) -> None:
+    """The scene over ``frames`` frames, with its own projection or ``projection``."""
     scene = with_simulation(wc.load_scene(name), frames=frames)
-    scene = dataclasses.replace(scene, collision=dataclasses.replace(scene.collision, projection=projection))
+    if projection is not None:
+        scene = dataclasses.replace(scene, collision=dataclasses.replace(scene.collision, projection=projection))
     sim = wc.Simulator(scene, device=device, threads_per_particle=threads)
     crossings, gaps = TriangleIntersections(sim), ContactGaps(sim)
     worst_gap, worst_crossings = np.inf, 0
@@ -177,7 +181,7 @@ def check_scene_every_frame(name: str, frames: int, device: str, threads: int | 
         worst_gap = min(worst_gap, gaps(sim))
         worst_crossings = max(worst_crossings, crossings(sim))
         assert np.isfinite(sim.positions()).all()
-    print(f"{name} on {device}, {projection}, {frames} frames: closest contact {worst_gap:.3f}, "
+    print(f"{name} on {device}, {scene.collision.projection}, {frames} frames: closest contact {worst_gap:.3f}, "
           f"most intersecting pairs {worst_crossings}")
     assert worst_gap >= CLOSEST_CONTACT
     assert worst_crossings == 0

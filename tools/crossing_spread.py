@@ -1,5 +1,6 @@
-"""How much of seed_default's crossing-triangle count is one run's rounding: the scene run with gravity
-scaled by 1 + k 1e-6 (k = 0 .. runs-1), each run's worst count of crossing pairs and closest contact.
+"""How much of seed_default's crossing-triangle count and worst edge is one run's rounding: the scene run
+with gravity scaled by 1 + k 1e-6 (k = 0 .. runs-1), each run's worst count of crossing pairs, closest
+contact, worst edge strain over every frame and how its capped limit solves ended.
 
     python tools/crossing_spread.py OUT.jsonl DEVICE FRAMES RUNS
 
@@ -26,14 +27,18 @@ def main(out_path: str, device: str, frames: int, runs: int) -> None:
             scene = dataclasses.replace(base, simulation=dataclasses.replace(base.simulation, gravity=gravity,
                                                                              frames=frames))
             sim = wc.Simulator(scene, device=device)
-            crossings, gaps = TriangleIntersections(sim), ContactGaps(sim)
+            crossings, gaps, strain = TriangleIntersections(sim), ContactGaps(sim), wc.StrainMonitor()
             worst, closest, frames_with = 0, float("inf"), 0
             for _ in range(frames):
-                sim.step()
+                sim.run(1, writers=[strain])
                 count = crossings(sim)
                 worst, frames_with, closest = max(worst, count), frames_with + (count > 0), min(closest, gaps(sim))
+            report, stats = strain.report(), sim.solver_stats(since_start=True)
             row = {"device": device, "frames": frames, "eps": eps, "worst_crossings": worst,
-                   "frames_with_crossings": frames_with, "closest_contact": closest}
+                   "frames_with_crossings": frames_with, "closest_contact": closest,
+                   "stretch": report.stretch, "stretch_frame": report.stretch_frame,
+                   "compression": report.compression, "limit_passes_most": stats.limit_passes,
+                   "limit_residual": stats.limit_residual}
             print(json.dumps(row), file=out, flush=True)
             print(row, flush=True)
 
