@@ -28,9 +28,12 @@ def main(out_path: str, device: str, frames: int, runs: int) -> None:
                                                                              frames=frames))
             sim = wc.Simulator(scene, device=device)
             crossings, gaps, strain = TriangleIntersections(sim), ContactGaps(sim), wc.StrainMonitor()
+            strain.begin(sim)  # once: each Simulator.run begins its writers anew
+            strain.write_frame(sim, 0)
             worst, closest, frames_with = 0, float("inf"), 0
-            for _ in range(frames):
-                sim.run(1, writers=[strain])
+            for frame in range(1, frames + 1):
+                sim.step()
+                strain.write_frame(sim, frame)
                 count = crossings(sim)
                 worst, frames_with, closest = max(worst, count), frames_with + (count > 0), min(closest, gaps(sim))
             report, stats = strain.report(), sim.solver_stats(since_start=True)
