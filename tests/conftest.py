@@ -1,3 +1,4 @@
+import contextlib
 import dataclasses
 import os
 import subprocess
@@ -71,3 +72,21 @@ def assert_restored_run_continues(sim: wc.Simulator, restored: wc.Simulator, che
         np.testing.assert_array_equal(restored.positions(), x)
         np.testing.assert_array_equal(restored.velocities(), v)
         np.testing.assert_array_equal(restored.sphere_centers(), centers)
+
+
+@contextlib.contextmanager
+def lock_held_by_another_process(path: Path):
+    holder = subprocess.Popen(
+        [sys.executable, "-c", "import fcntl, os, sys\n"
+                               "fd = os.open(sys.argv[1], os.O_RDWR | os.O_CREAT)\n"
+                               "fcntl.flock(fd, fcntl.LOCK_EX)\n"
+                               "os.write(fd, b'%d\\n' % os.getpid())\n"
+                               "print('held', flush=True)\n"
+                               "sys.stdin.read()\n", str(path)],
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        yield holder.pid
+    finally:
+        holder.stdin.close()
+        holder.wait(timeout=30)

@@ -9,8 +9,9 @@ import pytest
 from pxr import Usd, UsdGeom
 
 import warp_cloth as wc
-from conftest import run_cli_in_process
+from conftest import lock_held_by_another_process, run_cli_in_process
 from warp_cloth.metrics import COLUMNS, read_metrics
+from warp_cloth.output import OutputLock
 
 
 def grid_edges(nx: int, ny: int, dx: float, dy: float) -> dict[str, tuple[np.ndarray, np.ndarray]]:
@@ -111,3 +112,45 @@ def test_a_bad_metrics_path_is_one_line_and_nothing_is_written(tmp_path, path, e
                                         cwd=tmp_path)
     assert code == 2 and len(err.strip().splitlines()) == 1 and "--metrics" in err and expected in err, err
     assert not (tmp_path / "o").exists() and not (tmp_path / "m.txt").exists()
+
+
+# Two runs never share a metrics file, and its plot never replaces a picture of the user's
+
+
+def test_a_run_writing_metrics_another_run_writes_is_refused_at_once(tmp_path):
+    with lock_held_by_another_process(OutputLock(tmp_path / "m.csv").path) as holder:
+        code, _, err = run_cli_in_process("run", "hanging", "--frames", "2", "--out", "o", "--quiet",
+                                          "--metrics", "m.csv", cwd=tmp_path)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "--metrics" in err and f"process id {holder}" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.lock"]
+
+
+def test_a_metrics_only_run_is_locked_and_checkpointed_like_other_outputs(tmp_path):
+    """Without USD or .poly, the CSV is the run's output: its lock and checkpoint are named after it."""
+    with lock_held_by_another_process(OutputLock(tmp_path / "m.csv").path):
+        code, _, err = run_cli_in_process("run", "hanging", "--frames", "2", "--no-usd", "--no-poly", "--quiet",
+                                          "--metrics", "m.csv", cwd=tmp_path)
+    assert code == 2 and "--metrics" in err, err
+    code, _, err = run_cli_in_process("run", "hanging", "--frames", "2", "--no-usd", "--no-poly", "--quiet",
+                                      "--metrics", "m.csv", cwd=tmp_path)
+    assert code == 0, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.csv", "m.png"]
+
+
+def test_the_metrics_plot_never_replaces_a_picture_of_the_users(tmp_path):
+    from PIL import Image
+
+    Image.new("RGB", (4, 4), (200, 10, 10)).save(tmp_path / "photo.png")
+    photo = (tmp_path / "photo.png").read_bytes()
+    code, _, err = run_cli_in_process("run", "hanging", "--frames", "2", "--out", "o", "--quiet",
+                                      "--metrics", "photo.csv", cwd=tmp_path)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "--metrics" in err and "photo.png" in err
+    assert (tmp_path / "photo.png").read_bytes() == photo
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["photo.png"]
+    for _ in range(2):  # a plot of its own it replaces
+        code, _, err = run_cli_in_process("run", "hanging", "--frames", "2", "--out", "o", "--quiet",
+                                          "--metrics", "m.csv", cwd=tmp_path)
+        assert code == 0, err
+    assert len(read_metrics(tmp_path / "m.csv")["frame"]) == 3

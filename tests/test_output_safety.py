@@ -16,7 +16,8 @@ import pytest
 from pxr import Sdf, Usd, UsdGeom
 
 import warp_cloth as wc
-from conftest import REPO, assert_restored_run_continues, run_cli, run_cli_in_process, with_simulation
+from conftest import (REPO, assert_restored_run_continues, lock_held_by_another_process, run_cli,
+                      run_cli_in_process, with_simulation)
 from warp_cloth.output import OutputError, OutputLock, first_free, labelled
 
 FOLD_AROUND_A_MOVING_SPHERE = """
@@ -408,6 +409,34 @@ def test_a_stopped_run_resumes_from_where_its_frames_went(tmp_path, previous):
     assert sorted(p.name for p in (out / "hanging").iterdir()) == ["poly"]
 
 
+def test_a_resumed_run_measures_and_reports_the_whole_run(tmp_path):
+    """The strain summary and the metrics CSV of a stopped run resumed are those of the run that never
+    stopped: every frame from 0, not only the resumed ones."""
+    from warp_cloth.metrics import read_metrics
+
+    out, metrics = tmp_path / "out", tmp_path / "m.csv"
+    process = start_run("hanging", "--frames", "100000", "--out", str(out), "--quiet", "--metrics", str(metrics))
+    wait_for(out / "hanging.checkpoint.npz", process)
+    process.send_signal(signal.SIGINT)
+    stopped, err = process.communicate(timeout=120)
+    assert process.returncode == 130, err
+    total = int(stopped.split("interrupted after ")[1].split()[0]) + 12
+    resumed = run_cli("run", "hanging", "--frames", str(total), "--out", str(out), "--quiet", "--resume",
+                      "--metrics", str(metrics), cwd=REPO)
+    assert resumed.returncode == 0, resumed.stderr
+    strain = wc.StrainMonitor()
+    reference = tmp_path / "reference.csv"
+    wc.Simulator(wc.load_scene("hanging"), device="cpu").run(total, writers=[
+        strain, wc.MetricsWriter(reference, plot=False)])
+    assert f"over {total + 1} frames" in strain.report().describe()
+    assert strain.report().describe() in resumed.stdout
+    got, expected = read_metrics(metrics), read_metrics(reference)
+    assert list(got["frame"]) == list(range(total + 1))
+    for column in ("structural_stretch", "shear_compression", "kinetic_energy", "potential_energy"):
+        np.testing.assert_array_equal(got[column], expected[column], err_msg=column)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.csv", "m.png", "out", "reference.csv"]
+
+
 def test_resume_refuses_a_changed_scene_and_a_missing_checkpoint(tmp_path):
     missing = run_cli("run", "hanging", "--frames", "3", "--out", str(tmp_path), "--resume", "--quiet", cwd=REPO)
     assert missing.returncode == 2 and "checkpoint" in one_error_line(missing)
@@ -562,24 +591,6 @@ def test_saved_says_whether_the_run_has_a_checkpoint_to_resume(tmp_path, monkeyp
 
 
 # One lock covers what outputs of one stem share (the staging file, the checkpoint)
-
-
-@contextlib.contextmanager
-def lock_held_by_another_process(path: Path):
-    holder = subprocess.Popen(
-        [sys.executable, "-c", "import fcntl, os, sys\n"
-                               "fd = os.open(sys.argv[1], os.O_RDWR | os.O_CREAT)\n"
-                               "fcntl.flock(fd, fcntl.LOCK_EX)\n"
-                               "os.write(fd, b'%d\\n' % os.getpid())\n"
-                               "print('held', flush=True)\n"
-                               "sys.stdin.read()\n", str(path)],
-        stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
-    try:
-        assert holder.stdout.readline().strip() == "held"
-        yield holder.pid
-    finally:
-        holder.stdin.close()
-        holder.wait(timeout=30)
 
 
 @pytest.mark.parametrize("outputs", [["--usd", "shot.usd", "--no-poly"], ["--usd", "shot.usdc", "--no-poly"],

@@ -82,6 +82,43 @@ def test_preview_of_a_result_animates_the_frames_asked_and_replaces_only_when_do
     assert not list(tmp_path.glob("*.incomplete*")) and not list(tmp_path.glob(".preview-*"))
 
 
+@needs_blender
+def test_a_preview_never_replaces_a_picture_of_the_users_nor_renders_beside_another(tmp_path):
+    from PIL import Image
+
+    from conftest import lock_held_by_another_process
+    from warp_cloth.output import OutputLock
+
+    scene = green_hanging(tmp_path)
+    out = tmp_path / "out"
+    out.mkdir()
+    mine = out / "green.preview.png"
+    Image.new("RGB", (4, 4), (200, 10, 10)).save(mine)
+    picture = mine.read_bytes()
+    code, _, err = run_cli_in_process("run", str(scene), "--frames", "2", "--out", "out", "--no-poly", "--quiet",
+                                      "--preview", cwd=tmp_path)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "--preview" in err and "green.preview.png" in err
+    assert sorted(p.name for p in out.iterdir()) == ["green.preview.png"]  # refused before simulating
+    assert run_cli_in_process("run", str(scene), "--frames", "2", "--out", "out", "--no-poly", "--quiet",
+                              cwd=tmp_path)[0] == 0
+    code, _, err = run_cli_in_process("preview", "out/green.usdc", "--no-animation", "--quiet", cwd=tmp_path)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "green.preview.png" in err, err
+    assert mine.read_bytes() == picture
+    with lock_held_by_another_process(OutputLock(mine).path) as holder:
+        code, _, err = run_cli_in_process("preview", "out/green.usdc", "--no-animation", "--still", "s.png",
+                                          "--quiet", cwd=tmp_path)
+    assert code == 0, err  # a still named elsewhere takes its own lock
+    with lock_held_by_another_process(OutputLock(tmp_path / "s.png").path) as holder:
+        code, _, err = run_cli_in_process("preview", "out/green.usdc", "--no-animation", "--still", "s.png",
+                                          "--quiet", cwd=tmp_path)
+    assert code == 2 and f"process id {holder}" in err, err
+    mine.unlink()
+    for _ in range(2):  # its own still, it replaces
+        code, _, err = run_cli_in_process("preview", "out/green.usdc", "--no-animation", "--quiet", cwd=tmp_path)
+        assert code == 0, err
+    assert cloth_pixels(mine).mean() > 0.03
+
+
 @pytest.mark.parametrize("args, expected", [
     (["missing.usdc"], "usd: expected a USD file a run wrote, got 'missing.usdc'"),
     (["not_usd.usdc"], "usd: expected a USD file a run wrote (it does not open"),

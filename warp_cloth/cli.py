@@ -171,7 +171,8 @@ def _cmd_plan(args: argparse.Namespace) -> int:
 
 
 def _writers(scene: Scene, args: argparse.Namespace) -> list:
-    """The run's output writers, their paths checked (before anything is simulated or written)."""
+    """The run's output writers (USD, .poly, metrics), their paths checked (before anything is simulated or
+    written)."""
     from .writers import PolyWriter, UsdWriter
 
     out = Path(scene.output.dir)
@@ -183,6 +184,10 @@ def _writers(scene: Scene, args: argparse.Namespace) -> list:
             writers.append(UsdWriter(usd, scene.output.subdivision, resume=args.resume))
         if scene.output.poly:
             writers.append(PolyWriter(poly, resume=args.resume))
+        if args.metrics is not None:
+            from .metrics import MetricsWriter
+
+            writers.append(MetricsWriter(args.metrics, resume=args.resume))
     except SceneError as exc:
         raise _output_error(exc, args) from None
     return writers
@@ -282,10 +287,11 @@ def _quiet_warp() -> None:
 def _cmd_run(args: argparse.Namespace) -> int:
     _quiet_warp()
     from .checkpoint import check_scene, checkpoint_path, load_checkpoint
-    from .output import OutputError, check_file_output, check_folder_output
+    from .output import OutputError, check_folder_output
     from .scene_file import load_scene
     from .simulator import resolve_device
     from .writers import CheckpointWriter
+    from .writers.checkpoint import strain_at
 
     scene = _with_overrides(load_scene(args.scene), args)
     try:
@@ -294,21 +300,26 @@ def _cmd_run(args: argparse.Namespace) -> int:
         raise SceneError("--device", exc.expected, exc.got, source="command line") from None
     if args.out is not None:
         check_folder_output(Path(args.out), "--out", "command line")
-    if args.metrics is not None:
-        check_file_output(Path(args.metrics), (".csv",), "--metrics", "command line")
     writers = _writers(scene, args)
     if args.preview:
-        from .preview import require_blender
+        from .output import refuse_replacing_unmarked_png
+        from .preview import STILL, default_paths, require_blender
 
         require_blender("--preview")
         if not scene.output.usd:
             raise SceneError("--preview", "a run that writes USD (the preview renders it)", "--no-usd",
                              source="command line")
+        usd_target = writers[0].target
+        try:
+            refuse_replacing_unmarked_png(default_paths(usd_target)[0], STILL, "--preview", usd_target)
+        except SceneError as exc:
+            raise SceneError(exc.key, exc.expected, exc.got, "command line") from None
     checkpoint_file = checkpoint_path(writers[0].target) if writers else None
     checkpoint = None
     if args.resume:
         if checkpoint_file is None:
-            raise SceneError("--resume", "outputs to go on with (a run without USD and .poly keeps no checkpoint)",
+            raise SceneError("--resume", "outputs to go on with (a run without USD, .poly or metrics keeps no "
+                                         "checkpoint)",
                              has_got=False, source="command line")
         if not checkpoint_file.exists():
             raise SceneError("--resume", f"a checkpoint of an earlier run at {checkpoint_file}", has_got=False,
@@ -327,26 +338,26 @@ def _cmd_run(args: argparse.Namespace) -> int:
     except BaseException:
         _release(writers)
         raise
-    outputs = list(writers)
-    checkpointer = CheckpointWriter(checkpoint_file, outputs) if checkpoint_file is not None else None
-    if checkpointer is not None:
-        writers.append(checkpointer)
+    from .metrics import MetricsWriter
     from .strain import StrainMonitor
 
-    strain = StrainMonitor()
-    writers.append(strain)
+    outputs = list(writers)
+    strain = StrainMonitor(strain_at(checkpoint.extra) if checkpoint is not None else None)
     check = None
     if args.check:
         from .diagnostics import CheckReport
 
         check = CheckReport(sys.stdout, strain)
-        writers.append(check)
-    metrics = None
-    if args.metrics is not None:
-        from .metrics import MetricsWriter
-
-        metrics = MetricsWriter(args.metrics, check)
-        writers.append(metrics)
+    metrics = [w for w in outputs if isinstance(w, MetricsWriter)]
+    for w in metrics:
+        w.check = check
+    # The metrics read the check's count of the frame, and the checkpoint saves what every other writer
+    # holds at its frame: they come last.
+    writers = [w for w in outputs if w not in metrics] + [strain] + ([check] if check else []) + metrics
+    checkpointer = None
+    if checkpoint_file is not None:
+        checkpointer = CheckpointWriter(checkpoint_file, outputs, strain)
+        writers.append(checkpointer)
     frames = scene.simulation.frames - sim.frame
     try:
         summary = sim.run(frames, writers=writers, progress=not args.quiet and not args.check)
@@ -363,7 +374,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
               f"{_resume_hint(checkpointer)}.", file=sys.stderr)
         return EXIT_INTERRUPTED
     sim_settings = scene.simulation
-    wrote = _kept(outputs + ([metrics] if metrics is not None and not summary.interrupted else []))
+    wrote = _kept(outputs)
     if summary.interrupted:
         name = signal.Signals(summary.stop_signal).name
         status = f"interrupted after {summary.frames} of {sim_settings.frames} frames by {name}"
@@ -392,6 +403,9 @@ def _preview(outputs: list, args: argparse.Namespace) -> str:
     (usd,) = [w.path for w in outputs if isinstance(w, UsdWriter)]
     try:
         preview = render_preview(usd, progress=not args.quiet)
+    except SceneError as exc:
+        print(f"warp-cloth: error: --preview: {exc}", file=sys.stderr)
+        return " (no preview: refused)"
     except RuntimeError as exc:
         print(f"warp-cloth: error: --preview: {exc}", file=sys.stderr)
         return " (no preview: its render failed)"

@@ -11,8 +11,12 @@ joules; the substeps' solves since the frame before (the converged strain limit 
 passes a substep, the implicit step's most CG iterations); and the frame's wall time, from the end of the
 frame before (simulation and the writers before this one).
 
-The CSV is written under a staging name and put in place when the run completes (a failed or stopped run
-leaves its rows beside it, as the other outputs do); the plot is made from it then.
+The CSV is an output like the USD (``warp_cloth.output.StagedOutput``): locked while the run writes it, so
+that a second run naming the same file is refused; written under a staging name and put in place when the
+run completes (a failed or stopped run leaves its rows beside it, as the other outputs do); kept by a
+checkpoint, so that a resumed run's CSV has every frame of the run. The plot is made from it then, beside
+it; a PNG of that name that is not a plot of warp-cloth's is never written over (the run is refused before
+it starts).
 """
 
 from __future__ import annotations
@@ -20,6 +24,7 @@ from __future__ import annotations
 import csv
 import math
 import os
+import shutil
 import time
 from pathlib import Path
 
@@ -29,11 +34,13 @@ from warp_cloth.kernels.springs import ELASTIC_COMPRESSION, ELASTIC_TENSION
 
 from .cloth_mesh import SHEAR, STRUCTURAL
 from .model import Worlds
-from .output import first_free, labelled
+from .errors import SceneError
+from .output import StagedOutput, check_file_output, first_free, labelled, png_mark, refuse_replacing_unmarked_png
 
 COLUMNS = ("frame", "time", "structural_stretch", "structural_compression", "shear_stretch", "shear_compression",
            "closest_contact", "crossing_pairs", "kinetic_energy", "potential_energy", "spring_energy",
            "limit_passes_mean", "limit_passes_most", "cg_iterations", "wall_seconds")
+PLOT = "metrics plot"  # what the PNG is, in its mark and in messages
 PLOTS = (  # (title, columns, unit) of each panel of the PNG
     ("worst edge strain", ("structural_stretch", "structural_compression", "shear_stretch", "shear_compression"),
      "%"),
@@ -44,30 +51,64 @@ PLOTS = (  # (title, columns, unit) of each panel of the PNG
 )
 
 
-class MetricsWriter:
+class MetricsWriter(StagedOutput):
     """Writes a run's per-frame metrics to ``path`` (CSV) and plots them to ``path`` with ``.png``. Give it
-    the run's ``CheckReport`` (a writer before it) to have the crossing pairs it counts."""
+    the run's ``CheckReport`` (a writer before it) to have the crossing pairs it counts. ``resume``: go on
+    with the rows of an earlier run of the same scene (see ``take_back``), from the simulator's frame."""
 
-    def __init__(self, path: str | Path, check=None, plot: bool = True) -> None:
+    key = "metrics"
+    kind = "file"
+    suffix = ".csv"
+
+    def __init__(self, path: str | Path, check=None, plot: bool = True, resume: bool = False) -> None:
         self.path = Path(path)
-        self.check = check
+        check_file_output(self.path, (".csv",), self.key)
         self.plot = plot
-        self.staging = labelled(self.path, "incomplete", self.path.suffix)
+        super().__init__(self.path, labelled(self.path, "incomplete", self.suffix), resume)
+        if plot:
+            self.lock.claims |= {self.plot_path.absolute(), labelled(self.plot_path, "incomplete", ".png").absolute()}
+        self.check = check
+        self._file = None
+
+    def _names_made(self) -> list[str]:
+        return [*super()._names_made(), labelled(self.plot_path, "incomplete", ".png").name]
 
     @property
     def outputs(self) -> list[Path]:
-        return [self.path, self.plot_path] if self.plot else [self.path]
+        return [*super().outputs, self.plot_path] if self.plot and self.location == self.path else super().outputs
 
     @property
     def plot_path(self) -> Path:
         return self.path.with_suffix(".png")
 
+    def prepare(self) -> None:
+        super().prepare()
+        if self.plot:
+            try:
+                refuse_replacing_unmarked_png(self.plot_path, PLOT, self.key, self.path)
+            except SceneError:
+                self.lock.release()
+                raise
+
+    def take_back(self, location: Path, frame: int, cloths: list[str]) -> None:
+        """Before resuming: the rows an earlier run left at ``location`` go back under the staging name
+        (copied where they are in place: that file stays until the resumed run completes)."""
+        if location.absolute() == self.staging.absolute():
+            return
+        if location.absolute() == self.path.absolute():
+            shutil.copyfile(location, self.staging)
+        else:
+            os.replace(location, self.staging)
+
     def begin(self, sim) -> None:
+        self.prepare()
         model = sim.model
         self.path.parent.mkdir(parents=True, exist_ok=True)
+        kept = self._rows_through(sim.frame) if self.resume else []
         self._file = open(self.staging, "w", newline="")
         self._csv = csv.DictWriter(self._file, COLUMNS)
         self._csv.writeheader()
+        self._csv.writerows(kept)
         self._kinds = {kind: model.edge_kind == kind for kind in (STRUCTURAL, SHEAR)}
         worlds = model.worlds if model.worlds is not None else Worlds.of_scene(sim.scene)
         self._gravity = worlds.gravity[model.particle_world].astype(np.float64)
@@ -103,18 +144,32 @@ class MetricsWriter:
         self._last = now
         self._csv.writerow(row)
 
+    def _rows_through(self, frame: int) -> list[dict]:
+        """The rows of the run being resumed, up to ``frame`` (those after it are simulated again)."""
+        if not self.staging.exists():
+            raise SceneError(self.key, f"the rows of the run to resume in {self.staging}", has_got=False)
+        with open(self.staging, newline="") as handle:
+            return [row for row in csv.DictReader(handle) if int(row["frame"]) <= frame]
+
     def sync(self, sim) -> None:
         self._file.flush()
+        os.fsync(self._file.fileno())
 
     def finish(self, sim, frames_written: int) -> None:
         self._file.close()
         os.replace(self.staging, self.path)
         if self.plot:
             plot_metrics(self.path, self.plot_path)
+        self._end(self.path)
 
     def abandon(self, sim, frames_written: int, outcome) -> None:
+        if self._file is None:
+            self.lock.release()
+            return
         self._file.close()
-        os.replace(self.staging, first_free(self.path, outcome.label, self.path.suffix))
+        location = first_free(self.path, outcome.label, self.suffix)
+        os.replace(self.staging, location)
+        self._end(location)
 
 
 def _spring_energy(springs, x: np.ndarray) -> float:
@@ -158,7 +213,8 @@ def plot_metrics(csv_path: str | Path, png_path: str | Path) -> Path:
     figure.tight_layout()
     png_path = Path(png_path)
     staging = labelled(png_path, "incomplete", png_path.suffix)
-    figure.savefig(staging, dpi=100)
+    figure.savefig(staging, dpi=100, metadata=png_mark(PLOT))
     plt.close(figure)
     os.replace(staging, png_path)
     return png_path
+

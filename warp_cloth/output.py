@@ -334,6 +334,34 @@ class StagedOutput:
         return [self.location or self.target]
 
 
+PNG_MARK_KEY = "Software"  # a PNG text entry saying which of our commands made the picture
+
+
+def png_mark(what: str) -> dict[str, str]:
+    """The text entry a PNG that warp-cloth makes carries: ``what`` names the kind of picture."""
+    return {PNG_MARK_KEY: f"warp-cloth {what}"}
+
+
+def refuse_replacing_unmarked_png(path: Path, what: str, key: str, named_after: Path) -> None:
+    """A picture a run makes under a name the user did not give (``what`` named after ``named_after``)
+    replaces only a picture of the same kind made by warp-cloth (see ``png_mark``), never a file of the
+    user's."""
+    if os.path.lexists(path) and not _marked(path, what):
+        raise SceneError(key, f"a name whose {what} ({path}) would replace no file of yours ({path.name} is there "
+                              "and is not one warp-cloth made; name another output or move it away)",
+                         str(named_after))
+
+
+def _marked(path: Path, what: str) -> bool:
+    from PIL import Image
+
+    try:
+        with Image.open(path) as image:
+            return image.format == "PNG" and image.text.get(PNG_MARK_KEY) == png_mark(what)[PNG_MARK_KEY]
+    except (OSError, ValueError):
+        return False
+
+
 class RunOutcome:
     """How a run that did not complete ended: stopped by a signal after a whole frame (``interrupted``), or
     failed with ``error``. Writers' ``abandon`` gets it."""

@@ -27,13 +27,14 @@ from pathlib import Path
 
 from .cli import EXIT_BAD_INPUT, EXIT_OUTPUT_FAILED
 from .errors import SceneError
-from .output import check_file_output, labelled
+from .output import OutputLock, check_file_output, labelled, png_mark, refuse_replacing_unmarked_png
 from .progress import Progress
 
 STILL_RESOLUTION = (960, 540)
 ANIMATION_RESOLUTION = (640, 360)
 STILL_SAMPLES = 32
 ANIMATION_SAMPLES = 16
+STILL = "preview still"  # what the still is, in its mark and in messages
 
 
 @dataclass(frozen=True)
@@ -130,10 +131,31 @@ def render_preview(usd: str | Path, still: str | Path | None = None, animation: 
     require_blender("preview", source=None)
     info = read_stage(usd)
     default_still, default_animation = default_paths(usd)
+    if still is None:
+        refuse_replacing_unmarked_png(default_still, STILL, "preview", usd)
     still = Path(still) if still is not None else default_still
     animation = (Path(animation) if animation is not None else default_animation) if animate else None
     first, last, step = frames if frames is not None else (info["start"], info["end"], 1)
     count = len(range(first, last + 1, step))
+    made = [still] + ([animation] if animation is not None else [])
+    lock = OutputLock(still, claims=tuple(p for target in made for p in (target, _staging(target))))
+    lock.acquire("preview")
+    try:
+        return _render(usd, info, still, animation, (first, last, step), count, resolution, animation_resolution,
+                       samples, animation_samples, progress)
+    finally:
+        lock.release()
+
+
+def _staging(target: Path) -> Path:
+    return labelled(target, "incomplete", target.suffix)
+
+
+def _render(usd: Path, info: dict, still: Path, animation: Path | None, frames: tuple[int, int, int], count: int,
+            resolution: tuple[int, int], animation_resolution: tuple[int, int], samples: int,
+            animation_samples: int, progress: bool) -> Preview:
+    """``render_preview``'s pictures, made under the outputs' lock."""
+    first, last, step = frames
     started = time.perf_counter()
     still.parent.mkdir(parents=True, exist_ok=True)
     if animation is not None:
@@ -150,6 +172,7 @@ def render_preview(usd: str | Path, still: str | Path | None = None, animation: 
                                 "path": str(scratch / ("pictures" if gif else "animation.mp4"))}
         (scratch / "job.json").write_text(json.dumps(job))
         _run_blender(scratch / "job.json", count if animation is not None else 0, progress, still.name)
+        _mark(scratch / "still.png")
         made = [(scratch / "still.png", still)]
         if animation is not None:
             if gif:
@@ -157,11 +180,23 @@ def render_preview(usd: str | Path, still: str | Path | None = None, animation: 
                      info["fps"] / step)
             made.append((scratch / ("animation.gif" if gif else "animation.mp4"), animation))
         for source, target in made:
-            staging = labelled(target, "incomplete", target.suffix)
-            shutil.move(source, staging)
+            shutil.move(source, _staging(target))
         for _, target in made:
-            os.replace(labelled(target, "incomplete", target.suffix), target)
+            os.replace(_staging(target), target)
     return Preview(still, animation, count if animation is not None else 0, time.perf_counter() - started)
+
+
+def _mark(png: Path) -> None:
+    """The still, marked as a preview warp-cloth made (see ``output.png_mark``)."""
+    from PIL import Image
+    from PIL.PngImagePlugin import PngInfo
+
+    info = PngInfo()
+    for key, value in png_mark(STILL).items():
+        info.add_text(key, value)
+    with Image.open(png) as image:
+        image.load()
+    image.save(png, pnginfo=info)
 
 
 def _run_blender(job: Path, pictures: int, progress: bool, label: str) -> None:
@@ -241,12 +276,11 @@ def main(argv: list[str] | None = None) -> int:
         still = Path(args.still) if args.still else still
         animation = None if args.no_animation else (Path(args.animation) if args.animation else animation)
         check_outputs(still, animation)
+        preview = render_preview(usd, still if args.still else None, animation, frames,
+                                 animate=animation is not None, samples=args.samples, progress=not args.quiet)
     except SceneError as exc:
         print(f"warp-cloth preview: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    try:
-        preview = render_preview(usd, still, animation, frames, animate=animation is not None, samples=args.samples,
-                                 progress=not args.quiet)
     except RuntimeError as exc:
         print(f"warp-cloth preview: error: {exc}; nothing in place was replaced", file=sys.stderr)
         return EXIT_OUTPUT_FAILED

@@ -51,7 +51,12 @@ def edges_on_device(model, device) -> tuple[wp.array, wp.array]:
 
 class StrainMonitor:
     """A frame writer that measures edge strain in every frame it is given (``Simulator.run(writers=[...])``)
-    on the device, reading back only every ``SLOTS`` frames and at the end; ``report()`` sums it up."""
+    on the device, reading back only every ``SLOTS`` frames and at the end; ``report()`` sums it up.
+    ``earlier``: what the monitor of a run now resumed had measured (``measured_so_far``, as a checkpoint
+    keeps it), so that the report covers the whole run."""
+
+    def __init__(self, earlier: dict | None = None) -> None:
+        self.earlier = earlier
 
     def load_kernels(self, sim) -> None:
         wp.load_module(strain_kernels, device=sim.device)
@@ -64,6 +69,23 @@ class StrainMonitor:
         self.histogram = wp.zeros(bins, dtype=int, device=device)
         self.pending: list[int] = []  # frames measured in the slots, not yet read back
         self.measured: list[tuple[int, float, float]] = []
+        if self.earlier is not None:
+            self._take_earlier(self.earlier)
+
+    def _take_earlier(self, earlier: dict) -> None:
+        self.measured = [(int(f), float(s), float(c)) for f, s, c in earlier["per_frame"]]
+        counts = np.zeros(self.histogram.shape[0], dtype=np.int32)
+        bins, values = np.asarray(earlier["histogram"], dtype=np.int64).reshape(2, -1)
+        counts[bins] = values
+        self.histogram.assign(counts)
+
+    def measured_so_far(self) -> dict:
+        """What the monitor has measured, in plain lists (a checkpoint keeps it as JSON): each frame's worst
+        stretch and compression, and the histogram's bins that count anything."""
+        self._read_back()
+        counts = self.histogram.numpy()
+        bins = np.flatnonzero(counts)
+        return {"per_frame": [list(m) for m in self.measured], "histogram": [bins.tolist(), counts[bins].tolist()]}
 
     def write_frame(self, sim, frame: int) -> None:
         if len(self.pending) == SLOTS:
