@@ -81,6 +81,34 @@ def test_worlds_of_another_step_are_packed_apart_and_each_moves_as_alone(device,
         batch.run(1, monitors=[wc.StrainMonitor()])
 
 
+def drop_densities(densities: tuple[float, ...]) -> list[wc.Scene]:
+    """The README's drop (a cloth falling on a sphere, its step chosen for stability), small, in densities
+    whose stable steps differ."""
+    cloth = wc.Cloth(resolution=(6, 6), size=(2.0, 2.0), orientation="horizontal", origin=(-1.0, 2.0, 1.0),
+                     density=0.2, limit=wc.Limit(stretch=0.1, compression=0.1))
+    drop = wc.Scene(name="drop", cloths=(cloth,), spheres=(wc.Sphere(center=(0.0, 1.0, 0.0), radius=0.5),),
+                    simulation=wc.Simulation(fps=24, frames=12, integrator="symplectic"))
+    return [dataclasses.replace(drop, cloths=(dataclasses.replace(cloth, density=d),)) for d in densities]
+
+
+def test_worlds_whose_chosen_steps_differ_each_take_their_own_and_move_as_alone():
+    """Where the scenes set no step, each world takes the one chosen for its scene alone, not the finest of
+    the batch's (which moved the densest world 1.4 cm from its scene alone in these 12 frames)."""
+    scenes = drop_densities((0.1, 0.2, 0.4, 0.2))
+    batch = wc.Batch(scenes, device="cpu")
+    alone = [wc.Simulator(scene, device="cpu") for scene in scenes]
+    assert len({sim.substeps_per_frame for sim in alone}) == 3
+    assert [group.members for group in batch.groups] == [(0,), (1, 3), (2,)]
+    for w, sim in enumerate(alone):
+        assert batch.place(w)[0].simulator.substeps_per_frame == sim.substeps_per_frame, f"world {w}"
+    batch.run(12)
+    for sim in alone:
+        sim.run(12)
+    for w, sim in enumerate(alone):
+        np.testing.assert_allclose(batch.positions(w), sim.positions(), atol=1e-6, err_msg=f"world {w}")
+        np.testing.assert_allclose(batch.velocities(w), sim.velocities(), atol=1e-5, err_msg=f"world {w}")
+
+
 def test_a_batch_refuses_no_scenes_and_worlds_it_does_not_have():
     with pytest.raises(wc.SceneError, match="scenes: expected at least one scene"):
         wc.Batch([], device="cpu")

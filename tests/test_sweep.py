@@ -107,6 +107,42 @@ def test_implicit_variants_share_batches_and_each_runs_its_own_frames(tmp_path):
         assert row["compression"] == pytest.approx(monitor.report().compression, abs=1e-5)
 
 
+def test_variants_whose_chosen_steps_differ_each_run_at_their_own(tmp_path):
+    """The scene sets no step: each density is given the one chosen for it alone (a batch of its own), not
+    the finest of the sweep's, and its row is that of its scene alone."""
+    (tmp_path / "sheet.toml").write_text(SCENE.replace("substeps = 30\n", ""))
+    code, out, err = run_cli_in_process("sweep", "sheet.toml", "--set", "cloth.density=0.1,0.4",
+                                        "--set", "simulation.gravity=[0.0, -9.81, 0.0],[0.0, -3.0, 0.0]",
+                                        "--frames", "12", "--out", "swept", "--no-usd", cwd=tmp_path)
+    assert code == 0, err
+    base = wc.load_scene(tmp_path / "sheet.toml")
+    steps = set()
+    for row in rows_of(tmp_path / "swept"):
+        settings = row["settings"]
+        cloth = dataclasses.replace(base.cloths[0], density=settings["cloth.density"])
+        simulation = dataclasses.replace(base.simulation, gravity=tuple(settings["simulation.gravity"]), frames=12)
+        sim = wc.Simulator(dataclasses.replace(base, cloths=(cloth,), simulation=simulation), device="cpu")
+        steps.add(sim.substeps_per_frame)
+        monitor = wc.StrainMonitor()
+        sim.run(12, writers=[monitor])
+        assert row["stretch"] == pytest.approx(monitor.report().stretch, abs=1e-6), row["variant"]
+        assert row["compression"] == pytest.approx(monitor.report().compression, abs=1e-6), row["variant"]
+        v, m = sim.velocities().astype(np.float64), sim.model.masses.astype(np.float64)
+        assert row["kinetic_energy"] == pytest.approx(0.5 * np.sum(m * np.sum(v * v, axis=1)), rel=1e-5), row["variant"]
+        assert row["unstable_frame"] is None
+    assert len(steps) == 2 and [row["batch_worlds"] for row in rows_of(tmp_path / "swept")] == [2] * 4
+    assert "4 variants (0 done before) in 2 batches" in out.splitlines()[-1]
+
+
+def test_a_variant_whose_step_cannot_be_chosen_is_refused_in_one_line_before_anything_runs(tmp_path):
+    (tmp_path / "sheet.toml").write_text(SCENE.replace("substeps = 30\n", ""))
+    code, out, err = run_cli_in_process("sweep", "sheet.toml", "--set", "cloth.density=0.2,1e-8", "--out", "s",
+                                        cwd=tmp_path)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "variant cloth.density=1e-08" in err and "simulation.substeps: expected a scene whose stable step" in err
+    assert not (tmp_path / "s").exists()
+
+
 def test_a_sweep_started_again_runs_only_what_its_table_lacks(tmp_path):
     (tmp_path / "sheet.toml").write_text(SCENE)
     assert run_cli_in_process("sweep", "sheet.toml", "--set", "cloth.density=0.1,0.2", "--out", "s",

@@ -5,9 +5,10 @@ worlds' in world order, renamed ``w<world>_<name>``, and a ``model.Worlds`` that
 belongs to and what each world has of its own: gravity and ground. The kernels then keep every world to
 itself: colliders act on their world's particles only, particles of different worlds never collide, and
 the spatial hash puts each world's cells apart. What a pass does for a world is what it does for that
-scene alone, so each world's frames are those of its scene run by itself, to rounding, where the steps
-are the same (see ``Batch``). Worlds whose steps differ cannot share a launch (every kernel takes one
-substep length): a batch packs each step's worlds apart and steps those groups one after another.
+scene alone, so each world's frames are those of its scene run by itself, to rounding (see ``Batch``).
+Each world takes the step its scene alone takes (its own, or the one chosen for it: ``stability``), and
+worlds whose steps differ cannot share a launch (every kernel takes one substep length): a batch packs
+each step's worlds apart and steps those groups one after another.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from .model import Model, Worlds, build_model
 from .output import RunOutcome
 from .scene import Scene
 from .simulator import RunSummary, Simulator
+from .stability import scene_with_step
 
 def shared_settings(scene: Scene) -> dict[str, object]:
     """What the worlds of a batch share, by key (``simulation.substeps``, ``collision``, ...): every
@@ -37,8 +39,10 @@ def shared_settings(scene: Scene) -> dict[str, object]:
 
 
 def step_key(scene: Scene) -> str:
-    """``shared_settings`` as one text: scenes with the same key can be stepped by the same launches."""
-    return json.dumps(shared_settings(scene), sort_keys=True, default=str)
+    """``shared_settings`` of the scene as a simulator runs it (``stability.scene_with_step``: its step
+    chosen where it sets none), as one text: scenes with the same key can be stepped by the same launches,
+    each at the step it takes alone. Cheap for a scene whose step is set; else it builds the scene's model."""
+    return json.dumps(shared_settings(scene_with_step(scene)), sort_keys=True, default=str)
 
 
 def step_groups(scenes: Sequence[Scene]) -> list[list[int]]:
@@ -55,7 +59,8 @@ def _renamed(name: str, world: int) -> str:
 
 
 def pack(scenes: Sequence[Scene]) -> tuple[Scene, Worlds]:
-    """The one scene that scenes of one step (``step_key``) are simulated as, and its worlds."""
+    """The one scene that scenes of one step (``step_key``) are simulated as, and its worlds. Give it the
+    scenes with their step set (``scene_with_step``): the packed scene takes the first's."""
     first = scenes[0]
     cloths, spheres, colliders = [], [], []
     cloth_world, sphere_start, mesh_start = [], [0], [0]
@@ -102,8 +107,9 @@ class Batch:
     that share the step, the solves' settings, collision and wind settings (``shared_settings``) are
     packed together; those that differ there are packed apart, a ``StepGroup`` for each step, and the
     groups are stepped one after another (``groups``: each world's own step, at the cost of its group's
-    launches). Where the scenes set no step, a group takes the finest any of its cloths needs, which may be
-    finer than a world alone would take. A converged strain solve runs until every world of its group is
+    launches). A world whose scene sets no step takes the one chosen for that scene alone
+    (``stability.scene_with_step``), so worlds of one scene in other densities or stiffnesses may fall in
+    groups of their own. A converged strain solve runs until every world of its group is
     within tolerance, so a world may take more passes than alone: its frames then differ from its scene's
     alone within that tolerance; a fixed solve gives them to rounding. With the implicit step each world
     runs its own Newton loop and conjugate gradient (its own sums, step lengths and stopping test:
@@ -123,9 +129,15 @@ class Batch:
         self.scenes = tuple(scenes)
         if not self.scenes:
             raise SceneError("scenes", "at least one scene", 0)
+        # Each scene with the step it takes alone; copies of one scene (a benchmark's worlds) resolved once.
+        resolved: dict[int, Scene] = {}
+        for scene in self.scenes:
+            if id(scene) not in resolved:
+                resolved[id(scene)] = scene_with_step(scene)
+        stepped = [resolved[id(scene)] for scene in self.scenes]
         self.groups: list[StepGroup] = []
-        for members in step_groups(self.scenes):
-            packed, worlds = pack([self.scenes[w] for w in members])
+        for members in step_groups(stepped):
+            packed, worlds = pack([stepped[w] for w in members])
             sim = Simulator(packed, device=device, graph=graph, threads_per_particle=threads_per_particle,
                             worlds=worlds)
             self.groups.append(StepGroup(tuple(members), worlds, sim, sim.model.world_start))

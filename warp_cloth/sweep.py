@@ -9,13 +9,14 @@ a string); the sweep runs the cartesian product. With ``--random N``, ``KEY=LOW:
 uniformly in the range and a list draws one of its values, N times from ``--seed``.
 
 Variants that can share a step (see ``batch.step_key``) run together as the worlds of one batch, at most
-``--worlds`` at a time; those with another step (another integrator, substeps, solve settings) or another
-number of frames in batches of their own. Each writes its USD, named by its settings, into the output
-folder, and one row of ``results.jsonl`` as its batch ends: its settings, its worst edge stretch and
-compression over every frame, its kinetic energy and closest contact at the end, the frame it blew up in
-if it did, and the wall time. ``results.csv`` holds the same table. A sweep started again over the same
-folder skips the variants the table already has, so an interrupted sweep goes on where it stopped, and
-nothing is computed twice.
+``--worlds`` at a time; those with another step (another integrator, substeps, solve settings, or where
+the scene sets no step, another one chosen for stability: a density, a stiffness) or another number of
+frames in batches of their own, so that each variant runs at the step it would take alone. Each writes
+its USD, named by its settings, into the output folder, and one row of ``results.jsonl`` as its batch
+ends: its settings, its worst edge stretch and compression over every frame, its kinetic energy and
+closest contact at the end, the frame it blew up in if it did, and the wall time. ``results.csv`` holds
+the same table. A sweep started again over the same folder skips the variants the table already has, so
+an interrupted sweep goes on where it stopped, and nothing is computed twice.
 
 With ``--cluster ADDRESS`` (a running Ray cluster's, or ``local`` for one started on this machine with
 ``--cluster-workers`` workers), each batch is a Ray task, on a GPU where the cluster has them (else on a
@@ -183,8 +184,10 @@ class Variant:
 
 
 def build_variants(base: dict[str, Any], settings: list[tuple[tuple[str, Any], ...]], frames: int | None):
-    """Each variant's scene, checked (a bad value is refused before anything runs, naming the variant)."""
+    """Each variant's scene as a simulator runs it (its step chosen where it sets none), checked: a bad value,
+    or a step that cannot be chosen, is refused before anything runs, naming the variant."""
     from .scene_file import scene_from_dict
+    from .stability import scene_with_step
 
     variants, scenes = [], []
     for chosen in settings:
@@ -194,7 +197,7 @@ def build_variants(base: dict[str, Any], settings: list[tuple[tuple[str, Any], .
         if frames is not None:
             data = with_setting(data, "simulation.frames", frames)
         try:
-            scene = scene_from_dict(data)
+            scene = scene_with_step(scene_from_dict(data))
         except SceneError as exc:
             raise SceneError(exc.key, exc.expected, exc.got, source=f"variant {describe(chosen)}",
                              has_got=exc.has_got) from None
@@ -204,8 +207,8 @@ def build_variants(base: dict[str, Any], settings: list[tuple[tuple[str, Any], .
 
 
 def batches(scenes: list, most: int) -> list[list[int]]:
-    """The variants' indices in batches: those that can share a step and run as many frames together,
-    ``most`` at a time."""
+    """The variants' indices in batches: those that can share a step (``batch.step_key``: each the step it
+    takes alone) and run as many frames together, ``most`` at a time."""
     from .batch import step_key
 
     groups: dict[tuple[str, int], list[int]] = {}
