@@ -22,12 +22,15 @@ from .errors import SceneError, UnstableSimulation
 from .model import Model, Worlds, build_model
 from .output import RunOutcome
 from .scene import Scene
+from .shot_clock import with_start
 from .simulator import RunSummary, Simulator
 
 def shared_settings(scene: Scene) -> dict[str, object]:
     """What the worlds of a batch share, by key (``simulation.substeps``, ``collision``, ...): every
     setting of the scene's ``[simulation]`` but gravity (each world's own) and frames (the run's), and its
-    ``[collision]``, ``[implicit]`` and ``[wind]`` tables whole."""
+    ``[collision]``, ``[implicit]`` and ``[wind]`` tables whole. Its clock's start is its shot's where it
+    sets none: worlds of shots that start apart are stepped apart."""
+    scene = with_start(scene)
     shared = {f"simulation.{k}": v for k, v in dataclasses.asdict(scene.simulation).items()
               if k not in ("gravity", "frames")}
     for table in ("collision", "implicit", "wind"):
@@ -76,7 +79,7 @@ def pack(scenes: Sequence[Scene]) -> tuple[Scene, Worlds]:
                     np.asarray([g.surface if g is not None else 0.0 for g in grounds], dtype=np.float32),
                     np.asarray([g.friction if g is not None else 0.0 for g in grounds], dtype=np.float32),
                     np.asarray(sphere_start, dtype=np.int32), np.asarray(mesh_start, dtype=np.int32))
-    packed = dataclasses.replace(first, name="batch", cloths=tuple(cloths), spheres=tuple(spheres),
+    packed = dataclasses.replace(with_start(first), name="batch", cloths=tuple(cloths), spheres=tuple(spheres),
                                  colliders=tuple(colliders), ground=None)
     return packed, worlds
 
@@ -242,6 +245,7 @@ class WorldView:
         self.model: Model = build_model(self.scene)
         self.group, k = batch.place(w)
         self.device = self.group.simulator.device
+        self.clock = self.group.simulator.clock
         spheres = self.group.worlds.sphere_start
         self._spheres = slice(int(spheres[k]), int(spheres[k + 1]))
 
