@@ -189,3 +189,15 @@ def test_a_scene_without_a_shot_keeps_frame_0_as_its_first(tmp_path):
     sim.run(writers=[wc.UsdWriter(tmp_path / "out.usdc")])
     stage = Usd.Stage.Open(str(tmp_path / "out.usdc"))
     assert (stage.GetStartTimeCode(), stage.GetEndTimeCode()) == (0, 2)
+
+
+def test_a_batch_world_with_a_preroll_writes_the_frames_its_scene_alone_writes(tmp_path):
+    scene = cloth_over_box(rising_box_shot(tmp_path / "shot.usda"), height=0.2, preroll=2, frames=2)
+    wc.Simulator(scene, device="cpu").run(writers=[wc.UsdWriter(tmp_path / "alone.usdc")])
+    wc.Batch([scene]).run(2, writers={0: [wc.UsdWriter(tmp_path / "world.usdc")]})
+    alone, world = (Usd.Stage.Open(str(tmp_path / f"{name}.usdc")) for name in ("alone", "world"))
+    assert samples(world, "/World/cloth") == samples(alone, "/World/cloth") == [1001.0, 1002.0, 1003.0]
+    for code in (1001, 1003):
+        np.testing.assert_array_equal(
+            np.asarray(UsdGeom.Mesh(world.GetPrimAtPath("/World/cloth")).GetPointsAttr().Get(code)),
+            np.asarray(UsdGeom.Mesh(alone.GetPrimAtPath("/World/cloth")).GetPointsAttr().Get(code)))

@@ -167,8 +167,8 @@ class Batch:
 
     def run(self, frames: int, writers: dict[int, list] | None = None, progress: bool = False,
             monitors: Sequence = ()) -> RunSummary:
-        """Simulate ``frames`` frames, one group after another; ``writers``: each world's own
-        (``UsdWriter``, ``PolyWriter``, ...), by world. A world that blows up has its writers abandoned there,
+        """Simulate ``frames`` frames, after the preroll where a group's scenes have one still ahead, one group
+        after another; ``writers``: each world's own (``UsdWriter``, ``PolyWriter``, ...), by world. A world that blows up has its writers abandoned there,
         as a run alone that fails (its frames kept under the failed names), while the others' go on.
         ``monitors``: writers of the whole batch (``strain.WorldStrain``), for a batch of one step. The
         summary counts every group's particles, substeps and time; an interrupted group ends the run."""
@@ -181,7 +181,9 @@ class Batch:
                 return
             mine = {w: writers[w] for w in group.members if writers and w in writers}
             chosen = [WorldWriters(self, mine)] if mine else []
-            summaries.append(group.simulator.run(frames, writers=[*chosen, *monitors], progress=progress))
+            sim = group.simulator
+            ahead = frames + max(0, sim.clock.start - sim.frame)
+            summaries.append(sim.run(ahead, writers=[*chosen, *monitors], progress=progress))
 
         self._each_group(run_group)
         particle_substeps = sum(s.particles * s.substeps for s in summaries)

@@ -389,8 +389,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
     else:
         status = f"{summary.frames} frames"
     if sim.clock.start or sim.clock.preroll:
-        status += f" (the shot's frames {sim.clock.start} to {sim.clock.end}" + \
-                  (f" after {sim.clock.preroll} of preroll)" if sim.clock.preroll else ")")
+        status += f" (frames {sim.clock.start} to {sim.clock.end} of the shot" + \
+                  (f", after a preroll of {sim.clock.preroll})" if sim.clock.preroll else ")")
     if checkpoint is not None:
         status += f" (resumed at frame {checkpoint.frame})"
     older = sum(getattr(w, "older_frames_left", 0) for w in outputs)
