@@ -62,7 +62,8 @@ class UsdWriter(StagedOutput):
 
     def take_back(self, location: Path, frame: int, cloths: list[str], start: int = 0) -> None:
         """Before resuming: the frames an earlier run left at ``location`` go back under the staging name
-        (copied where they are in place: that file stays until the resumed run completes)."""
+        (copied where they are in place: that file stays until the resumed run completes). ``cloths`` and
+        ``start`` (the first frame written) are the .poly writer's concern: one file holds every frame."""
         if location.absolute() == self.staging.absolute():
             return
         if location.absolute() == self.path.absolute():
