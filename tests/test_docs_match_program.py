@@ -1,6 +1,7 @@
 """The README, the docs and the help say what the program does: every link resolves inside the repository,
 the lists of scenes and integrators are the program's, and each option and suite is explained."""
 
+import dataclasses
 import re
 from pathlib import Path
 
@@ -70,3 +71,9 @@ def test_every_public_name_is_exported_unstable_simulation_among_them():
 
     assert wc.UnstableSimulation is UnstableSimulation and "UnstableSimulation" in wc.__all__
     assert all(getattr(wc, name) is not None for name in wc.__all__)
+
+
+def test_readme_scene_reference_has_every_simulation_key():
+    reference = _readme_paragraph("[simulation]\n")
+    documented = set(re.findall(r"(\w+) = ", reference))  # as a line's key, or in a comment ("or substeps = 17")
+    assert {f.name for f in dataclasses.fields(wc.Simulation)} <= documented

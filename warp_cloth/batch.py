@@ -23,13 +23,16 @@ from .errors import SceneError, UnstableSimulation
 from .model import Model, Worlds, build_model
 from .output import RunOutcome
 from .scene import Scene
+from .shot_clock import with_start
 from .simulator import RunSummary, Simulator
 from .stability import scene_with_step
 
 def shared_settings(scene: Scene) -> dict[str, object]:
     """What the worlds of a batch share, by key (``simulation.substeps``, ``collision``, ...): every
     setting of the scene's ``[simulation]`` but gravity (each world's own) and frames (the run's), and its
-    ``[collision]``, ``[implicit]`` and ``[wind]`` tables whole."""
+    ``[collision]``, ``[implicit]`` and ``[wind]`` tables whole. Its clock's start is its shot's where it
+    sets none: worlds of shots that start apart are stepped apart."""
+    scene = with_start(scene)
     shared = {f"simulation.{k}": v for k, v in dataclasses.asdict(scene.simulation).items()
               if k not in ("gravity", "frames")}
     for table in ("collision", "implicit", "wind"):
@@ -81,7 +84,7 @@ def pack(scenes: Sequence[Scene]) -> tuple[Scene, Worlds]:
                     np.asarray([g.surface if g is not None else 0.0 for g in grounds], dtype=np.float32),
                     np.asarray([g.friction if g is not None else 0.0 for g in grounds], dtype=np.float32),
                     np.asarray(sphere_start, dtype=np.int32), np.asarray(mesh_start, dtype=np.int32))
-    packed = dataclasses.replace(first, name="batch", cloths=tuple(cloths), spheres=tuple(spheres),
+    packed = dataclasses.replace(with_start(first), name="batch", cloths=tuple(cloths), spheres=tuple(spheres),
                                  colliders=tuple(colliders), ground=None)
     return packed, worlds
 
@@ -176,8 +179,8 @@ class Batch:
 
     def run(self, frames: int, writers: dict[int, list] | None = None, progress: bool = False,
             monitors: Sequence = ()) -> RunSummary:
-        """Simulate ``frames`` frames, one group after another; ``writers``: each world's own
-        (``UsdWriter``, ``PolyWriter``, ...), by world. A world that blows up has its writers abandoned there,
+        """Simulate ``frames`` frames, after the preroll where a group's scenes have one still ahead, one group
+        after another; ``writers``: each world's own (``UsdWriter``, ``PolyWriter``, ...), by world. A world that blows up has its writers abandoned there,
         as a run alone that fails (its frames kept under the failed names), while the others' go on.
         ``monitors``: writers of the whole batch (``strain.WorldStrain``), for a batch of one step. The
         summary counts every group's particles, substeps and time; an interrupted group ends the run."""
@@ -190,7 +193,9 @@ class Batch:
                 return
             mine = {w: writers[w] for w in group.members if writers and w in writers}
             chosen = [WorldWriters(self, mine)] if mine else []
-            summaries.append(group.simulator.run(frames, writers=[*chosen, *monitors], progress=progress))
+            sim = group.simulator
+            ahead = frames + max(0, sim.clock.start - sim.frame)
+            summaries.append(sim.run(ahead, writers=[*chosen, *monitors], progress=progress))
 
         self._each_group(run_group)
         particle_substeps = sum(s.particles * s.substeps for s in summaries)
@@ -254,6 +259,7 @@ class WorldView:
         self.model: Model = build_model(self.scene)
         self.group, k = batch.place(w)
         self.device = self.group.simulator.device
+        self.clock = self.group.simulator.clock
         spheres = self.group.worlds.sphere_start
         self._spheres = slice(int(spheres[k]), int(spheres[k + 1]))
 

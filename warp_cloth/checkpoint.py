@@ -2,8 +2,10 @@
 
 A checkpoint is one ``.npz`` file: every device array of the state that a substep reads before it writes it
 (``DeviceState.carried``: positions, velocities, the substep clock, the spheres' centres, the collision's
-neighbour lists and hash table), with the frame, the substep count and a fingerprint of the scene. It is
-written under a temporary name and renamed, so a kill leaves the previous one whole.
+neighbour lists and hash table), with the frame, the substep count and a fingerprint of the scene. The frame
+and the substeps are on the shot's clock (``warp_cloth.shot_clock``), as the simulator's are: a checkpoint of
+a run that starts at 1001 after a preroll of 24 frames may be at frame 990, of its preroll. It is written
+under a temporary name and renamed, so a kill leaves the previous one whole.
 """
 
 from __future__ import annotations
@@ -27,11 +29,13 @@ def scene_fingerprint(scene) -> str:
     settings (a resumed run may ask for more frames), the step it runs at, the meshes that mesh cloths
     were read from (their content, not only their paths) and this package's version. The scene is taken
     as a simulator runs it, with what it leaves to the simulator chosen (the step, the limit solve's cap),
-    so that a scene file read again and the simulator's scene give the same hash."""
+    so that a scene file read again and the simulator's scene give the same hash; its clock's start is the
+    one its shot gives where the scene sets none."""
     from . import __version__
+    from .shot_clock import with_start
     from .stability import scene_with_step
 
-    scene = scene_with_step(scene)
+    scene = with_start(scene_with_step(scene))
     fields = dataclasses.asdict(scene)
     del fields["simulation"]["frames"]
     for key in ("dir", "usd", "poly"):

@@ -15,6 +15,7 @@ from pathlib import Path
 from .errors import SceneError, UnstableSimulation
 from .progress import SlowStepNotice
 from .scene import INTEGRATORS, Scene
+from .shot_clock import shot_clock
 
 EXIT_BAD_INPUT = 2
 EXIT_UNSTABLE = 3
@@ -36,6 +37,13 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("scene", help="built-in scene name (see 'warp-cloth scenes') or path to a .toml file")
     run.add_argument("--device", help="cpu, cuda or cuda:N (default: cuda if available, else cpu)")
     run.add_argument("--frames", type=int, help="number of frames to simulate")
+    run.add_argument("--start-frame", type=int, dest="start_frame", metavar="N",
+                     help="the number of the first frame written, on the shot's clock (default: the scene's "
+                          "simulation.start, else the start time code of the USD shot its colliders come from, "
+                          "else 0)")
+    run.add_argument("--preroll", type=int, metavar="N",
+                     help="frames simulated before the first written frame, for the cloth to settle (default: "
+                          "the scene's, else 0)")
     step = run.add_mutually_exclusive_group()
     step.add_argument("--substeps", type=int, help="substeps per frame")
     step.add_argument("--dt", type=float, help="time step in seconds (rounded to a whole number of substeps)")
@@ -91,10 +99,15 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
+# A [simulation] key the command line sets, by the name argparse keeps its option under, where they differ.
+OPTION_OF_KEY = {"start": "start_frame"}
+
+
 def _with_step_overrides(scene: Scene, args: argparse.Namespace) -> Scene:
-    """The scene with the command line's frames, step, integrator and limit solve."""
-    sim_changes = {k: getattr(args, k, None) for k in ("frames", "integrator", "limit_solve", "limit_max_passes")
-                   if getattr(args, k, None) is not None}
+    """The scene with the command line's frames, clock, step, integrator and limit solve."""
+    sim_changes = {k: getattr(args, OPTION_OF_KEY.get(k, k), None)
+                   for k in ("frames", "start", "preroll", "integrator", "limit_solve", "limit_max_passes")
+                   if getattr(args, OPTION_OF_KEY.get(k, k), None) is not None}
     if args.substeps is not None:
         sim_changes.update(substeps=args.substeps, dt=None)
     if args.dt is not None:
@@ -102,7 +115,7 @@ def _with_step_overrides(scene: Scene, args: argparse.Namespace) -> Scene:
     try:
         return dataclasses.replace(scene, simulation=dataclasses.replace(scene.simulation, **sim_changes))
     except SceneError as exc:
-        raise _from_option(exc.key, exc) from None
+        raise _from_option(OPTION_OF_KEY.get(exc.key, exc.key), exc) from None
 
 
 def _from_option(option: str, exc: SceneError) -> SceneError:
@@ -115,7 +128,8 @@ def _named_as_given(exc: SceneError, args: argparse.Namespace) -> SceneError:
     from: the command line's option that set it, or else the scene's file."""
     from .scene_file import resolve_scene_path
 
-    option = exc.key.removeprefix("simulation.")
+    key = exc.key.removeprefix("simulation.")
+    option = OPTION_OF_KEY.get(key, key)
     if exc.key.startswith("simulation.") and getattr(args, option, None) is not None:
         return _from_option(option, exc)
     return exc.in_file(str(resolve_scene_path(args.scene)))
@@ -236,7 +250,7 @@ def _take_back(checkpoint, scene: Scene, writers: list) -> None:
         if location is None:
             raise SceneError("--resume", f"a checkpoint of a run that wrote {w.target} (it did not)", has_got=False,
                              source="command line")
-        w.take_back(location, checkpoint.frame, [c.name for c in scene.cloths])
+        w.take_back(location, checkpoint.frame, [c.name for c in scene.cloths], shot_clock(scene).start)
 
 
 def _resume_hint(checkpointer) -> str:
@@ -326,9 +340,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
                              source="command line")
         checkpoint = load_checkpoint(checkpoint_file)
         check_scene(checkpoint, scene, str(checkpoint_file))
-        if scene.simulation.frames <= checkpoint.frame:
-            raise SceneError("--frames", f"more frames than the checkpoint's {checkpoint.frame} to resume",
-                             scene.simulation.frames, "command line")
+        clock = shot_clock(scene)
+        if clock.end <= checkpoint.frame:
+            raise SceneError("--frames", f"more frames than the checkpoint's {checkpoint.frame - clock.start} to "
+                                         "resume", scene.simulation.frames, "command line")
     _prepare(writers, args)
     try:
         sim = _simulator(scene, device.alias, args)
@@ -358,11 +373,13 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if checkpoint_file is not None:
         checkpointer = CheckpointWriter(checkpoint_file, outputs, strain)
         writers.append(checkpointer)
-    frames = scene.simulation.frames - sim.frame
+    frames = sim.clock.end - sim.frame
     try:
         summary = sim.run(frames, writers=writers, progress=not args.quiet and not args.check)
     except UnstableSimulation as exc:
-        print(f"warp-cloth: error: {scene.name}: {exc} Kept frames 0 to {exc.frame - 1} in {_kept(outputs)}; "
+        kept = (f"frames {sim.clock.start} to {exc.frame - 1}" if sim.clock.writes(exc.frame - 1)
+                else "no frame (it was in the preroll)")
+        print(f"warp-cloth: error: {scene.name}: {exc} Kept {kept} in {_kept(outputs)}; "
               "nothing in place was replaced.", file=sys.stderr)
         return EXIT_UNSTABLE
     except (OutputError, OSError) as exc:
@@ -377,10 +394,14 @@ def _cmd_run(args: argparse.Namespace) -> int:
     wrote = _kept(outputs)
     if summary.interrupted:
         name = signal.Signals(summary.stop_signal).name
-        status = f"interrupted after {summary.frames} of {sim_settings.frames} frames by {name}"
+        status = (f"interrupted after {summary.frames} of {sim_settings.preroll + sim_settings.frames} frames by "
+                  f"{name}")
         wrote += _resume_hint(checkpointer)
     else:
         status = f"{summary.frames} frames"
+    if sim.clock.start or sim.clock.preroll:
+        status += f" (frames {sim.clock.start} to {sim.clock.end} of the shot" + \
+                  (f", after a preroll of {sim.clock.preroll})" if sim.clock.preroll else ")")
     if checkpoint is not None:
         status += f" (resumed at frame {checkpoint.frame})"
     older = sum(getattr(w, "older_frames_left", 0) for w in outputs)
@@ -391,8 +412,14 @@ def _cmd_run(args: argparse.Namespace) -> int:
     print(f"{scene.name}: {status} ({summary.substeps} substeps of {sim.dt * 1e3:.3g} ms, "
           f"{sim_settings.integrator}) of {summary.particles} particles on {sim.device.alias} in "
           f"{summary.wall_seconds:.2f} s ({summary.particle_substeps_per_second:.3g} particle-substeps/s); "
-          f"wrote {wrote}; {strain.report().describe()}{_limit_solve(sim)}" + (f"; {check.summary()}" if check else ""))
+          f"wrote {wrote}; {_strain(strain)}{_limit_solve(sim)}" + (f"; {check.summary()}" if check else ""))
     return EXIT_SIGNAL_BASE + summary.stop_signal if summary.interrupted else 0
+
+
+def _strain(monitor) -> str:
+    """What the run's frames strained, for the summary line."""
+    report = monitor.report()
+    return report.describe() if report is not None else "no frame written (stopped in the preroll)"
 
 
 def _preview(outputs: list, args: argparse.Namespace) -> str:

@@ -322,8 +322,9 @@ Z_UP_TO_Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])  #
 
 def load_transform_motion(file: str | Path, prim_path: str) -> tuple[np.ndarray, np.ndarray] | None:
     """How a USD prim's world transform moves what starts with it: (times in seconds, (k, 4, 4) matrices
-    in USD's row-vector convention taking a point of the simulation's world at time 0 to where the
-    transform carries it then), sampled as an animated mesh is; None for a prim that does not move."""
+    in USD's row-vector convention taking a point of the simulation's world at the stage's earliest time (where
+    a mesh of the stage is read) to where the transform carries it then), sampled as an animated mesh is; None
+    for a prim that does not move."""
     from pxr import Usd, UsdGeom
 
     where = f"{file} at {prim_path}"
@@ -346,9 +347,26 @@ def load_transform_motion(file: str | Path, prim_path: str) -> tuple[np.ndarray,
     def world(code) -> np.ndarray:
         return np.asarray(UsdGeom.XformCache(code).GetLocalToWorldTransform(prim), dtype=np.float64)
 
-    start = np.linalg.inv(to_simulation) @ np.linalg.inv(world(Usd.TimeCode(0.0)))
+    start = np.linalg.inv(to_simulation) @ np.linalg.inv(world(Usd.TimeCode.EarliestTime()))
     matrices = np.stack([start @ world(Usd.TimeCode(code)) @ to_simulation for code in codes])
     return np.asarray(codes, dtype=np.float64) / stage.GetTimeCodesPerSecond(), matrices
+
+
+def shot_start_seconds(file: str | Path) -> float | None:
+    """When the shot in a USD file starts: its stage's start time code in seconds (None where it sets none).
+    Read once per file version."""
+    stat = Path(file).stat()
+    return _shot_start_cached(str(Path(file).absolute()), stat.st_mtime_ns, stat.st_size)
+
+
+@functools.lru_cache(maxsize=32)
+def _shot_start_cached(path: str, _mtime: int, _size: int) -> float | None:
+    from pxr import Usd
+
+    stage = Usd.Stage.Open(path, Usd.Stage.LoadNone)
+    if not stage.HasAuthoredMetadata("startTimeCode"):
+        return None
+    return stage.GetStartTimeCode() / stage.GetTimeCodesPerSecond()
 
 
 def _usd_uvs(mesh, counts: np.ndarray, indices: np.ndarray, time) -> np.ndarray | None:

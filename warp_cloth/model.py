@@ -22,6 +22,7 @@ from .hierarchy import Hierarchy, build_hierarchy
 from .mesh_cloth import build_mesh_cloth, mesh_positions
 from .mesh_io import unique_pairs
 from .scene import Cloth, Scene, SpringKind, TransformKey
+from .shot_clock import shot_clock
 from .spring_paths import nearest_along_edges
 
 # The spring kernels' regime bits (kernels/springs.py), which the host side sets and reads.
@@ -117,7 +118,7 @@ class StrainLimits:
 @dataclass(frozen=True)
 class Spheres:
     center: np.ndarray  # (k, 3) centre of the motion
-    initial_center: np.ndarray  # (k, 3) where the sphere is at t = 0
+    initial_center: np.ndarray  # (k, 3) where the sphere is when the run begins
     radius: np.ndarray  # what the cloth is kept outside of: the radius and the thickness
     friction: np.ndarray
     angular_velocity: np.ndarray  # (k, 3) radians a second
@@ -238,22 +239,24 @@ def build_model(scene: Scene, worlds: Worlds | None = None) -> Model:
     selections = select_pins(scene)
     pins = _pins(scene, meshes, offsets, selections)
     inv_mass = (1.0 / masses).astype(np.float32)
+    begins = shot_clock(scene).first_time  # everything that moves starts where it is then
     if pins is not None:
         inv_mass[pins.index] = 0.0
-        # A driven pin starts where its motion puts it at t = 0, with that motion's velocity.
+        # A driven pin starts where its motion puts it, with that motion's velocity.
         omega = 2.0 * np.pi * pins.frequency[:, None]
-        positions[pins.index] = pins.anchor + pins.amplitude * np.sin(pins.phase)[:, None]
-        velocities[pins.index] = pins.amplitude * omega * np.cos(pins.phase)[:, None]
+        angle = omega * begins + pins.phase[:, None]
+        positions[pins.index] = pins.anchor + pins.amplitude * np.sin(angle)
+        velocities[pins.index] = pins.amplitude * omega * np.cos(angle)
     pin_animations = _pin_animations(scene, meshes, offsets, selections)
-    for animation in pin_animations:  # they start where their first sample has them
-        positions[animation.index] = animation.key_points[0]
+    for animation in pin_animations:
+        positions[animation.index] = keyed_at(animation.key_times, animation.key_points, begins)
     springs = _springs(scene, meshes, offsets, n)
     limits = _limits(springs, n, _attachments(scene, meshes, offsets, selections), _long_range(scene, meshes, offsets))
     edges, edge_rest, edge_kind = _edges(meshes, offsets)
     hierarchy = _hierarchy(springs, masses, inv_mass, scene, offsets) if scene.simulation.limit_multilevel else None
     return Model(meshes, tuple(offsets), positions, velocities, masses, inv_mass, cloth_id, springs, limits,
-                 pins, _spheres(scene), _contacts(scene, meshes), edges, edge_rest, edge_kind, hierarchy,
-                 _mesh_colliders(scene), _wind_faces(meshes, offsets) if scene.wind is not None else None,
+                 pins, _spheres(scene, begins), _contacts(scene, meshes), edges, edge_rest, edge_kind, hierarchy,
+                 _mesh_colliders(scene, begins), _wind_faces(meshes, offsets) if scene.wind is not None else None,
                  pin_animations, worlds)
 
 
@@ -512,13 +515,14 @@ def _pin_animations(scene: Scene, meshes, offsets, selections: list[list[np.ndar
     return tuple(animations)
 
 
-def _spheres(scene: Scene) -> Spheres | None:
+def _spheres(scene: Scene, begins: float) -> Spheres | None:
+    """The scene's spheres, starting where their motion has them at ``begins`` seconds."""
     if not scene.spheres:
         return None
     amp = [np.zeros(3) if s.motion is None else np.asarray(s.motion.unit_axis()) * s.motion.amplitude
            for s in scene.spheres]
     f32 = lambda xs: np.asarray(xs, dtype=np.float32)  # noqa: E731
-    initial = [np.add(s.center, s.keyed_offset(0.0)) + (0.0 if s.motion is None else s.motion.offset(0.0))
+    initial = [np.add(s.center, s.keyed_offset(begins)) + (0.0 if s.motion is None else s.motion.offset(begins))
                for s in scene.spheres]
     keys = [s.keys or (TransformKey(),) for s in scene.spheres]  # unkeyed: held where it is
     return Spheres(f32([s.center for s in scene.spheres]), f32(initial), f32([s.surface_radius for s in scene.spheres]),
@@ -543,19 +547,30 @@ def _wind_faces(meshes, offsets) -> WindFaces:
     return WindFaces(faces.astype(np.int32), first, face[order].astype(np.int32))
 
 
-def _mesh_colliders(scene: Scene) -> MeshColliders | None:
+def _mesh_colliders(scene: Scene, begins: float) -> MeshColliders | None:
+    """The scene's mesh colliders, starting where their keys have them at ``begins`` seconds."""
     if not scene.colliders:
         return None
     surfaces = [c.surface() for c in scene.colliders]
     animations = [(s.key_times, s.key_points) if not c.keys else keyed_points(s.points, c.keys, scene.simulation.fps)
                   for c, s in zip(scene.colliders, surfaces)]
-    return MeshColliders(tuple((s.points if p is None else p[0]).astype(np.float32)
-                               for s, (_, p) in zip(surfaces, animations)),
+    return MeshColliders(tuple((s.points if p is None else keyed_at(t, p, begins)).astype(np.float32)
+                               for s, (t, p) in zip(surfaces, animations)),
                          tuple(s.triangles().astype(np.int32) for s in surfaces),
                          np.array([c.thickness for c in scene.colliders], dtype=np.float32),
                          np.array([c.friction for c in scene.colliders], dtype=np.float32),
                          tuple(t for t, _ in animations),
                          tuple(None if p is None else p.astype(np.float32) for _, p in animations))
+
+
+def keyed_at(times: np.ndarray, points: np.ndarray, t: float) -> np.ndarray:
+    """Keyed points (``points[k]`` at ``times[k]`` seconds) at ``t``: linearly between the keys around it,
+    held at the first before it and at the last after it, as the motion kernels place them."""
+    after = int(np.searchsorted(times, t, side="right"))
+    if after == 0 or after == len(times):
+        return points[min(after, len(times) - 1)]
+    w = (t - times[after - 1]) / (times[after] - times[after - 1])
+    return points[after - 1] + w * (points[after].astype(np.float64) - points[after - 1])
 
 
 def keyed_points(points: np.ndarray, keys, fps: float) -> tuple[np.ndarray, np.ndarray]:

@@ -8,6 +8,7 @@ import numpy as np
 from .errors import SceneError
 from .model import Model
 from .scene import Scene
+from .shot_clock import shot_clock
 
 SAMPLES = 2000  # times over the run at which the pins' distances are checked
 MOST_PINS = 256  # pinned particles of a cloth checked (evenly chosen where it has more)
@@ -21,7 +22,8 @@ def check_pins_within_reach(scene: Scene, model: Model) -> None:
     pins = model.pins
     if pins is None or not pins.moving:
         return
-    times = np.linspace(0.0, scene.simulation.frames / scene.simulation.fps, SAMPLES)
+    clock = shot_clock(scene)
+    times = np.linspace(clock.first_time, clock.end_time, SAMPLES)
     for c, cloth in enumerate(scene.cloths):
         if cloth.limit is None:
             continue

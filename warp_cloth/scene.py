@@ -698,10 +698,20 @@ class Simulation:
     ``compensated`` adds each explicit or symplectic step's move to the positions by Kahan's compensated
     summation: positions are float32, so far from the origin a small step's move loses its low bits, and
     over thousands of substeps that loss outgrows the step's own error (the study's references use it;
-    one more vector read and written a particle a substep)."""
+    one more vector read and written a particle a substep).
+
+    The run keeps its shot's clock: ``start`` is the frame number of its first written frame (the initial
+    state, unless there is a preroll), so that its frames and the time of every motion and key in the scene
+    are the shot's (time = frame / fps seconds). Left out, it is the start time code of the USD shot the scene
+    reads its colliders (else its cloths) from, where that sets one (1001 in a film pipeline), else 0.
+    ``preroll`` frames are simulated before ``start`` and not written, for the cloth to settle before the shot
+    begins: the colliders meanwhile run from the shot's earlier keys, or are held at their first key where it
+    has none (``warp_cloth.shot_clock``)."""
 
     fps: float = 24.0
     frames: int = 240
+    start: int | None = None
+    preroll: int = 0
     substeps: int | None = None
     dt: float | None = None
     integrator: Integrator = "symplectic"
@@ -720,6 +730,9 @@ class Simulation:
         check_fields(self)
         _require(0 < self.fps <= MAX_FPS, "fps", f"a number in (0, {MAX_FPS:g}]", self.fps)
         _whole_in(self.frames, 1, MAX_FRAMES, "frames")
+        if self.start is not None:
+            _whole_in(self.start, -MAX_FRAMES, MAX_FRAMES, "start")
+        _whole_in(self.preroll, 0, MAX_FRAMES, "preroll")
         _require(not (self.substeps is not None and self.dt is not None), "dt",
                  "either substeps or dt, not both", self.dt)
         if self.substeps is not None:

@@ -28,6 +28,7 @@ from .implicit import SolveStats
 from .pin_reach import check_pins_within_reach
 from .plan import Plan, build_plan
 from .scene import Scene
+from .shot_clock import ShotClock, shot_clock
 from .stability import MAX_PASSES_PER_FRAME, UnstableStepWarning, beyond_bound_message, resolve_step
 from .state import DeviceState
 from .warp_init import init_warp
@@ -48,7 +49,8 @@ DEVICE_BYTES_PER_SAMPLED_VERTEX = 12
 
 
 class FrameWriter(Protocol):
-    """Receives the state after every frame (frame 0 is the initial state).
+    """Receives the state after every frame the run writes, by its number on the shot's clock (the first is
+    the initial state, or the state the preroll left; see ``warp_cloth.shot_clock``).
 
     ``finish`` ends a run that completed. A writer may also have ``sync(sim)``, called every
     ``Simulator.SYNC_SECONDS`` and before the run ends, to make the frames so far safe on disk, and
@@ -212,10 +214,11 @@ class Simulator:
         if self.step_choice.beyond_bound:
             warnings.warn(UnstableStepWarning(beyond_bound_message(self.step_choice, scene.simulation)), stacklevel=2)
         self.device_model = DeviceModel(self.model, self.scene, self.scene.simulation.time_step, self.device)
-        self.state = DeviceState(self.model.positions, self.model.velocities, self.device_model)
+        self.clock: ShotClock = shot_clock(self.scene)
+        self.frame = self.clock.first  # the shot's frame number; 0 where the scene has no shot
+        self.substep_count = self.clock.first * self.substeps_per_frame
+        self.state = DeviceState(self.model.positions, self.model.velocities, self.device_model, self.substep_count)
         self.plan: Plan = build_plan(self.device_model, self.state, self.scene.implicit, threads_per_particle)
-        self.frame = 0
-        self.substep_count = 0
         self._stats_since_start: SolveStats | None = None
         # An animated mesh collider's BVH refit is a host call on the CPU, which a CPU graph does not record
         # (a CUDA graph records the refit's kernels): there, launch pass by pass.
@@ -301,6 +304,7 @@ class Simulator:
 
     @property
     def time(self) -> float:
+        """Seconds on the shot's clock (``frame / fps`` between frames)."""
         return self.substep_count * self.dt
 
     def positions(self) -> np.ndarray:
@@ -481,16 +485,19 @@ class Simulator:
         restore(self, checkpoint, source)
 
     def run(self, frames: int | None = None, writers: Iterable[FrameWriter] = (), progress: bool = False) -> RunSummary:
-        """Simulate ``frames`` frames (default: the scene's), handing every frame to the writers.
+        """Simulate ``frames`` frames (default: the scene's, and its preroll where it is still ahead), handing
+        every frame from the clock's start on to the writers (see ``warp_cloth.shot_clock``).
 
-        Writers get the initial state as frame 0 when the simulation has not moved yet. A first Ctrl-C,
+        Writers get the initial state as the start's frame when the simulation has not moved yet and has no
+        preroll to run; the preroll's frames are simulated and not written. A first Ctrl-C,
         SIGTERM or SIGHUP stops the run after the frame in progress: the writers are synced and abandoned
         (see ``FrameWriter``) with every completed frame, and the summary says which signal stopped it. A
         failure (``UnstableSimulation``, a writer's error) abandons them too, then is raised. Without writers,
         each frame's blow-up check waits until the next frame is queued, so the device never idles between
         frames; ``UnstableSimulation`` then names the same frame, but the state has gone one frame further.
         """
-        frames = self.scene.simulation.frames if frames is None else frames
+        if frames is None:
+            frames = self.scene.simulation.frames + max(0, self.clock.start - self.frame)
         writers = list(writers)
         with SlowStepNotice("compiling kernels") if progress else contextlib.nullcontext():
             self.prepare()
@@ -507,9 +514,9 @@ class Simulator:
                 for w in writers:
                     w.begin(self)
                     begun.append(w)
-                if self.frame == 0:
+                if self.frame == self.clock.first and self.clock.writes(self.frame):
                     for w in writers:
-                        w.write_frame(self, 0)
+                        w.write_frame(self, self.frame)
                 last_sync, sync_every = time.perf_counter(), self.SYNC_SECONDS
                 unchecked = None  # without writers, a frame is checked while the next one runs
                 for _ in range(frames):
@@ -521,8 +528,9 @@ class Simulator:
                     elif unchecked is not None:
                         self._check_frame(unchecked)
                     unchecked = None if writers else launched
-                    for w in writers:
-                        w.write_frame(self, self.frame)
+                    if self.clock.writes(self.frame):
+                        for w in writers:
+                            w.write_frame(self, self.frame)
                     written += 1
                     if bar:
                         bar.update(written)

@@ -184,10 +184,10 @@ def model_bound(model: Model, sim: Simulation) -> StabilityBound | None:
     springs = model.springs
     if springs is None:
         return stable_step(model.positions, model.inv_mass, np.zeros((0, 2), dtype=np.int64), *(np.zeros(0),) * 3,
-                           np.zeros(0, dtype=np.int32), sim.integrator, sim.drag, sim.frames / sim.fps)
+                           np.zeros(0, dtype=np.int32), sim.integrator, sim.drag, (sim.preroll + sim.frames) / sim.fps)
     return stable_step(model.positions, model.inv_mass, springs.pairs, springs.rest,
                        springs.stiffness, springs.damping, springs.flags, sim.integrator, sim.drag,
-                       sim.frames / sim.fps)
+                       (sim.preroll + sim.frames) / sim.fps)
 
 
 def automatic_substeps(fps: float, bound: StabilityBound | None) -> int:

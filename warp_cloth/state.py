@@ -85,13 +85,13 @@ class DeviceState:
     pass swaps them. ``parity`` says which buffer of each pair is current: a captured graph replays fixed
     buffers, so it is only valid at the parity it was captured at."""
 
-    def __init__(self, positions: np.ndarray, velocities: np.ndarray, model: DeviceModel) -> None:
+    def __init__(self, positions: np.ndarray, velocities: np.ndarray, model: DeviceModel, clock: int = 0) -> None:
         device = self.device = model.device
         x = wp.array(positions, dtype=wp.vec3, device=device)
         v = wp.array(velocities, dtype=wp.vec3, device=device)
         self._x = (x, wp.empty_like(x))
         self._v = (v, wp.empty_like(v))
-        self.clock = wp.zeros(1, dtype=int, device=device)
+        self.clock = wp.array([clock], dtype=int, device=device)  # substeps since time 0 (see shot_clock)
         self.parity = 0
         start = model.sphere_start if model.sphere_start is not None else np.zeros((0, 3), dtype=np.float32)
         self.sphere_center = wp.array(start, dtype=wp.vec3, device=device)

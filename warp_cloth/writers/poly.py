@@ -3,7 +3,8 @@
 Layout, as the seed wrote it: ``POINTS`` then one ``label: x y z`` line per point (labels from 1),
 ``POLYS`` then one ``label: p1 p2 p3 p4 <`` line per quad (point labels; the trailing ``<`` closes the
 polygon, without it Houdini reads an open polyline), then ``END``. Files are named
-``<cloth>.<frame:04d>.poly`` so a File SOP reads them with ``$F4``.
+``<cloth>.<frame:04d>.poly`` by the frame they show on the shot's clock (``warp_cloth.shot_clock``: from 0,
+or from a shot's start such as 1001), so a File SOP reads them with ``$F4``.
 """
 
 from __future__ import annotations
@@ -66,18 +67,19 @@ class PolyWriter(StagedOutput):
         super().__init__(self.directory, labelled(self.directory, INCOMPLETE), resume)
         check_writable_place(self.staging, "poly")
         self.saved_through = -1  # the last frame whose files are all written
+        self.start = 0  # the first frame the run writes (its clock's start)
         self.names: list[str] = []  # the files this run wrote, in the staging folder
         self.older_frames_left = 0  # files of other frames of these cloths found in the folder on completion
         self._unsynced: list[str] = []
         self._polys: list[str] = []  # each cloth's POLYS section
 
-    def take_back(self, location: Path, frame: int, cloths: list[str]) -> None:
-        """Before resuming: the frames an earlier run left at ``location`` go back into the staging folder
-        (copied where they are in place: those files stay until the resumed run completes)."""
+    def take_back(self, location: Path, frame: int, cloths: list[str], start: int = 0) -> None:
+        """Before resuming: the frames ``start`` to ``frame`` an earlier run left at ``location`` go back into
+        the staging folder (copied where they are in place: those files stay until the resumed run completes)."""
         if location.absolute() == self.staging.absolute():
             return
         if location.absolute() == self.directory.absolute():
-            names = [frame_file_name(c, f) for c in cloths for f in range(frame + 1)]
+            names = [frame_file_name(c, f) for c in cloths for f in range(start, frame + 1)]
             missing = next((n for n in names if not (location / n).is_file()), None)
             if missing:
                 raise SceneError("poly", f"frames up to the checkpoint's frame {frame} in {location}", f"no {missing}")
@@ -88,13 +90,15 @@ class PolyWriter(StagedOutput):
     def begin(self, sim) -> None:
         self.prepare()
         self._polys = [format_polys(mesh.face_counts, mesh.face_indices) for mesh in sim.model.cloths]
+        self.start = sim.clock.start
+        self.saved_through = self.start - 1
         if not self.resume:
             self.staging.mkdir(parents=True)
             return
         if not self.staging.is_dir():
             raise SceneError("poly", f"the frames of the run to resume in {self.staging}", has_got=False)
         cloths = [c.name for c in sim.scene.cloths]
-        for frame in range(sim.frame + 1):
+        for frame in range(self.start, sim.frame + 1):  # none where the checkpoint is in the preroll
             names = [frame_file_name(c, frame) for c in cloths]
             missing = [n for n in names if not (self.staging / n).is_file()]
             if missing:
@@ -105,7 +109,7 @@ class PolyWriter(StagedOutput):
         for name in self._frame_files(self.staging, cloths):
             if name not in kept:
                 (self.staging / name).unlink()  # a later frame this run's earlier part wrote
-        self.saved_through = sim.frame
+        self.saved_through = max(sim.frame, self.saved_through)
 
     @staticmethod
     def _frame_files(folder: Path, cloths: list[str]) -> list[str]:
@@ -149,7 +153,8 @@ class PolyWriter(StagedOutput):
             self.lock.release()
             return
         # A frame whose cloths were not all written is not kept.
-        complete = {frame_file_name(c.name, f) for c in sim.scene.cloths for f in range(self.saved_through + 1)}
+        complete = {frame_file_name(c.name, f) for c in sim.scene.cloths
+                    for f in range(self.start, self.saved_through + 1)}
         for name in self.names:
             if name not in complete:
                 (self.staging / name).unlink(missing_ok=True)

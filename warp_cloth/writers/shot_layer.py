@@ -92,12 +92,12 @@ def simulation_to_shot(shot_stage) -> np.ndarray:
     return matrix
 
 
-def write_shot_layer(path: Path, output: Path, ours, shots: list[Path], simulated: list[str], frames: int,
-                     fps: float) -> None:
+def write_shot_layer(path: Path, output: Path, ours, shots: list[Path], simulated: list[str],
+                     frames: tuple[int, int], fps: float) -> None:
     """Write the layer at ``path``: the output stage ``ours``, to be found at ``output``, over ``shots``,
     each of its geometry prims given the transform that takes its world-space points to the shot's world
-    under the shot's transforms above it; ``simulated``: the cloths' paths. Written as a layer, not
-    composed: the output is not in place yet."""
+    under the shot's transforms above it; ``simulated``: the cloths' paths; ``frames``: the first and last
+    frames written. Written as a layer, not composed: the output is not in place yet."""
     from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 
     shot_stages = [Usd.Stage.Open(str(shot), Usd.Stage.LoadNone) for shot in shots]
@@ -112,8 +112,9 @@ def write_shot_layer(path: Path, output: Path, ours, shots: list[Path], simulate
     codes_per_frame = first.GetTimeCodesPerSecond() / fps
     layer.timeCodesPerSecond = first.GetTimeCodesPerSecond()  # the output's time codes are scaled to these
     layer.framesPerSecond = first.GetFramesPerSecond()
-    layer.startTimeCode = 0
-    layer.endTimeCode = frames * codes_per_frame
+    first_frame, last_frame = frames
+    layer.startTimeCode = first_frame * codes_per_frame
+    layer.endTimeCode = last_frame * codes_per_frame
     if first.GetDefaultPrim():
         layer.defaultPrim = first.GetDefaultPrim().GetName()
     to_shot = Gf.Matrix4d(simulation_to_shot(first).tolist())
@@ -125,7 +126,7 @@ def write_shot_layer(path: Path, output: Path, ours, shots: list[Path], simulate
         above = shot.GetPrimAtPath(prim.GetPath().GetParentPath())
         op.default = to_shot * _to_world(above, Usd.TimeCode.Default()).GetInverse()
         if _moves(above):
-            for frame in range(frames + 1):
+            for frame in range(first_frame, last_frame + 1):
                 code = frame * codes_per_frame
                 layer.SetTimeSample(op.path, code, to_shot * _to_world(above, Usd.TimeCode(code)).GetInverse())
         own = [o.GetOpName() for o in UsdGeom.Xformable(prim).GetOrderedXformOps()]

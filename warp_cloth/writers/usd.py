@@ -1,7 +1,8 @@
 """USD output: one stage, a Mesh per cloth with points and extent as time samples, spheres and ground.
 
 Conventions (see DESIGN.md): ``/World`` default prim, Y up, metres, timeCodesPerSecond = fps, time code =
-frame number with the initial state at 0.
+frame number on the shot's clock (``warp_cloth.shot_clock``): the first written frame, at the stage's start
+time code, is the clock's start (0 for a scene of no shot), mesh colliders keep their shot's time codes.
 
 The run writes a binary stage under a staging name beside the output (see ``warp_cloth.output``) and saves
 it when the simulator syncs its writers (every few seconds, with a checkpoint), not after every frame: each
@@ -59,9 +60,10 @@ class UsdWriter(StagedOutput):
         layer = layer_path(self.path)
         return [*super()._names_made(), layer.name, labelled(layer, "exporting", layer.suffix).name]
 
-    def take_back(self, location: Path, frame: int, cloths: list[str]) -> None:
+    def take_back(self, location: Path, frame: int, cloths: list[str], start: int = 0) -> None:
         """Before resuming: the frames an earlier run left at ``location`` go back under the staging name
-        (copied where they are in place: that file stays until the resumed run completes)."""
+        (copied where they are in place: that file stays until the resumed run completes). ``cloths`` and
+        ``start`` (the first frame written) are the .poly writer's concern: one file holds every frame."""
         if location.absolute() == self.staging.absolute():
             return
         if location.absolute() == self.path.absolute():
@@ -82,8 +84,9 @@ class UsdWriter(StagedOutput):
         UsdGeom.SetStageMetersPerUnit(stage, 1.0)
         stage.SetTimeCodesPerSecond(fps)
         stage.SetFramesPerSecond(fps)
-        stage.SetStartTimeCode(sim.frame)
-        stage.SetEndTimeCode(sim.frame)
+        stage.SetStartTimeCode(sim.clock.start)
+        stage.SetEndTimeCode(sim.clock.start)
+        self._last_frame = self.saved_through = sim.clock.start - 1
         world = UsdGeom.Xform.Define(stage, "/World")
         stage.SetDefaultPrim(world.GetPrim())
         stage.GetRootLayer().documentation = f"warp-cloth scene '{sim.scene.name}'"
@@ -121,16 +124,18 @@ class UsdWriter(StagedOutput):
         if sim.model.spheres is not None and sim.model.spheres.moving:
             self._sphere_translates = [UsdGeom.Sphere(stage.GetPrimAtPath(path)).GetOrderedXformOps()[0].GetAttr()
                                        for path in paths.spheres]
-        last = max(self._points[0].GetTimeSamples(), default=-1)
-        if last < sim.frame:
+        # a checkpoint in the preroll comes before any frame written
+        written = sim.frame if sim.clock.writes(sim.frame) else sim.clock.start - 1
+        last = max(self._points[0].GetTimeSamples(), default=sim.clock.start - 1)
+        if last < written:
             raise SceneError("usd", f"frames up to the checkpoint's frame {sim.frame} in {self.staging}",
                              f"frames up to {last:g}")
         for attr in self._points + self._extents + self._sphere_translates:
             for t in attr.GetTimeSamples():
-                if t > sim.frame:
+                if t > written:
                     attr.ClearAtTime(t)
-        stage.SetEndTimeCode(sim.frame)
-        self._last_frame = sim.frame
+        stage.SetEndTimeCode(max(written, sim.clock.start))
+        self._last_frame = self.saved_through = written
         self._save()
 
     def _define_cloth(self, sim, c: int, cloth, path: str) -> None:
@@ -215,7 +220,8 @@ class UsdWriter(StagedOutput):
         pending = self._last_frame - self.saved_through
         free = output.free_bytes(self.staging.parent)
         attributes = len(self._points) + len(self._extents) + len(self._sphere_translates)
-        margin = SAVE_MARGIN_BYTES + BYTES_PER_SAMPLE_TIME * attributes * max(0, self._last_frame + 1)
+        samples = max(0, self._last_frame + 1 - int(self.stage.GetStartTimeCode()))
+        margin = SAVE_MARGIN_BYTES + BYTES_PER_SAMPLE_TIME * attributes * samples
         shortfall = 2 * self._pending_bytes + margin - free
         if shortfall > 0:
             fit = max(0, (free - margin) // max(1, 2 * self._pending_bytes // max(1, pending)))
@@ -282,7 +288,7 @@ class UsdWriter(StagedOutput):
         exporting = labelled(layer_path(self.path), "exporting", ".usda")
         try:
             write_shot_layer(exporting, self.path, self.stage, shots, prim_paths(sim.scene).cloths,
-                             self._last_frame, sim.scene.simulation.fps)
+                             (sim.clock.start, max(self._last_frame, sim.clock.start)), sim.scene.simulation.fps)
         except Tf.ErrorException as exc:
             exporting.unlink(missing_ok=True)
             raise OutputError(f"could not write {exporting}: {str(exc).strip().splitlines()[-1]}") from None
