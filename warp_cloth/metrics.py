@@ -90,15 +90,8 @@ class MetricsWriter(StagedOutput):
                 self.lock.release()
                 raise
 
-    def take_back(self, location: Path, frame: int, cloths: list[str]) -> None:
-        """Before resuming: the rows an earlier run left at ``location`` go back under the staging name
-        (copied where they are in place: that file stays until the resumed run completes)."""
-        if location.absolute() == self.staging.absolute():
-            return
-        if location.absolute() == self.path.absolute():
-            shutil.copyfile(location, self.staging)
-        else:
-            os.replace(location, self.staging)
+    def _copy_to_staging(self, location: Path) -> None:
+        shutil.copyfile(location, self.staging)
 
     def begin(self, sim) -> None:
         self.prepare()

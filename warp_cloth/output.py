@@ -325,6 +325,20 @@ class StagedOutput:
                                        "holds the state of a run that did not complete; continue it with --resume "
                                        "or move it away", has_got=False)
 
+    def take_back(self, location: Path, frame: int, cloths: list[str], start: int = 0) -> None:
+        """Before resuming, for a file output: the frames an earlier run left at ``location`` go back under
+        the staging name (copied where they are in place: that file stays until the resumed run completes).
+        ``frame``, ``cloths`` and ``start`` (the first frame written) are for outputs of a file a frame."""
+        if location.absolute() == self.staging.absolute():
+            return
+        if location.absolute() == self.target.absolute():
+            self._copy_to_staging(location)
+        else:
+            os.replace(location, self.staging)
+
+    def _copy_to_staging(self, location: Path) -> None:
+        raise NotImplementedError
+
     def _end(self, location: Path) -> None:
         self.location = location
         self.lock.release()

@@ -60,17 +60,9 @@ class UsdWriter(StagedOutput):
         layer = layer_path(self.path)
         return [*super()._names_made(), layer.name, labelled(layer, "exporting", layer.suffix).name]
 
-    def take_back(self, location: Path, frame: int, cloths: list[str], start: int = 0) -> None:
-        """Before resuming: the frames an earlier run left at ``location`` go back under the staging name
-        (copied where they are in place: that file stays until the resumed run completes). ``cloths`` and
-        ``start`` (the first frame written) are the .poly writer's concern: one file holds every frame."""
-        if location.absolute() == self.staging.absolute():
-            return
-        if location.absolute() == self.path.absolute():
-            if not Sdf.Layer.FindOrOpen(str(location)).Export(str(self.staging)):
-                raise OutputError(f"could not copy {location} to {self.staging}")
-        else:
-            os.replace(location, self.staging)
+    def _copy_to_staging(self, location: Path) -> None:
+        if not Sdf.Layer.FindOrOpen(str(location)).Export(str(self.staging)):
+            raise OutputError(f"could not copy {location} to {self.staging}")
 
     def begin(self, sim) -> None:
         self.prepare()
