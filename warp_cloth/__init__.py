@@ -10,6 +10,7 @@
 from __future__ import annotations
 
 import importlib
+import importlib.metadata
 from typing import TYPE_CHECKING
 
 from .errors import SceneError, UnstableSimulation
@@ -36,7 +37,10 @@ _IMPORTED_AT_FIRST_USE = {
     "UnstableStepWarning": "stability", "StrainMonitor": "strain", "StrainReport": "strain",
 }
 
-__version__ = "0.1.0"
+try:  # pyproject.toml's, as installed: the one place the version is written
+    __version__ = importlib.metadata.version("warp-cloth")
+except importlib.metadata.PackageNotFoundError:  # a source tree on sys.path, never installed
+    __version__ = "0+unknown"
 
 __all__ = [
     "Batch", "Box", "CheckpointWriter", "Cloth", "Collision", "Ground", "ImplicitSolver", "Limit", "MeshCollider",

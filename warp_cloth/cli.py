@@ -26,6 +26,7 @@ EXIT_BROKEN_PIPE = 141  # 128 + SIGPIPE, what a shell reports for a command stop
 
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="warp-cloth", description="Mass-spring cloth on NVIDIA Warp (CPU or CUDA).")
+    parser.add_argument("--version", action="version", version=_version())
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     commands.add_parser("scenes", help="list the built-in scenes", description="List the built-in scenes.")
@@ -89,6 +90,20 @@ def _parser() -> argparse.ArgumentParser:
     commands.add_parser("preview", help="render a result's USD: a still of its last frame and an animation, with "
                                         "Blender (see 'preview --help')", add_help=False)
     return parser
+
+
+def _version() -> str:
+    """``warp-cloth 0.1.0 (warp-lang 1.9.0, Python 3.11.9)``: what a bug report needs, without importing Warp."""
+    import importlib.metadata
+    import platform
+
+    from . import __version__
+
+    try:
+        warp = importlib.metadata.version("warp-lang")
+    except importlib.metadata.PackageNotFoundError:
+        warp = "not installed"
+    return f"warp-cloth {__version__} (warp-lang {warp}, Python {platform.python_version()})"
 
 
 def _with_step_overrides(scene: Scene, args: argparse.Namespace) -> Scene:
