@@ -181,7 +181,8 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # a step past the bound is for a run to warn of
         sim = Simulator(scene, device=args.device)
-    print(f"{scene.name} on {sim.device.alias}, {sim.substeps_per_frame} substeps a frame; {sim.plan}")
+    substeps = sim.substeps_per_frame
+    print(f"{scene.name} on {sim.device.alias}, {substeps} substep{'s' if substeps != 1 else ''} a frame; {sim.plan}")
     return 0
 
 
@@ -384,7 +385,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         status = f"interrupted after {summary.frames} of {sim_settings.frames} frames by {name}"
         wrote += _resume_hint(checkpointer)
     else:
-        status = f"{summary.frames} frames"
+        status = f"{summary.frames} frame{'s' if summary.frames != 1 else ''}"
     if checkpoint is not None:
         status += f" (resumed at frame {checkpoint.frame})"
     older = sum(getattr(w, "older_frames_left", 0) for w in outputs)
@@ -392,7 +393,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         wrote += f" ({older} older .poly files of other frames left there)"
     if args.preview and not summary.interrupted:
         wrote += _preview(outputs, args)
-    print(f"{scene.name}: {status} ({summary.substeps} substeps of {sim.dt * 1e3:.3g} ms, "
+    print(f"{scene.name}: {status} ({summary.substeps} substep{'s' if summary.substeps != 1 else ''} of {sim.dt * 1e3:.3g} ms, "
           f"{sim_settings.integrator}) of {summary.particles} particles on {sim.device.alias} in "
           f"{summary.wall_seconds:.2f} s ({summary.particle_substeps_per_second:.3g} particle-substeps/s); "
           f"wrote {wrote}; {strain.report().describe()}{_limit_solve(sim)}" + (f"; {check.summary()}" if check else ""))
