@@ -21,11 +21,9 @@ from conftest import REPO, run_cli, with_simulation
 # between prepare() and the frames of run().
 MODULE_LOADS_AFTER_PREPARE = """
 import sys
-import warp as wp
 import warp_cloth as wc
 from conftest import with_simulation
-wp.config.log_level = wp.LOG_INFO
-wp.config.quiet = False
+wc.set_verbose(True)
 scene = wc.load_scene(sys.argv[1])
 if sys.argv[2] != "-":
     scene = with_simulation(scene, integrator=sys.argv[2])
@@ -163,3 +161,33 @@ warp_init.init_warp()
     result = subprocess.run([sys.executable, "-c", script], cwd=tmp_path, env=env, capture_output=True, text=True,
                             timeout=120)
     assert result.returncode == 0 and result.stderr == "Warp: something else worth saying\n"
+
+
+PYTHON_RUN = """
+import sys
+import warp_cloth as wc
+if sys.argv[1] == "verbose":
+    wc.set_verbose(True)
+sim = wc.Simulator(wc.load_scene("hanging"), device="cpu")
+sim.run(1)
+print(sim)
+"""
+
+
+@pytest.mark.parametrize("verbose", [False, True])
+def test_from_python_warp_says_nothing_unless_asked(tmp_path, verbose):
+    """A script's output is its own: Warp's banner and its line per kernel module loaded come only with
+    ``set_verbose(True)``; ``print(sim)`` is one line with the step and why."""
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    result = subprocess.run([sys.executable, "-c", PYTHON_RUN, "verbose" if verbose else "quiet"], cwd=tmp_path,
+                            env=env, capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr
+    said = result.stdout + result.stderr
+    if verbose:
+        assert "initialized" in said and "load on device 'cpu'" in said, said
+    else:
+        assert "Warp " not in said and "Module " not in said, said
+        assert result.stderr == "" and len(result.stdout.splitlines()) == 1, said
+    sim = wc.Simulator(wc.load_scene("hanging"), device="cpu")
+    sim.step()
+    assert result.stdout.splitlines()[-1] == str(sim)

@@ -241,3 +241,11 @@ def test_one_substep_a_frame_is_said_in_the_singular(tmp_path):
     assert summary.startswith("hanging: 1 frame (1 substep of 41.7 ms, implicit)"), summary
     planned = run_cli("plan", "hanging", "--substeps", "1", "--integrator", "implicit", "--device", "cpu", cwd=tmp_path)
     assert planned.stdout.startswith("hanging on cpu, 1 substep a frame;"), planned.stdout
+
+
+def test_a_simulator_prints_as_one_line_with_its_step_and_why():
+    sim = wc.Simulator(wc.load_scene("drape"), device="cpu")
+    text = str(sim)
+    assert "\n" not in text and text == repr(sim)
+    assert text.startswith(f"<Simulator drape on cpu: {sim.model.particle_count} particles, frame 0; step ")
+    assert sim.step_choice.describe() in text and "chosen for stability" in text

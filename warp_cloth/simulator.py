@@ -189,7 +189,8 @@ class Simulator:
     turns that off). Positions and velocities read back as numpy arrays of shape (particles, 3).
     ``threads_per_particle`` sets how many GPU threads gather each particle's springs, limits and contacts
     (None: chosen by the cloth's size; see kernels/gathering.py); a power of two up to 64, 1 on the CPU.
-    ``plan`` is the substep's passes in order (``print(sim.plan)`` shows them).
+    ``plan`` is the substep's passes in order (``print(sim.plan)`` shows them); ``step_choice`` the step it
+    takes and why (``print(sim)`` says it in one line, with the scene, device and particles).
     """
 
     INITIAL_OVERLAP_LIMIT = 0.5  # of the contact distance: closer starting pairs are refused
@@ -289,6 +290,10 @@ class Simulator:
                                             f"{i - self.model.offsets[c]} of '{scene.cloths[c].name}' starts "
                                             f"{depth[i - first]:.3g} m inside {collider} (at most {allowed[i]:.3g} m, "
                                             "half a cell); move the cloth or the collider", has_got=False)
+
+    def __repr__(self) -> str:
+        return (f"<Simulator {self.scene.name} on {self.device.alias}: {self.model.particle_count} particles, frame "
+                f"{self.frame}; {self.step_choice.describe()}>")
 
     @property
     def substeps_per_frame(self) -> int:
