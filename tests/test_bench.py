@@ -41,3 +41,17 @@ def test_case_reports_the_worst_edge_strain_over_every_frame_of_its_run():
     table = format_table([result])
     assert "worst strain" in table.splitlines()[0]
     assert f"{100 * result.max_strain:.1f}%" in table.splitlines()[2]
+
+
+def test_bench_off_a_terminal_says_each_case_as_it_starts(tmp_path, capsys):
+    """A suite's cases take minutes in all: a log (stderr not a terminal) gets a line as each one starts."""
+    from warp_cloth.bench import main
+
+    code = main(["--suite", "matrix", "--device", "cpu", "--repeats", "1", "--no-newton", "--json",
+                 str(tmp_path / "bench.json"), "--match", "hanging 64^2"])
+    assert code == 0
+    lines = capsys.readouterr().err.splitlines()
+    said = ["bench matrix on cpu, timing hanging 64^2 symplectic: 0/2, ",
+            "bench matrix on cpu, timing hanging 64^2 implicit: 1/2, ", "bench matrix on cpu: 2/2, "]
+    assert len(lines) == 3 and all(line.startswith(start) for line, start in zip(lines, said)), lines
+    assert lines[-1].endswith(" s"), lines  # what is left of a finished suite goes without saying

@@ -571,11 +571,13 @@ def main(argv: list[str] | None = None) -> int:
         print(f"warp-cloth bench: error: --match: expected text in a case's name of the {args.suite} suite, got "
               f"{' '.join(args.match)}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    bar = Progress(len(cases), f"bench {args.suite} on {device}")
+    label = f"bench {args.suite} on {device}"
+    bar = Progress(len(cases), label, every=0)  # off a terminal, a line as each case starts: a case may take minutes
     results = []
     for k, case in enumerate(cases):
+        bar.update(k, f"{label}, timing {case.name}")
         results.append(time_case(case, device, args.repeats))
-        bar.update(k + 1)
+    bar.update(len(cases), label)
     bar.close()
     env = environment(device)
     print(f"device: {env['device']} ({env['device_alias']}), cpu: {env['cpu']}, warp {env['warp']}, "

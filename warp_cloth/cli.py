@@ -9,6 +9,7 @@ import os
 import signal
 import sys
 import threading
+import time
 import warnings
 from pathlib import Path
 
@@ -60,7 +61,11 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--no-graph", action="store_true",
                      help="launch a frame's kernels one by one instead of replaying the frame as a captured graph "
                           "(a CUDA graph on a GPU, a Warp CPU graph on the CPU): slower, for debugging")
-    run.add_argument("--quiet", action="store_true", help="no progress bar")
+    shown = run.add_mutually_exclusive_group()
+    shown.add_argument("--quiet", action="store_true", help="no progress")
+    shown.add_argument("--progress", action="store_true",
+                       help="progress even with --check (by default a bar on a terminal; off one, as in a log or a "
+                            "pipe, a line every 5 s once the run has taken that long)")
     run.add_argument("--check", action="store_true",
                      help="print, after every frame, the intersecting triangle pairs and the closest contact")
     run.add_argument("--preview", action="store_true",
@@ -260,11 +265,12 @@ def _kept(writers: list) -> str:
 
 
 def _simulator(scene: Scene, device: str, args: argparse.Namespace):
-    """The scene's simulator with its kernels compiled; says first the step it takes, and warns of a step
-    set past the stable bound."""
+    """The scene's simulator with its kernels compiled, and the seconds that took (the model built, the
+    kernels compiled or loaded); says first the step it takes, and warns of a step set past the stable bound."""
     from .simulator import Simulator
     from .stability import UnstableStepWarning
 
+    started = time.perf_counter()
     # Building the plan compiles some kernels, prepare() the others: seconds of silence on a first run.
     with SlowStepNotice("compiling kernels") if not args.quiet else contextlib.nullcontext():
         with warnings.catch_warnings(record=True) as caught:
@@ -274,6 +280,7 @@ def _simulator(scene: Scene, device: str, args: argparse.Namespace):
             except SceneError as exc:  # checks of the scene as a whole (overlaps, colliders, size, work)
                 raise (_named_as_given(exc, args) if exc.source is None else exc) from None
         sim.prepare()
+    seconds = time.perf_counter() - started
     print(f"{scene.name}: {sim.step_choice.describe()}", flush=True)
     meshes = [("cloth", c) for c in scene.cloths if c.mesh is not None] + [("collider", c) for c in scene.colliders]
     for kind, item in meshes:  # what reading a user's mesh converted or let pass
@@ -285,7 +292,7 @@ def _simulator(scene: Scene, device: str, args: argparse.Namespace):
             print(f"warp-cloth: warning: {step_source}: {w.message}", file=sys.stderr, flush=True)
         else:
             warnings.showwarning(w.message, w.category, w.filename, w.lineno)
-    return sim
+    return sim, seconds
 
 
 def _quiet_warp() -> None:
@@ -336,7 +343,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
                              scene.simulation.frames, "command line")
     _prepare(writers, args)
     try:
-        sim = _simulator(scene, device.alias, args)
+        sim, building = _simulator(scene, device.alias, args)
         if checkpoint is not None:
             sim.restore(checkpoint)
             _take_back(checkpoint, scene, writers)
@@ -365,7 +372,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         writers.append(metrics)
     frames = scene.simulation.frames - sim.frame
     try:
-        summary = sim.run(frames, writers=writers, progress=not args.quiet and not args.check)
+        summary = sim.run(frames, writers=writers, progress=args.progress or not (args.quiet or args.check))
     except UnstableSimulation as exc:
         print(f"warp-cloth: error: {scene.name}: {exc} Kept frames 0 to {exc.frame - 1} in {_kept(outputs)}; "
               "nothing in place was replaced.", file=sys.stderr)
@@ -395,7 +402,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         wrote += _preview(outputs, args)
     print(f"{scene.name}: {status} ({summary.substeps} substep{'s' if summary.substeps != 1 else ''} of {sim.dt * 1e3:.3g} ms, "
           f"{sim_settings.integrator}) of {summary.particles} particles on {sim.device.alias} in "
-          f"{summary.wall_seconds:.2f} s ({summary.particle_substeps_per_second:.3g} particle-substeps/s); "
+          f"{summary.wall_seconds:.2f} s (+{building + summary.prepare_seconds:.1f} s building and compiling; "
+          f"{summary.particle_substeps_per_second:.3g} particle-substeps/s); "
           f"wrote {wrote}; {strain.report().describe()}{_limit_solve(sim)}" + (f"; {check.summary()}" if check else ""))
     return EXIT_SIGNAL_BASE + summary.stop_signal if summary.interrupted else 0
 

@@ -72,6 +72,7 @@ class RunSummary:
     wall_seconds: float
     interrupted: bool
     stop_signal: int | None = None  # the signal that stopped an interrupted run
+    prepare_seconds: float = 0.0  # before the clock of ``wall_seconds``: kernels compiled or loaded (``prepare``)
 
     @property
     def particle_substeps_per_second(self) -> float:
@@ -497,11 +498,13 @@ class Simulator:
         """
         frames = self.scene.simulation.frames if frames is None else frames
         writers = list(writers)
+        preparing = time.perf_counter()
         with SlowStepNotice("compiling kernels") if progress else contextlib.nullcontext():
             self.prepare()
             for w in writers:
                 if hasattr(w, "load_kernels"):
                     w.load_kernels(self)
+        prepare_seconds = time.perf_counter() - preparing
         bar = Progress(frames, f"{self.scene.name} on {self.device.alias}") if progress else None
         begun: list[FrameWriter] = []
         written = 0
@@ -561,7 +564,7 @@ class Simulator:
                 bar.close()
         wall = time.perf_counter() - started
         return RunSummary(written, self.substep_count - start_substeps, self.model.particle_count, wall,
-                          stopped_by is not None, stopped_by)
+                          stopped_by is not None, stopped_by, prepare_seconds)
 
     def _frame_substeps(self, slot: int) -> None:
         status = self._guard_status[slot]
