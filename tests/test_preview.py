@@ -112,3 +112,50 @@ def test_without_blender_preview_is_refused_in_one_line_before_anything_runs(tmp
     assert not (tmp_path / "out").exists()
     code, out, err = run_cli_in_process("preview", "anything.usdc", cwd=tmp_path)
     assert code == 2 and "preview: expected Blender as a Python module" in err
+
+
+class _Terminal:
+    def __init__(self) -> None:
+        self.text = ""
+
+    def isatty(self) -> bool:
+        return True
+
+    def write(self, text: str) -> None:
+        self.text += text
+
+    def flush(self) -> None:
+        pass
+
+
+def test_render_progress_says_which_picture_it_is_on(tmp_path, monkeypatch):
+    """Blender (faked: its lines after each picture) makes the still, then frames 1 to 3: the progress names
+    the still's file, then the animation's with its frame, never the still's for all of them."""
+    import io
+
+    import warp_cloth.preview as preview
+
+    class Blender:
+        def __init__(self, *args, **kwargs) -> None:
+            self.stdout = io.StringIO("STILL\nFRAME 1\nFRAME 2\nFRAME 3\n")
+            self.stderr = io.StringIO("")
+            self.returncode = 0
+
+        def wait(self) -> int:
+            return 0
+
+    labels = []
+    real_update = preview.Progress.update
+
+    def update(bar, done, label=None):
+        real_update(bar, done, label)
+        labels.append(bar.label)
+
+    monkeypatch.setattr(preview.subprocess, "Popen", Blender)
+    monkeypatch.setattr(preview.Progress, "update", update)
+    monkeypatch.setattr(sys, "stderr", _Terminal())
+    preview._run_blender(tmp_path / "job.json", 3, True, "h.preview.png", "h.preview.mp4")
+    assert labels == ["rendering h.preview.png", "rendering h.preview.mp4", "rendering h.preview.mp4, frame 1",
+                      "rendering h.preview.mp4, frame 2", "rendering h.preview.mp4, frame 3"]
+    shown = sys.stderr.text
+    assert shown.startswith("\rrendering h.preview.png [") and "4/4" in shown and "eta" in shown
