@@ -93,3 +93,13 @@ def test_wheel_contains_every_module_and_scene(tmp_path):
     assert "warp_cloth/writers/usd.py" in expected and "warp_cloth/kernels/springs.py" in expected
     assert expected - names == set()
     assert (REPO / "build").exists() == had_build_folder
+
+
+def test_version_is_the_packages_one_from_the_command_and_from_python(tmp_path):
+    import tomllib
+
+    version = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]["version"]
+    result = run_cli("--version", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.startswith(f"warp-cloth {version} ") and "warp-lang" in result.stdout
+    assert wc.__version__ == version

@@ -4,6 +4,7 @@ no-CUDA-driver warning does not reach the user."""
 import io
 import os
 import pty
+import re
 import subprocess
 import sys
 import time
@@ -15,17 +16,15 @@ import pytest
 import warp_cloth as wc
 import warp_cloth.progress
 import warp_cloth.simulator
-from conftest import REPO, run_cli, with_simulation
+from conftest import REPO, run_cli, run_cli_in_process, with_simulation
 
 # Prints Warp's own line for every kernel module it loads (from its cache or compiled), and a marker
 # between prepare() and the frames of run().
 MODULE_LOADS_AFTER_PREPARE = """
 import sys
-import warp as wp
 import warp_cloth as wc
 from conftest import with_simulation
-wp.config.log_level = wp.LOG_INFO
-wp.config.quiet = False
+wc.set_verbose(True)
 scene = wc.load_scene(sys.argv[1])
 if sys.argv[2] != "-":
     scene = with_simulation(scene, integrator=sys.argv[2])
@@ -101,7 +100,7 @@ def test_run_keeps_compiling_out_of_its_wall_time_and_eta(monkeypatch):
     assert rate > 3 / 1.0
 
 
-def test_slow_step_notice_says_what_and_how_long_on_a_terminal_only():
+def test_slow_step_notice_says_what_and_how_long_sooner_on_a_terminal(monkeypatch):
     terminal = FakeTerminal()
     with warp_cloth.progress.SlowStepNotice("compiling kernels", after=0.01, stream=terminal):
         time.sleep(0.3)
@@ -112,7 +111,11 @@ def test_slow_step_notice_says_what_and_how_long_on_a_terminal_only():
     piped = io.StringIO()
     with warp_cloth.progress.SlowStepNotice("compiling kernels", after=0.01, stream=piped):
         time.sleep(0.3)
-    assert quick.getvalue() == "" and piped.getvalue() == ""
+    assert quick.getvalue() == "" and piped.getvalue() == ""  # off a terminal, only after LINE_SECONDS
+    monkeypatch.setattr(warp_cloth.progress, "LINE_SECONDS", 0.05)
+    with warp_cloth.progress.SlowStepNotice("compiling kernels", after=0.01, stream=piped):
+        time.sleep(0.3)
+    assert piped.getvalue().startswith("compiling kernels ... ") and piped.getvalue().endswith(" s\n")
 
 
 def test_first_run_on_a_terminal_says_kernels_are_compiling(tmp_path):
@@ -163,3 +166,53 @@ warp_init.init_warp()
     result = subprocess.run([sys.executable, "-c", script], cwd=tmp_path, env=env, capture_output=True, text=True,
                             timeout=120)
     assert result.returncode == 0 and result.stderr == "Warp: something else worth saying\n"
+
+
+PYTHON_RUN = """
+import sys
+import warp_cloth as wc
+if sys.argv[1] == "verbose":
+    wc.set_verbose(True)
+sim = wc.Simulator(wc.load_scene("hanging"), device="cpu")
+sim.run(1)
+print(sim)
+"""
+
+
+@pytest.mark.parametrize("verbose", [False, True])
+def test_from_python_warp_says_nothing_unless_asked(tmp_path, verbose):
+    """A script's output is its own: Warp's banner and its line per kernel module loaded come only with
+    ``set_verbose(True)``; ``print(sim)`` is one line with the step and why."""
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    result = subprocess.run([sys.executable, "-c", PYTHON_RUN, "verbose" if verbose else "quiet"], cwd=tmp_path,
+                            env=env, capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr
+    said = result.stdout + result.stderr
+    if verbose:
+        assert "initialized" in said and "load on device 'cpu'" in said, said
+    else:
+        assert "Warp " not in said and "Module " not in said, said
+        assert result.stderr == "" and len(result.stdout.splitlines()) == 1, said
+    sim = wc.Simulator(wc.load_scene("hanging"), device="cpu")
+    sim.step()
+    assert result.stdout.splitlines()[-1] == str(sim)
+
+
+def test_run_off_a_terminal_shows_progress_lines_and_states_the_compile_apart(tmp_path, monkeypatch):
+    """In a log (stderr not a terminal) a run's progress is lines (one per update here, where a line is due
+    every 0 s); the summary's time is the frames', with the building and compiling before them stated apart."""
+    monkeypatch.setattr(warp_cloth.progress, "LINE_SECONDS", 0.0)
+    code, out, err = run_cli_in_process("run", "hanging", "--frames", "3", "--no-usd", "--no-poly", "--device", "cpu",
+                                        cwd=tmp_path)
+    assert code == 0, err
+    assert [line.split(",")[0] for line in err.splitlines() if line.startswith("hanging on cpu: ")] == \
+        ["hanging on cpu: 1/3", "hanging on cpu: 2/3", "hanging on cpu: 3/3"], err
+    summary = out.splitlines()[-1]
+    assert re.search(r" on cpu in \d+\.\d\d s \(\+\d+\.\d s building and compiling; [\d.e+]+ particle-substeps/s\); ",
+                     summary), summary
+    code, out, err = run_cli_in_process("run", "hanging", "--frames", "3", "--no-usd", "--no-poly", "--device", "cpu",
+                                        "--quiet", cwd=tmp_path)
+    assert code == 0 and err == "", err
+    code, out, err = run_cli_in_process("run", "hanging", "--frames", "3", "--no-usd", "--no-poly", "--device", "cpu",
+                                        "--check", "--progress", cwd=tmp_path)
+    assert code == 0 and "hanging on cpu: 3/3" in err, err

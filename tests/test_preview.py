@@ -3,6 +3,7 @@ cloth in its colour where the camera looks, an animation of one picture per fram
 all of it is made; bad input refused in one line. Skipped where Blender (bpy) is not installed."""
 
 import importlib.util
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -149,3 +150,89 @@ def test_without_blender_preview_is_refused_in_one_line_before_anything_runs(tmp
     assert not (tmp_path / "out").exists()
     code, out, err = run_cli_in_process("preview", "anything.usdc", cwd=tmp_path)
     assert code == 2 and "preview: expected Blender as a Python module" in err
+
+
+class _Terminal:
+    def __init__(self) -> None:
+        self.text = ""
+
+    def isatty(self) -> bool:
+        return True
+
+    def write(self, text: str) -> None:
+        self.text += text
+
+    def flush(self) -> None:
+        pass
+
+
+def test_render_progress_says_which_picture_it_is_on(tmp_path, monkeypatch):
+    """Blender (faked: its lines after each picture) makes the still, then frames 1 to 3: the progress names
+    the still's file, then the animation's with its frame, never the still's for all of them."""
+    import io
+
+    import warp_cloth.preview as preview
+
+    class Blender:
+        def __init__(self, *args, **kwargs) -> None:
+            self.stdout = io.StringIO("STILL\nFRAME 1\nFRAME 2\nFRAME 3\n")
+            self.stderr = io.StringIO("")
+            self.returncode = 0
+
+        def wait(self) -> int:
+            return 0
+
+    labels = []
+    real_update = preview.Progress.update
+
+    def update(bar, done, label=None):
+        real_update(bar, done, label)
+        labels.append(bar.label)
+
+    monkeypatch.setattr(preview.subprocess, "Popen", Blender)
+    monkeypatch.setattr(preview.Progress, "update", update)
+    monkeypatch.setattr(sys, "stderr", _Terminal())
+    preview._run_blender(tmp_path / "job.json", 3, True, "h.preview.png", "h.preview.mp4")
+    assert labels == ["rendering h.preview.png", "rendering h.preview.mp4", "rendering h.preview.mp4, frame 1",
+                      "rendering h.preview.mp4, frame 2", "rendering h.preview.mp4, frame 3"]
+    shown = sys.stderr.text
+    assert shown.startswith("\rrendering h.preview.png [") and "4/4" in shown and "eta" in shown
+
+
+BOX_OBJ = """v -1 0 -1\nv 1 0 -1\nv 1 0.4 -1\nv -1 0.4 -1\nv -1 0 1\nv 1 0 1\nv 1 0.4 1\nv -1 0.4 1
+f 1 4 3 2\nf 5 6 7 8\nf 1 5 8 4\nf 2 3 7 6\nf 4 8 7 3\nf 1 2 6 5
+"""
+
+SHADING = """
+import json
+import sys
+sys.path.insert(0, sys.argv[1])
+import preview_blender
+meshes, roles = preview_blender.import_result({"usd": sys.argv[2], "prims": json.loads(sys.argv[3])})
+for obj in meshes:
+    mesh = obj.data
+    flat = all((mesh.corner_normals[k].vector - p.normal).length < 1e-4 for p in mesh.polygons for k in p.loop_indices)
+    print("SHADED", roles[obj.name], "flat" if flat else "rounded", all(p.use_smooth for p in mesh.polygons))
+"""
+
+
+@needs_blender
+def test_a_box_collider_renders_with_flat_faces_and_the_cloth_smooth(tmp_path):
+    """A box's faces meet at 90 degrees: shaded smooth across them it looks like a pill. Colliders are
+    shaded smooth only across edges flatter than 30 degrees; the cloth smooth."""
+    (tmp_path / "box.obj").write_text(BOX_OBJ)
+    (tmp_path / "box.toml").write_text(
+        '[simulation]\nfps = 24\nframes = 1\n\n[[collider]]\nname = "box"\nmesh = "box.obj"\n\n'
+        '[[cloth]]\nname = "cloth"\nresolution = [4, 4]\nsize = [1.0, 1.0]\norientation = "horizontal"\n'
+        'origin = [-0.5, 0.8, -0.5]\nmass = 0.01\n')
+    code, out, err = run_cli_in_process("run", "box.toml", "--out", "out", "--no-poly", "--quiet", cwd=tmp_path)
+    assert code == 0, err
+    import warp_cloth
+    from warp_cloth.preview import read_stage
+
+    usd = tmp_path / "out" / "box.usdc"
+    result = subprocess.run([sys.executable, "-c", SHADING, str(Path(warp_cloth.__file__).parent), str(usd),
+                             json.dumps(read_stage(usd)["prims"])], capture_output=True, text=True, timeout=120)
+    shaded = {line.split()[1]: line.split()[2:] for line in result.stdout.splitlines() if line.startswith("SHADED")}
+    # the box's corners take their faces' normals; the cloth is shaded smooth (flat here: it has not bent yet)
+    assert shaded["collider"][0] == "flat" and shaded["cloth"][1] == "True", result.stdout + result.stderr

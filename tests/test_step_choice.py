@@ -228,3 +228,24 @@ def test_cli_says_the_chosen_step_first_and_warns_of_a_set_one_before_running(tm
     result = run_cli("run", "light.toml", "--no-usd", "--no-poly", "--device", "cpu", cwd=tmp_path)
     warning = [line for line in result.stderr.splitlines() if line.startswith("warp-cloth: warning")]
     assert len(warning) == 1 and warning[0].startswith("warp-cloth: warning: light.toml: substeps = 2 gives a step")
+
+
+def test_one_substep_a_frame_is_said_in_the_singular(tmp_path):
+    scene = with_simulation(wc.load_scene("hanging"), integrator="implicit", substeps=1, dt=None)
+    assert wc.Simulator(scene, device="cpu").step_choice.describe().startswith("step 41.7 ms (1 substep/frame), as set")
+    result = run_cli("run", "hanging", "--frames", "1", "--substeps", "1", "--integrator", "implicit", "--no-usd",
+                     "--no-poly", "--device", "cpu", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    first, summary = result.stdout.splitlines()
+    assert first.startswith("hanging: step 41.7 ms (1 substep/frame), as set")
+    assert summary.startswith("hanging: 1 frame (1 substep of 41.7 ms, implicit)"), summary
+    planned = run_cli("plan", "hanging", "--substeps", "1", "--integrator", "implicit", "--device", "cpu", cwd=tmp_path)
+    assert planned.stdout.startswith("hanging on cpu, 1 substep a frame;"), planned.stdout
+
+
+def test_a_simulator_prints_as_one_line_with_its_step_and_why():
+    sim = wc.Simulator(wc.load_scene("drape"), device="cpu")
+    text = str(sim)
+    assert "\n" not in text and text == repr(sim)
+    assert text.startswith(f"<Simulator drape on cpu: {sim.model.particle_count} particles, frame 0; step ")
+    assert sim.step_choice.describe() in text and "chosen for stability" in text

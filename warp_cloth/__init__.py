@@ -10,6 +10,7 @@
 from __future__ import annotations
 
 import importlib
+import importlib.metadata
 from typing import TYPE_CHECKING
 
 from .errors import SceneError, UnstableSimulation
@@ -24,6 +25,7 @@ if TYPE_CHECKING:
     from .simulator import RunSummary, Simulator
     from .stability import UnstableStepWarning
     from .strain import StrainMonitor, StrainReport
+    from .warp_init import set_verbose
     from .writers import CheckpointWriter, PolyWriter, UsdWriter
 
 # Imported at first use: they load numpy, Warp and USD (seconds on a first run), which the command line
@@ -34,9 +36,13 @@ _IMPORTED_AT_FIRST_USE = {
     "RunSummary": "simulator", "Simulator": "simulator", "PolyWriter": "writers", "UsdWriter": "writers",
     "CheckpointWriter": "writers",
     "UnstableStepWarning": "stability", "StrainMonitor": "strain", "StrainReport": "strain",
+    "set_verbose": "warp_init",
 }
 
-__version__ = "0.1.0"
+try:  # pyproject.toml's, as installed: the one place the version is written
+    __version__ = importlib.metadata.version("warp-cloth")
+except importlib.metadata.PackageNotFoundError:  # a source tree on sys.path, never installed
+    __version__ = "0+unknown"
 
 __all__ = [
     "Batch", "Box", "CheckpointWriter", "Cloth", "Collision", "Ground", "ImplicitSolver", "Limit", "MeshCollider",
@@ -45,7 +51,7 @@ __all__ = [
     "Pin", "PolyWriter", "RunSummary", "Scene", "SceneError", "Simulation", "Simulator", "Sphere", "SpringKind",
     "StrainMonitor", "StrainReport", "TransformKey", "Wind", "WindKey",
     "UnstableSimulation", "UnstableStepWarning", "UsdWriter", "builtin_scene_names", "load_scene", "render_preview",
-    "scene_from_dict",
+    "scene_from_dict", "set_verbose",
 ]
 
 

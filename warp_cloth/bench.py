@@ -107,7 +107,8 @@ def simulator_for(case: Case, device: str) -> Simulator:
 
 @dataclass(frozen=True)
 class Result:
-    """``stable`` is False where the run blew up (non-finite state); its time is then not a result."""
+    """``stable`` is False where a run of the case blew up (``UnstableSimulation``: a state not finite or
+    too fast, in any world of a batch), at frame ``unstable_frame``: it has no time or strain that is a result."""
 
     case: str
     device: str
@@ -119,6 +120,7 @@ class Result:
     stable: bool = True
     max_strain: float | None = None  # worst edge strain (stretch or compression) over every frame the runs made
     strain: dict | None = None  # its StrainReport in figures: stretch, compression, percentiles, share past 11%
+    unstable_frame: int | None = None
 
     @property
     def median_seconds(self) -> float:
@@ -384,11 +386,13 @@ def suites_help() -> str:
 
 def time_case(case: Case, device: str, repeats: int) -> Result:
     warm = simulator_for(case, device)
-    result = lambda seconds, stable=True: Result(  # noqa: E731
+    result = lambda seconds, stable=True, frame=None: Result(  # noqa: E731
         case.name, str(warm.device), warm.model.particle_count, warm.substeps_per_frame, case.frames, case.outputs,
-        seconds, stable)
+        seconds, stable, unstable_frame=frame)
+    covered = case.frames if case.fresh else 2 + repeats * case.frames
     try:
         warm.run(2)  # compiles kernels, captures graphs
+        check_every_world(warm)
         seconds = []
         for _ in range(repeats):
             sim = simulator_for(case, device) if case.fresh else warm
@@ -399,13 +403,20 @@ def time_case(case: Case, device: str, repeats: int) -> Result:
                 sim.run(case.frames, writers=writers)
                 wp.synchronize_device(sim.device)
                 seconds.append(time.perf_counter() - started)
-    except UnstableSimulation:
-        return result([], stable=False)
-    covered = case.frames if case.fresh else 2 + repeats * case.frames
-    report = strain_over(case, device, covered)
+                check_every_world(sim)
+        report = strain_over(case, device, covered)
+    except UnstableSimulation as exc:
+        return result([], stable=False, frame=exc.frame)
     figures = {"stretch": report.stretch, "compression": report.compression, "frames": report.frames,
                "p99": report.percentiles[99.0], "p99.9": report.percentiles[99.9], "beyond_11": report.beyond}
     return dataclasses.replace(result(seconds), max_strain=report.worst, strain=figures)
+
+
+def check_every_world(sim: Simulator) -> None:
+    """Raise the first blow-up of a batch's worlds: a batch goes on past a world that blew up (it is held
+    where it started), which for a timing is a case that blew up."""
+    if sim.stopped_worlds:
+        raise min(sim.stopped_worlds.values(), key=lambda stopped: stopped.frame)
 
 
 def seconds_of_runs(sim: Simulator, frames: int, repeats: int) -> list[float]:
@@ -427,6 +438,7 @@ def strain_over(case: Case, device: str, frames: int) -> StrainReport:
     sim = simulator_for(case, device)
     monitor = StrainMonitor()
     sim.run(frames, writers=[monitor])
+    check_every_world(sim)
     return monitor.report()
 
 
@@ -459,9 +471,9 @@ def format_table(results: list[Result]) -> str:
     for r in results:
         seed = SEED_CPP_SECONDS.get(r.case)
         seed_text = f"{seed:10.3g}" if seed and not r.outputs else ""
-        if not r.stable:
+        if not r.stable:  # no time, speed-up or strain: none of them is a result
             lines.append(f"{r.case:<{width}} {r.device:<8} {r.particles:>9} {r.substeps_per_frame:>8} {r.frames:>6} "
-                         f"{'unstable (blew up)':>40} {seed_text:>10}")
+                         f"{f'blew up at frame {r.unstable_frame}':>40} {seed_text:>10}")
             continue
         ratio = f"{seed / r.median_seconds:8.1f}x" if seed and not r.outputs else ""
         strain = f" {100 * r.max_strain:>11.1f}%" if r.max_strain is not None else ""
@@ -571,11 +583,13 @@ def main(argv: list[str] | None = None) -> int:
         print(f"warp-cloth bench: error: --match: expected text in a case's name of the {args.suite} suite, got "
               f"{' '.join(args.match)}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    bar = Progress(len(cases), f"bench {args.suite} on {device}")
+    label = f"bench {args.suite} on {device}"
+    bar = Progress(len(cases), label, every=0)  # off a terminal, a line as each case starts: a case may take minutes
     results = []
     for k, case in enumerate(cases):
+        bar.update(k, f"{label}, timing {case.name}")
         results.append(time_case(case, device, args.repeats))
-        bar.update(k + 1)
+    bar.update(len(cases), label)
     bar.close()
     env = environment(device)
     print(f"device: {env['device']} ({env['device_alias']}), cpu: {env['cpu']}, warp {env['warp']}, "
@@ -598,9 +612,13 @@ def main(argv: list[str] | None = None) -> int:
                "collision_substep": [dict(dataclasses.asdict(r), ns_per_particle=r.ns_per_particle) for r in scaling],
                "newton": newton_rows}
     path.write_text(json.dumps(payload, indent=2))
-    best = max((r for r in results if r.stable), key=lambda r: r.particle_substeps_per_second)
-    print(f"bench {args.suite}: {len(results)} cases on {env['device']}; best {best.particle_substeps_per_second:.3g} "
-          f"particle-substeps/s ({best.case}); wrote {path}")
+    stable = [r for r in results if r.stable]
+    blew_up = len(results) - len(stable)
+    best = max(stable, key=lambda r: r.particle_substeps_per_second) if stable else None
+    print(f"bench {args.suite}: {len(results)} case{'s' if len(results) != 1 else ''} on {env['device']}"
+          + (f", {blew_up} blew up" if blew_up else "")
+          + (f"; best {best.particle_substeps_per_second:.3g} particle-substeps/s ({best.case})" if best else "")
+          + f"; wrote {path}")
     return 0
 
 

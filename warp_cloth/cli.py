@@ -9,6 +9,7 @@ import os
 import signal
 import sys
 import threading
+import time
 import warnings
 from pathlib import Path
 
@@ -27,6 +28,7 @@ EXIT_BROKEN_PIPE = 141  # 128 + SIGPIPE, what a shell reports for a command stop
 
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="warp-cloth", description="Mass-spring cloth on NVIDIA Warp (CPU or CUDA).")
+    parser.add_argument("--version", action="version", version=_version())
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     commands.add_parser("scenes", help="list the built-in scenes", description="List the built-in scenes.")
@@ -67,7 +69,11 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--no-graph", action="store_true",
                      help="launch a frame's kernels one by one instead of replaying the frame as a captured graph "
                           "(a CUDA graph on a GPU, a Warp CPU graph on the CPU): slower, for debugging")
-    run.add_argument("--quiet", action="store_true", help="no progress bar")
+    shown = run.add_mutually_exclusive_group()
+    shown.add_argument("--quiet", action="store_true", help="no progress")
+    shown.add_argument("--progress", action="store_true",
+                       help="progress even with --check (by default a bar on a terminal; off one, as in a log or a "
+                            "pipe, a line every 5 s once the run has taken that long)")
     run.add_argument("--check", action="store_true",
                      help="print, after every frame, the intersecting triangle pairs and the closest contact")
     run.add_argument("--preview", action="store_true",
@@ -101,6 +107,20 @@ def _parser() -> argparse.ArgumentParser:
 
 # A [simulation] key the command line sets, by the name argparse keeps its option under, where they differ.
 OPTION_OF_KEY = {"start": "start_frame"}
+
+
+def _version() -> str:
+    """``warp-cloth 0.1.0 (warp-lang 1.9.0, Python 3.11.9)``: what a bug report needs, without importing Warp."""
+    import importlib.metadata
+    import platform
+
+    from . import __version__
+
+    try:
+        warp = importlib.metadata.version("warp-lang")
+    except importlib.metadata.PackageNotFoundError:
+        warp = "not installed"
+    return f"warp-cloth {__version__} (warp-lang {warp}, Python {platform.python_version()})"
 
 
 def _with_step_overrides(scene: Scene, args: argparse.Namespace) -> Scene:
@@ -180,7 +200,8 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # a step past the bound is for a run to warn of
         sim = Simulator(scene, device=args.device)
-    print(f"{scene.name} on {sim.device.alias}, {sim.substeps_per_frame} substeps a frame; {sim.plan}")
+    substeps = sim.substeps_per_frame
+    print(f"{scene.name} on {sim.device.alias}, {substeps} substep{'s' if substeps != 1 else ''} a frame; {sim.plan}")
     return 0
 
 
@@ -263,11 +284,12 @@ def _kept(writers: list) -> str:
 
 
 def _simulator(scene: Scene, device: str, args: argparse.Namespace):
-    """The scene's simulator with its kernels compiled; says first the step it takes, and warns of a step
-    set past the stable bound."""
+    """The scene's simulator with its kernels compiled, and the seconds that took (the model built, the
+    kernels compiled or loaded); says first the step it takes, and warns of a step set past the stable bound."""
     from .simulator import Simulator
     from .stability import UnstableStepWarning
 
+    started = time.perf_counter()
     # Building the plan compiles some kernels, prepare() the others: seconds of silence on a first run.
     with SlowStepNotice("compiling kernels") if not args.quiet else contextlib.nullcontext():
         with warnings.catch_warnings(record=True) as caught:
@@ -277,6 +299,7 @@ def _simulator(scene: Scene, device: str, args: argparse.Namespace):
             except SceneError as exc:  # checks of the scene as a whole (overlaps, colliders, size, work)
                 raise (_named_as_given(exc, args) if exc.source is None else exc) from None
         sim.prepare()
+    seconds = time.perf_counter() - started
     print(f"{scene.name}: {sim.step_choice.describe()}", flush=True)
     meshes = [("cloth", c) for c in scene.cloths if c.mesh is not None] + [("collider", c) for c in scene.colliders]
     for kind, item in meshes:  # what reading a user's mesh converted or let pass
@@ -288,7 +311,7 @@ def _simulator(scene: Scene, device: str, args: argparse.Namespace):
             print(f"warp-cloth: warning: {step_source}: {w.message}", file=sys.stderr, flush=True)
         else:
             warnings.showwarning(w.message, w.category, w.filename, w.lineno)
-    return sim
+    return sim, seconds
 
 
 def _quiet_warp() -> None:
@@ -346,7 +369,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
                                          "resume", scene.simulation.frames, "command line")
     _prepare(writers, args)
     try:
-        sim = _simulator(scene, device.alias, args)
+        sim, building = _simulator(scene, device.alias, args)
         if checkpoint is not None:
             sim.restore(checkpoint)
             _take_back(checkpoint, scene, writers)
@@ -375,7 +398,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         writers.append(checkpointer)
     frames = sim.clock.end - sim.frame
     try:
-        summary = sim.run(frames, writers=writers, progress=not args.quiet and not args.check)
+        summary = sim.run(frames, writers=writers, progress=args.progress or not (args.quiet or args.check))
     except UnstableSimulation as exc:
         kept = (f"frames {sim.clock.start} to {exc.frame - 1}" if sim.clock.writes(exc.frame - 1)
                 else "no frame (it was in the preroll)")
@@ -398,7 +421,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
                   f"{name}")
         wrote += _resume_hint(checkpointer)
     else:
-        status = f"{summary.frames} frames"
+        status = f"{summary.frames} frame{'s' if summary.frames != 1 else ''}"
     if sim.clock.start or sim.clock.preroll:
         status += f" (frames {sim.clock.start} to {sim.clock.end} of the shot" + \
                   (f", after a preroll of {sim.clock.preroll})" if sim.clock.preroll else ")")
@@ -409,9 +432,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
         wrote += f" ({older} older .poly files of other frames left there)"
     if args.preview and not summary.interrupted:
         wrote += _preview(outputs, args)
-    print(f"{scene.name}: {status} ({summary.substeps} substeps of {sim.dt * 1e3:.3g} ms, "
+    print(f"{scene.name}: {status} ({summary.substeps} substep{'s' if summary.substeps != 1 else ''} of {sim.dt * 1e3:.3g} ms, "
           f"{sim_settings.integrator}) of {summary.particles} particles on {sim.device.alias} in "
-          f"{summary.wall_seconds:.2f} s ({summary.particle_substeps_per_second:.3g} particle-substeps/s); "
+          f"{summary.wall_seconds:.2f} s (+{building + summary.prepare_seconds:.1f} s building and compiling; "
+          f"{summary.particle_substeps_per_second:.3g} particle-substeps/s); "
           f"wrote {wrote}; {_strain(strain)}{_limit_solve(sim)}" + (f"; {check.summary()}" if check else ""))
     return EXIT_SIGNAL_BASE + summary.stop_signal if summary.interrupted else 0
 

@@ -171,7 +171,8 @@ def _render(usd: Path, info: dict, still: Path, animation: Path | None, frames: 
             job["animation"] = {"format": "gif" if gif else "mp4",
                                 "path": str(scratch / ("pictures" if gif else "animation.mp4"))}
         (scratch / "job.json").write_text(json.dumps(job))
-        _run_blender(scratch / "job.json", count if animation is not None else 0, progress, still.name)
+        _run_blender(scratch / "job.json", count if animation is not None else 0, progress, still.name,
+                     animation.name if animation is not None else None)
         _mark(scratch / "still.png")
         made = [(scratch / "still.png", still)]
         if animation is not None:
@@ -199,9 +200,13 @@ def _mark(png: Path) -> None:
     image.save(png, pnginfo=info)
 
 
-def _run_blender(job: Path, pictures: int, progress: bool, label: str) -> None:
+def _run_blender(job: Path, pictures: int, progress: bool, still: str, animation: str | None) -> None:
+    """Blender's render of ``job``: the still (file name ``still``), then ``pictures`` frames of ``animation``,
+    the progress saying which it is on."""
     script = Path(__file__).with_name("preview_blender.py")
-    bar = Progress(1 + pictures, f"rendering {label}") if progress else None
+    bar = Progress(1 + pictures, f"rendering {still}") if progress else None
+    if bar:
+        bar.update(0)  # the still comes first and takes longest: say so from the start
     process = subprocess.Popen([sys.executable, str(script), str(job)], stdout=subprocess.PIPE,
                                stderr=subprocess.PIPE, text=True)
     done = 0
@@ -211,7 +216,10 @@ def _run_blender(job: Path, pictures: int, progress: bool, label: str) -> None:
             tail = (tail + [line.rstrip()])[-20:]
             if line.startswith(("STILL", "FRAME ", "RESTART")):
                 done = 1 if line.startswith("RESTART") else done + 1
-                if bar:
+                if bar and animation is not None:
+                    frame = line.split()[1] if line.startswith("FRAME ") else None
+                    bar.update(done, f"rendering {animation}" + (f", frame {frame}" if frame else ""))
+                elif bar:
                     bar.update(done)
         errors = process.stderr.read()
         process.wait()

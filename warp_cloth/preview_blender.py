@@ -23,23 +23,13 @@ AZIMUTH_OFFSET = math.radians(30)  # a three-quarter view rather than square on
 LENS_MM, SENSOR_MM = 50.0, 36.0
 MARGIN = 1.1  # the framed bounds, this much larger, fit the view
 FRAMING_SAMPLES = 24  # frames whose bounds the animation's camera is framed on
+SMOOTH_ANGLE = math.radians(30)  # a collider's faces meeting at more than this are shaded with a sharp edge
 
 
 def main(job_path: str) -> None:
     job = json.loads(open(job_path).read())
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    bpy.ops.wm.usd_import(filepath=job["usd"], import_subdivision=True, set_frame_range=True, import_materials=False)
+    meshes, role = import_result(job)
     scene = bpy.context.scene
-    meshes = [o for o in scene.objects if o.type == "MESH"]
-    if not meshes:
-        raise SystemExit(f"preview: no mesh in {job['usd']}")
-    role = {}
-    for obj in meshes:
-        role[obj.name], color = job["prims"].get(obj.name, ("cloth", [0.7, 0.7, 0.7]))
-        obj.data.materials.clear()
-        obj.data.materials.append(material(obj.name, role[obj.name], color))
-        if role[obj.name] != "ground":
-            obj.data.shade_smooth()
     framed = [o for o in meshes if role[o.name] != "ground"] or meshes
     cloths = [o for o in meshes if role[o.name] == "cloth"]
     scene.frame_set(job["still_frame"])
@@ -92,6 +82,34 @@ def main(job_path: str) -> None:
         print("RESTART", flush=True)
         render.engine = "CYCLES"
         bpy.ops.render.render(animation=True)
+
+
+def import_result(job: dict) -> tuple[list, dict]:
+    """The job's USD in an empty scene, each mesh given its material and shading by role: its meshes, and
+    each one's role by name."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.wm.usd_import(filepath=job["usd"], import_subdivision=True, set_frame_range=True, import_materials=False)
+    meshes = [o for o in bpy.context.scene.objects if o.type == "MESH"]
+    if not meshes:
+        raise SystemExit(f"preview: no mesh in {job['usd']}")
+    role = {}
+    for obj in meshes:
+        role[obj.name], color = job["prims"].get(obj.name, ("cloth", [0.7, 0.7, 0.7]))
+        obj.data.materials.clear()
+        obj.data.materials.append(material(obj.name, role[obj.name], color))
+        shade(obj.data, role[obj.name])
+    return meshes, role
+
+
+def shade(mesh, role: str) -> None:
+    """A cloth smooth (a surface its particles sample); a collider smooth across its edges flatter than
+    ``SMOOTH_ANGLE`` and sharp across the others, as a DCC tool's auto smooth (a box's faces flat, a sphere
+    or a cylinder's side round, its rim sharp); the ground flat."""
+    if role == "ground":
+        return
+    mesh.shade_smooth()
+    if role != "cloth":
+        mesh.set_sharp_from_angle(angle=SMOOTH_ANGLE)
 
 
 def material(name: str, role: str, color: list) -> "bpy.types.Material":

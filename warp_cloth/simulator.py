@@ -74,6 +74,7 @@ class RunSummary:
     wall_seconds: float
     interrupted: bool
     stop_signal: int | None = None  # the signal that stopped an interrupted run
+    prepare_seconds: float = 0.0  # before the clock of ``wall_seconds``: kernels compiled or loaded (``prepare``)
 
     @property
     def particle_substeps_per_second(self) -> float:
@@ -191,7 +192,8 @@ class Simulator:
     turns that off). Positions and velocities read back as numpy arrays of shape (particles, 3).
     ``threads_per_particle`` sets how many GPU threads gather each particle's springs, limits and contacts
     (None: chosen by the cloth's size; see kernels/gathering.py); a power of two up to 64, 1 on the CPU.
-    ``plan`` is the substep's passes in order (``print(sim.plan)`` shows them).
+    ``plan`` is the substep's passes in order (``print(sim.plan)`` shows them); ``step_choice`` the step it
+    takes and why (``print(sim)`` says it in one line, with the scene, device and particles).
     """
 
     INITIAL_OVERLAP_LIMIT = 0.5  # of the contact distance: closer starting pairs are refused
@@ -292,6 +294,10 @@ class Simulator:
                                             f"{i - self.model.offsets[c]} of '{scene.cloths[c].name}' starts "
                                             f"{depth[i - first]:.3g} m inside {collider} (at most {allowed[i]:.3g} m, "
                                             "half a cell); move the cloth or the collider", has_got=False)
+
+    def __repr__(self) -> str:
+        return (f"<Simulator {self.scene.name} on {self.device.alias}: {self.model.particle_count} particles, frame "
+                f"{self.frame}; {self.step_choice.describe()}>")
 
     @property
     def substeps_per_frame(self) -> int:
@@ -499,11 +505,13 @@ class Simulator:
         if frames is None:
             frames = self.scene.simulation.frames + max(0, self.clock.start - self.frame)
         writers = list(writers)
+        preparing = time.perf_counter()
         with SlowStepNotice("compiling kernels") if progress else contextlib.nullcontext():
             self.prepare()
             for w in writers:
                 if hasattr(w, "load_kernels"):
                     w.load_kernels(self)
+        prepare_seconds = time.perf_counter() - preparing
         bar = Progress(frames, f"{self.scene.name} on {self.device.alias}") if progress else None
         begun: list[FrameWriter] = []
         written = 0
@@ -564,7 +572,7 @@ class Simulator:
                 bar.close()
         wall = time.perf_counter() - started
         return RunSummary(written, self.substep_count - start_substeps, self.model.particle_count, wall,
-                          stopped_by is not None, stopped_by)
+                          stopped_by is not None, stopped_by, prepare_seconds)
 
     def _frame_substeps(self, slot: int) -> None:
         status = self._guard_status[slot]

@@ -96,7 +96,7 @@ class StepChoice:
 
     def describe(self) -> str:
         """One line: the step, and why it is what it is."""
-        head = f"step {_ms(self.step)} ({self.substeps} substeps/frame)"
+        head = f"step {_ms(self.step)} ({self.substeps} substep{'s' if self.substeps != 1 else ''}/frame)"
         if self.bound is None:
             return head + (", the implicit integrator's default (no stability bound on its step)" if self.automatic
                            else ", as set (the implicit integrator has no stability bound on its step)")
