@@ -477,3 +477,22 @@ def test_a_cluster_sweep_without_ray_names_the_extra_to_install(tmp_path, monkey
     assert (code, out) == (2, "") and len(err.strip().splitlines()) == 1, err
     assert "command line: --cluster: expected Ray installed (it is not: pip install 'warp-cloth[cluster]')" in err
     assert not (tmp_path / "s").exists()
+
+
+def test_a_cluster_address_where_nothing_answers_is_refused_in_seconds(tmp_path):
+    import socket
+
+    (tmp_path / "sheet.toml").write_text(SCENE)
+    listener = socket.create_server(("127.0.0.1", 0))  # connections wait in its backlog, never answered
+    address = f"127.0.0.1:{listener.getsockname()[1]}"
+    try:
+        started = time.monotonic()
+        code, out, err = run_cli_in_process("sweep", "sheet.toml", "--set", "cloth.density=0.1", "--out", "s",
+                                            "--cluster", address, cwd=tmp_path)
+        elapsed = time.monotonic() - started
+    finally:
+        listener.close()
+    assert (code, out) == (2, "") and len(err.strip().splitlines()) == 1, err
+    assert f"(nothing answered there as Ray does within 5 s), got '{address}'" in err
+    assert elapsed < 15
+    assert not (tmp_path / "s").exists()
