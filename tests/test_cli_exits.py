@@ -140,3 +140,43 @@ def test_an_out_folder_name_too_long_for_the_file_system_is_one_line(tmp_path):
     assert (code, out) == (2, "")
     assert err.startswith("warp-cloth: error: command line: --out: expected a path the file system can hold"), err
     assert len(err.strip().splitlines()) == 1 and list(tmp_path.iterdir()) == []
+
+
+def _checkpoint_of_three_frames(folder) -> "Path":
+    sim = wc.Simulator(wc.load_scene("hanging"), device="cpu")
+    sim.run(3)
+    path = folder / "hanging.checkpoint.npz"
+    sim.save_checkpoint(path)
+    return path
+
+
+def test_resume_from_a_truncated_checkpoint_is_one_line_naming_it(tmp_path):
+    checkpoint = _checkpoint_of_three_frames(tmp_path)
+    checkpoint.write_bytes(checkpoint.read_bytes()[:2000])  # cut short, as by a full disk
+    before = sorted(tmp_path.iterdir())
+    code, out, err = run_cli_in_process("run", "hanging", "--resume", "--frames", "6", "--out", str(tmp_path),
+                                        "--device", "cpu", cwd=tmp_path)
+    assert (code, out) == (2, "") and len(err.strip().splitlines()) == 1, err
+    assert err.startswith(f"warp-cloth: error: {checkpoint}: checkpoint: expected a whole checkpoint written by "
+                          "warp-cloth (an .npz file; this one is cut short or is not one: "), err
+    assert sorted(tmp_path.iterdir()) == before
+
+
+def test_resume_from_a_checkpoint_without_its_frame_is_one_line_naming_it(tmp_path):
+    import json
+
+    import numpy as np
+
+    checkpoint = _checkpoint_of_three_frames(tmp_path)
+    with np.load(checkpoint) as data:
+        arrays = {name: data[name] for name in data.files}
+    meta = json.loads(str(arrays["meta"]))
+    del meta["frame"]
+    arrays["meta"] = np.array(json.dumps(meta))
+    with open(checkpoint, "wb") as f:
+        np.savez(f, **arrays)
+    code, out, err = run_cli_in_process("run", "hanging", "--resume", "--frames", "6", "--out", str(tmp_path),
+                                        "--device", "cpu", cwd=tmp_path)
+    assert (code, out) == (2, "") and len(err.strip().splitlines()) == 1, err
+    assert err.strip() == (f"warp-cloth: error: {checkpoint}: checkpoint.meta: expected the fields format, frame, "
+                           "substeps and scene (frame is missing)"), err

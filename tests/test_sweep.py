@@ -17,7 +17,7 @@ import pytest
 from pxr import Usd
 
 import warp_cloth as wc
-from conftest import run_cli_in_process
+from conftest import run_cli, run_cli_in_process
 from warp_cloth.sweep import file_stem
 
 SCENE = """
@@ -56,7 +56,7 @@ def test_a_sweep_runs_the_product_and_its_table_holds_each_variant_as_run_alone(
                                         "--set", "simulation.gravity=[0.0, -9.81, 0.0],[0.0, -3.0, 0.0]",
                                         "--out", "swept", cwd=tmp_path)
     assert code == 0, err
-    assert "sweep sheet: 4 variants (0 done before) in 1 batches" in out.splitlines()[-1]
+    assert "sweep sheet: 4 variants (0 done before) in 1 batch," in out.splitlines()[-1]
     rows = rows_of(tmp_path / "swept")
     assert sorted(r["variant"] for r in rows) == sorted(
         f"cloth.bend.stiffness={k} simulation.gravity={g}" for k in (1, 10)
@@ -150,7 +150,7 @@ def test_a_sweep_started_again_runs_only_what_its_table_lacks(tmp_path):
     code, out, err = run_cli_in_process("sweep", "sheet.toml", "--set", "cloth.density=0.1,0.2,0.3", "--out", "s",
                                         "--no-usd", cwd=tmp_path)
     assert code == 0, err
-    assert "3 variants (2 done before) in 1 batches" in out
+    assert "3 variants (2 done before) in 1 batch," in out
     assert sorted(r["settings"]["cloth.density"] for r in rows_of(tmp_path / "s")) == [0.1, 0.2, 0.3]
 
 
@@ -228,13 +228,15 @@ needs_ray = pytest.mark.skipif(importlib.util.find_spec("ray") is None,
 
 
 @needs_ray
-def test_a_sweep_on_a_local_ray_cluster_gives_the_table_a_local_sweep_gives(tmp_path):
+def test_a_sweep_on_a_local_ray_cluster_gives_the_table_a_local_sweep_gives(tmp_path, monkeypatch):
     (tmp_path / "sheet.toml").write_text(SCENE)
     sets = ["--set", "cloth.density=0.1,0.2,0.3,0.4", "--set", "cloth.bend.stiffness=1,10", "--no-usd"]
     assert run_cli_in_process("sweep", "sheet.toml", *sets, "--out", "here", cwd=tmp_path)[0] == 0
+    monkeypatch.setenv("RAY_ADDRESS", "127.0.0.1:1")  # another cluster's (gone): local starts a cluster of its own
     code, out, err = run_cli_in_process("sweep", "sheet.toml", *sets, "--out", "ray", "--worlds", "3",
                                         "--cluster", "local", "--cluster-workers", "2", cwd=tmp_path)
     assert code == 0, err
+    assert err == ""  # none of Ray's log lines
     assert "8 variants (0 done before) in 3 batches" in out
     here = {r["variant"]: r for r in rows_of(tmp_path / "here")}
     there = rows_of(tmp_path / "ray")
@@ -275,4 +277,258 @@ def test_a_cluster_address_that_does_not_answer_is_refused_in_one_line(tmp_path)
                                       "--cluster", "127.0.0.1:1", cwd=tmp_path)
     assert code == 2 and len(err.strip().splitlines()) == 1, err
     assert "--cluster: expected the address of a running Ray cluster, HOST:PORT, or local" in err
+    assert not (tmp_path / "s").exists()
+
+
+def test_a_second_sweep_into_the_same_folder_is_refused_at_once_and_the_first_completes(tmp_path):
+    slow = SCENE.replace("frames = 6", "frames = 240").replace("resolution = [8, 8]", "resolution = [12, 12]")
+    (tmp_path / "sheet.toml").write_text(slow)
+    args = [sys.executable, "-m", "warp_cloth", "sweep", "sheet.toml", "--set", "cloth.density=0.1,0.2",
+            "--out", "s"]
+    first = subprocess.Popen(args, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and first.poll() is None and not list((tmp_path / "s").glob(
+                "*.incomplete.usdc")):
+            time.sleep(0.05)
+        in_progress = sorted((tmp_path / "s").glob("*.incomplete.usdc"))
+        assert len(in_progress) == 2, "the first sweep was not seen writing"
+        started = time.monotonic()
+        code, out, err = run_cli_in_process("sweep", "sheet.toml", "--set", "cloth.density=0.1,0.2,0.3",
+                                            "--out", "s", cwd=tmp_path)
+        assert time.monotonic() - started < 10
+        assert (code, out) == (2, "") and len(err.strip().splitlines()) == 1, err
+        assert f"command line: --out: expected an output no other run is writing (the run with process id " \
+               f"{first.pid} holds" in err
+        assert all(path.exists() for path in in_progress)  # the first's frames are left alone
+        stdout, stderr = first.communicate(timeout=300)
+    finally:
+        first.kill()
+    assert first.returncode == 0, stderr
+    rows = rows_of(tmp_path / "s")
+    assert sorted(r["settings"]["cloth.density"] for r in rows) == [0.1, 0.2]
+    assert all((tmp_path / r["usd"]).is_file() for r in rows)
+
+
+def test_a_variant_whose_output_another_run_is_writing_is_one_line(tmp_path):
+    """An error inside the sweep (a variant's USD locked by a ``warp-cloth run`` writing it) is reported as
+    ``run`` reports it."""
+    (tmp_path / "sheet.toml").write_text(SCENE)
+    stem = file_stem((("cloth.density", 0.1),))
+    (tmp_path / "s").mkdir()
+    holder = subprocess.Popen([sys.executable, "-c", HOLD_LOCK, str(tmp_path / "s" / f"{stem}.lock")],
+                              stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        code, out, err = run_cli_in_process("sweep", "sheet.toml", "--set", "cloth.density=0.1", "--out", "s",
+                                            cwd=tmp_path)
+    finally:
+        holder.kill()
+        holder.wait()
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert f"usd: expected an output no other run is writing (the run with process id {holder.pid} holds" in err
+
+
+HOLD_LOCK = """
+import fcntl, os, sys, time
+fd = os.open(sys.argv[1], os.O_RDWR | os.O_CREAT)
+fcntl.flock(fd, fcntl.LOCK_EX)
+os.write(fd, f"{os.getpid()}\\n".encode())
+print("held", flush=True)
+time.sleep(120)
+"""
+
+
+@pytest.mark.parametrize("sets, expected", [
+    (["cloth.density=0.02,0.02"], "command line: --set cloth.density: expected each value once (0.02 is there "
+                                  "twice), got '0.02,0.02'"),
+    (["cloth.bend.stiffness=1,5,1.0"], "--set cloth.bend.stiffness: expected each value once (1.0 is there twice)"),
+    (["cloth.density=0.1,0.2", "cloth.density=0.3"], "command line: --set cloth.density: expected each key once"),
+])
+def test_a_value_or_key_given_twice_is_refused_in_one_line(tmp_path, sets, expected):
+    (tmp_path / "sheet.toml").write_text(SCENE)
+    args = [a for s in sets for a in ("--set", s)]
+    code, out, err = run_cli_in_process("sweep", "sheet.toml", *args, "--out", "s", cwd=tmp_path)
+    assert (code, out) == (2, "") and len(err.strip().splitlines()) == 1 and expected in err, err
+    assert not (tmp_path / "s").exists()
+
+
+def test_random_draws_of_a_list_that_repeat_a_variant_run_it_once(tmp_path):
+    (tmp_path / "sheet.toml").write_text(SCENE)
+    code, out, err = run_cli_in_process("sweep", "sheet.toml", "--set", "cloth.bend.stiffness=1,5", "--random",
+                                        "6", "--no-usd", "--out", "s", cwd=tmp_path)
+    assert code == 0, err
+    assert sorted(r["settings"]["cloth.bend.stiffness"] for r in rows_of(tmp_path / "s")) == [1, 5]
+    assert "sweep sheet: 2 variants (0 done before) in 1 batch," in out
+
+
+def test_random_values_are_rounded_to_six_digits_in_the_name_and_in_the_run(tmp_path):
+    (tmp_path / "sheet.toml").write_text(SCENE)
+    code, _, err = run_cli_in_process("sweep", "sheet.toml", "--set", "cloth.density=0.1:0.3", "--random", "3",
+                                      "--no-usd", "--out", "s", cwd=tmp_path)
+    assert code == 0, err
+    for row in rows_of(tmp_path / "s"):
+        density = row["settings"]["cloth.density"]
+        assert density == float(f"{density:.6g}") and 0.1 <= density <= 0.3
+        assert row["variant"] == f"cloth.density={density}" and len(row["variant"]) <= len("cloth.density=0.123456")
+    table = (tmp_path / "s" / "results.csv").read_text().splitlines()
+    assert all(len(line.split(",")[0]) <= 8 for line in table[1:])
+
+
+def test_the_summary_says_one_variant_and_one_batch_in_the_singular(tmp_path):
+    (tmp_path / "sheet.toml").write_text(SCENE)
+    code, out, err = run_cli_in_process("sweep", "sheet.toml", "--set", "cloth.density=0.1", "--no-usd", "--out",
+                                        "s", cwd=tmp_path)
+    assert code == 0, err
+    assert out.splitlines()[-1].startswith("sweep sheet: 1 variant (0 done before) in 1 batch, ")
+
+
+def test_the_sweep_help_reads_without_markup():
+    result = subprocess.run([sys.executable, "-m", "warp_cloth", "sweep", "--help"], capture_output=True, text=True,
+                            timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert "``" not in result.stdout and "--set KEY=V1,V2,..." in result.stdout
+    assert "pip install 'warp-cloth[cluster]'" in result.stdout
+
+
+@pytest.mark.parametrize("out, expected", [
+    ("notes.txt", "command line: --out: expected a folder (this is a file), got 'notes.txt'"),
+    ("notes.txt/s", "command line: --out: expected a path whose folders can be made ("),
+    ("o" * 300, "command line: --out: expected a path the file system can hold"),
+])
+def test_a_sweep_output_the_file_system_refuses_is_one_line(tmp_path, out, expected):
+    (tmp_path / "sheet.toml").write_text(SCENE)
+    (tmp_path / "notes.txt").write_text("mine")
+    code, stdout, err = run_cli_in_process("sweep", "sheet.toml", "--set", "cloth.density=0.1", "--out", out,
+                                           cwd=tmp_path)
+    assert (code, stdout) == (2, "") and len(err.strip().splitlines()) == 1 and expected in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.txt", "sheet.toml"]
+    assert (tmp_path / "notes.txt").read_text() == "mine"
+
+
+@pytest.mark.parametrize("stray, expected", [
+    ("42", "expected a row of a sweep's table (an object with variant, settings, stretch"),
+    ('{"variant": "cloth.density=0.3"}', "expected a row of a sweep's table (an object with variant, settings"),
+    ("not json", "expected a row of a sweep's table"),
+])
+def test_a_stray_line_in_a_sweeps_table_is_refused_naming_the_file_and_the_line(tmp_path, stray, expected):
+    (tmp_path / "sheet.toml").write_text(SCENE)
+    sweep = ["sweep", "sheet.toml", "--set", "cloth.density=0.1,0.2", "--no-usd", "--out", "s"]
+    assert run_cli_in_process(*sweep, cwd=tmp_path)[0] == 0
+    results = tmp_path / "s" / "results.jsonl"
+    lines = results.read_text().splitlines()
+    edited = "\n".join([lines[0], stray, lines[1]]) + "\n"
+    results.write_text(edited)
+    code, out, err = run_cli_in_process(*sweep, cwd=tmp_path)
+    assert (code, out) == (2, "") and len(err.strip().splitlines()) == 1, err
+    assert f"warp-cloth sweep: error: {Path('s') / 'results.jsonl'}: line 2: {expected}" in err
+    assert results.read_text() == edited
+
+
+def test_a_last_row_cut_short_by_a_kill_is_run_again(tmp_path):
+    (tmp_path / "sheet.toml").write_text(SCENE)
+    sweep = ["sweep", "sheet.toml", "--set", "cloth.density=0.1,0.2", "--worlds", "1", "--no-usd", "--out", "s"]
+    assert run_cli_in_process(*sweep, cwd=tmp_path)[0] == 0
+    results = tmp_path / "s" / "results.jsonl"
+    whole = results.read_text()
+    first, second = whole.splitlines()
+    results.write_text(f"{first}\n{second[:len(second) // 2]}")  # killed as it wrote the second row
+    code, out, err = run_cli_in_process(*sweep, cwd=tmp_path)
+    assert code == 0, err
+    assert f"{Path('s') / 'results.jsonl'}: line 2 was cut short" in err
+    assert "2 variants (1 done before) in 1 batch," in out
+    rows = rows_of(tmp_path / "s")  # every line a whole row again
+    assert [r["variant"] for r in rows] == [json.loads(first)["variant"], json.loads(second)["variant"]]
+
+
+def test_a_cluster_address_where_a_web_server_answers_is_refused_in_seconds(tmp_path):
+    import http.server
+    import threading
+
+    (tmp_path / "sheet.toml").write_text(SCENE)
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), http.server.BaseHTTPRequestHandler)
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    address = f"127.0.0.1:{server.server_address[1]}"
+    try:
+        started = time.monotonic()
+        result = run_cli("sweep", "sheet.toml", "--set", "cloth.density=0.1", "--out", "s", "--cluster", address,
+                         cwd=tmp_path, timeout=60)
+        elapsed = time.monotonic() - started
+    finally:
+        server.shutdown()
+        server.server_close()
+    assert result.returncode == 2 and len(result.stderr.strip().splitlines()) == 1, result.stderr
+    assert (f"--cluster: expected the address of a running Ray cluster, HOST:PORT, or local (an HTTP server "
+            f"answered: HTTP/1.0 501") in result.stderr
+    assert f"got '{address}'" in result.stderr
+    assert elapsed < 30  # seconds of Python's and Warp's imports; the probe itself takes a moment
+    assert not (tmp_path / "s").exists()
+
+
+def test_an_address_where_a_grpc_server_answers_passes_the_check():
+    """Ray's GCS (HOST:6379) and client server (ray://HOST:10001) speak gRPC, whose server opens each
+    connection with an HTTP/2 SETTINGS frame."""
+    import socket
+    import threading
+
+    from warp_cloth.sweep import check_cluster_address
+
+    listener = socket.create_server(("127.0.0.1", 0))
+
+    def answer() -> None:
+        connection, _ = listener.accept()
+        connection.sendall(bytes.fromhex("000006040000000000") + bytes.fromhex("000300000064"))
+        time.sleep(1)
+        connection.close()
+
+    threading.Thread(target=answer, daemon=True).start()
+    try:
+        check_cluster_address(f"127.0.0.1:{listener.getsockname()[1]}")
+    finally:
+        listener.close()
+
+
+def test_a_cluster_that_fails_to_start_names_no_table_that_is_not_there(tmp_path, monkeypatch):
+    ray = pytest.importorskip("ray")
+
+    def refuse(*args, **kwargs):
+        raise ConnectionError("the cluster went away")
+
+    monkeypatch.setattr(ray, "init", refuse)
+    (tmp_path / "sheet.toml").write_text(SCENE)
+    code, out, err = run_cli_in_process("sweep", "sheet.toml", "--set", "cloth.density=0.1", "--out", "s",
+                                        "--cluster", "local", cwd=tmp_path)
+    assert code == 4 and len(err.strip().splitlines()) == 1, err
+    assert err.startswith("warp-cloth sweep: error: --cluster: could not start a Ray cluster here (ConnectionError: "
+                          "the cluster went away); nothing ran"), err
+    assert "results.jsonl" not in err
+    assert not (tmp_path / "s").exists()
+
+
+def test_a_cluster_sweep_without_ray_names_the_extra_to_install(tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "ray", None)  # import ray fails, as where it is not installed
+    (tmp_path / "sheet.toml").write_text(SCENE)
+    code, out, err = run_cli_in_process("sweep", "sheet.toml", "--set", "cloth.density=0.1", "--out", "s",
+                                        "--cluster", "local", cwd=tmp_path)
+    assert (code, out) == (2, "") and len(err.strip().splitlines()) == 1, err
+    assert "command line: --cluster: expected Ray installed (it is not: pip install 'warp-cloth[cluster]')" in err
+    assert not (tmp_path / "s").exists()
+
+
+def test_a_cluster_address_where_nothing_answers_is_refused_in_seconds(tmp_path):
+    import socket
+
+    (tmp_path / "sheet.toml").write_text(SCENE)
+    listener = socket.create_server(("127.0.0.1", 0))  # connections wait in its backlog, never answered
+    address = f"127.0.0.1:{listener.getsockname()[1]}"
+    try:
+        started = time.monotonic()
+        code, out, err = run_cli_in_process("sweep", "sheet.toml", "--set", "cloth.density=0.1", "--out", "s",
+                                            "--cluster", address, cwd=tmp_path)
+        elapsed = time.monotonic() - started
+    finally:
+        listener.close()
+    assert (code, out) == (2, "") and len(err.strip().splitlines()) == 1, err
+    assert f"(nothing answered there as Ray does within 5 s), got '{address}'" in err
+    assert elapsed < 15
     assert not (tmp_path / "s").exists()

@@ -14,6 +14,7 @@ import dataclasses
 import hashlib
 import json
 import os
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -22,6 +23,7 @@ from .errors import SceneError
 from .output import fsync_path, stem_path
 
 FORMAT = 2  # 2: the state's arrays by name (1 named them by the stage that held them)
+_META_FIELDS = {"format": int, "frame": int, "substeps": int, "scene": str}  # what the metadata must hold
 
 
 def scene_fingerprint(scene) -> str:
@@ -99,14 +101,23 @@ def _write(path: Path, checkpoint: Checkpoint) -> None:
 
 
 def load_checkpoint(path: str | Path) -> Checkpoint:
+    """The checkpoint at ``path``; one cut short, of another format or lacking a field is refused naming it."""
     try:
         with np.load(path, allow_pickle=False) as data:
             meta = json.loads(str(data["meta"]))
             arrays = {name: data[name] for name in data.files if name != "meta"}
-    except (OSError, ValueError, KeyError) as exc:
-        raise SceneError("checkpoint", "a checkpoint written by warp-cloth", f"{path} ({exc})") from None
-    if meta.get("format") != FORMAT:
-        raise SceneError("checkpoint", f"a checkpoint of format {FORMAT}", meta.get("format"), str(path))
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
+        raise SceneError("checkpoint", "a whole checkpoint written by warp-cloth (an .npz file; this one is cut short "
+                                       f"or is not one: {exc})", has_got=False, source=str(path)) from None
+    if not isinstance(meta, dict) or meta.get("format") != FORMAT:
+        got = meta.get("format") if isinstance(meta, dict) else meta
+        raise SceneError("checkpoint", f"a checkpoint of format {FORMAT}", got, str(path))
+    for name, kind in _META_FIELDS.items():
+        if not isinstance(meta.get(name), kind) or isinstance(meta.get(name), bool):
+            *others, last = _META_FIELDS
+            found = "is missing" if name not in meta else f"is {meta[name]!r}"
+            raise SceneError("checkpoint.meta", f"the fields {', '.join(others)} and {last} ({name} {found})",
+                             has_got=False, source=str(path))
     return Checkpoint(meta["frame"], meta["substeps"], meta["scene"], arrays, meta.get("extra", {}))
 
 

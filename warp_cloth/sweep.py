@@ -5,8 +5,10 @@
 
 A ``--set KEY=V1,V2,...`` names a key of the scene file by its path (``cloth.bend.stiffness`` sets it on
 every cloth, ``cloth[1].bend.stiffness`` on the second) and its values, each a TOML value (a bare word is
-a string); the sweep runs the cartesian product. With ``--random N``, ``KEY=LOW:HIGH`` draws a number
-uniformly in the range and a list draws one of its values, N times from ``--seed``.
+a string), each key and value once; the sweep runs the cartesian product. With ``--random N``,
+``KEY=LOW:HIGH`` draws a number uniformly in the range (to 6 significant digits, the value the variant's
+name and run both have) and a list draws one of its values, N times from ``--seed``; a variant drawn
+twice runs once.
 
 Variants that can share a step (see ``batch.step_key``) run together as the worlds of one batch, at most
 ``--worlds`` at a time; those with another step (another integrator, substeps, solve settings, or where
@@ -16,23 +18,28 @@ its USD, named by its settings, into the output folder, and one row of ``results
 ends: its settings, its worst edge stretch and compression over every frame, its kinetic energy and
 closest contact at the end, the frame it blew up in if it did, and the wall time. ``results.csv`` holds
 the same table. A sweep started again over the same folder skips the variants the table already has, so
-an interrupted sweep goes on where it stopped, and nothing is computed twice.
+an interrupted sweep goes on where it stopped, and nothing is computed twice; a row cut short by a kill is
+run again. The folder is locked while a sweep runs (``results.lock``): a second sweep into it is refused.
 
 With ``--cluster ADDRESS`` (a running Ray cluster's, or ``local`` for one started on this machine with
 ``--cluster-workers`` workers), each batch is a Ray task, on a GPU where the cluster has them (else on a
 CPU), retried on another worker if its worker is lost (``--retries``). The tasks write their USD files
 into the output folder, which every worker must reach (shared storage on a real cluster); the table is
-written here as their results come back. Ray is the ``cluster`` extra (``pip install 'warp-cloth[cluster]'``).
+written here as their results come back. An address where no Ray cluster answers is refused within
+seconds; Ray's own log lines show with ``--verbose``. Ray is the ``cluster`` extra:
+``pip install 'warp-cloth[cluster]'``.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import copy
 import csv
 import hashlib
 import itertools
 import json
+import logging
 import os
 import re
 import signal
@@ -49,6 +56,7 @@ import numpy as np
 
 from .cli import EXIT_BAD_INPUT, EXIT_SIGNAL_BASE
 from .errors import SceneError
+from .output import OutputLock, check_folder_output, check_names_fit, file_system_refusals, lock_path
 from .progress import Progress
 
 EXIT_FAILED = 4
@@ -57,6 +65,8 @@ RESULTS = "results.jsonl"
 TABLE = "results.csv"
 COLUMNS = ("variant", "settings", "stretch", "compression", "kinetic_energy", "closest_contact", "unstable_frame",
            "batch_worlds", "batch_seconds", "usd")
+SIGNIFICANT_DIGITS = 6  # of a number drawn in a range: its variant's name, row and run all have this value
+PROBE_SECONDS = 5.0  # how long a --cluster address has to answer as Ray does
 
 
 @dataclass(frozen=True)
@@ -106,7 +116,21 @@ def parse_set(text: str, random: bool) -> SweepKey:
             raise SceneError(f"--set {key}", "a range LOW:HIGH of two numbers, LOW <= HIGH", values,
                              source="command line")
         return SweepKey(key, low=float(low), high=float(high))
-    return SweepKey(key, tuple(_value(v) for v in _split_values(values)))
+    texts = _split_values(values)
+    parsed = tuple(_value(v) for v in texts)
+    for k, value in enumerate(parsed):
+        if value in parsed[:k]:  # by ==: 1 and 1.0 are one value (and would be one run)
+            raise SceneError(f"--set {key}", f"each value once ({texts[k].strip()} is there twice)", values,
+                             source="command line")
+    return SweepKey(key, parsed)
+
+
+def check_keys_once(keys: Sequence[SweepKey]) -> None:
+    paths = [k.path for k in keys]
+    for k, path in enumerate(paths):
+        if path in paths[:k]:
+            raise SceneError(f"--set {path}", "each key once (all its values in one --set)", has_got=False,
+                             source="command line")
 
 
 def settings_of(keys: Sequence[SweepKey], random: int | None, seed: int) -> list[tuple[tuple[str, Any], ...]]:
@@ -115,11 +139,20 @@ def settings_of(keys: Sequence[SweepKey], random: int | None, seed: int) -> list
         product = itertools.product(*[[(k.path, v) for v in k.values] for k in keys])
         return [tuple(p) for p in product]
     rng = np.random.default_rng(seed)
-    variants = []
+    variants, names = [], set()
     for _ in range(random):
-        variants.append(tuple((k.path, float(rng.uniform(k.low, k.high)) if k.low is not None
-                               else k.values[int(rng.integers(len(k.values)))]) for k in keys))
+        chosen = tuple((k.path, _drawn(rng, k.low, k.high) if k.low is not None
+                        else k.values[int(rng.integers(len(k.values)))]) for k in keys)
+        if describe(chosen) not in names:  # a variant drawn again would make the same frames
+            names.add(describe(chosen))
+            variants.append(chosen)
     return variants
+
+
+def _drawn(rng: np.random.Generator, low: float, high: float) -> float:
+    """A number drawn uniformly in [low, high], rounded to ``SIGNIFICANT_DIGITS`` (and kept in the range)."""
+    value = float(f"{rng.uniform(low, high):.{SIGNIFICANT_DIGITS}g}")
+    return min(max(value, low), high)
 
 
 _STEP = re.compile(r"([A-Za-z_][A-Za-z0-9_]*)(?:\[(\d+)\])?$")
@@ -226,7 +259,10 @@ class SweepInterrupted(Exception):
 
 
 def run_batch(variants: list[Variant], out: Path, device: str | None, usd: bool) -> list[dict[str, Any]]:
-    """Run one batch of variants and give their rows (what a cluster's task runs, too)."""
+    """Run one batch of variants and give their rows (what a cluster's task runs, too). Only while the
+    sweep holds its folder's lock: a variant's frames left under the staging name are then those of an
+    attempt of this sweep that was killed, and are removed (under the variant's own lock, so that a run
+    writing that file by hand is refused rather than overwritten)."""
     import warnings
 
     from .batch import Batch
@@ -240,13 +276,15 @@ def run_batch(variants: list[Variant], out: Path, device: str | None, usd: bool)
         warnings.simplefilter("ignore", UnstableStepWarning)  # a step past its bound: the table says if it blew up
         batch = Batch(scenes, device=device)
     paths = {w: out / f"{file_stem(v.settings)}.usdc" for w, v in enumerate(variants)} if usd else {}
-    for path in paths.values():
-        path.with_name(f"{path.stem}.incomplete.usdc").unlink(missing_ok=True)  # a killed attempt's, of this sweep
+    writers = {w: UsdWriter(p) for w, p in paths.items()}
     strain = WorldStrain()
     frames = scenes[0].simulation.frames
     started = time.perf_counter()
     try:
-        summary = batch.run(frames, writers={w: [UsdWriter(p)] for w, p in paths.items()}, monitors=[strain])
+        for w, writer in writers.items():
+            writer.lock.acquire(writer.key, f"variant {variants[w].name}")
+            writer.staging.unlink(missing_ok=True)
+        summary = batch.run(frames, writers={w: [writer] for w, writer in writers.items()}, monitors=[strain])
     except Exception as exc:  # every world stopped: the table says where each blew up
         from .errors import UnstableSimulation
 
@@ -255,6 +293,9 @@ def run_batch(variants: list[Variant], out: Path, device: str | None, usd: bool)
     else:
         if summary.interrupted:  # its worlds are not done: no rows, so that the sweep started again runs them
             raise SweepInterrupted(summary.stop_signal)
+    finally:
+        for writer in writers.values():  # those the batch did not end (a writer ending releases its own)
+            writer.lock.release()
     seconds = time.perf_counter() - started
     worst = strain.worst()
     contacts = batch.closest_contacts()
@@ -275,17 +316,49 @@ def run_batch(variants: list[Variant], out: Path, device: str | None, usd: bool)
     return rows
 
 
+def _is_row(line: str | bytes) -> bool:
+    try:
+        row = json.loads(line)
+    except ValueError:
+        return False
+    return (isinstance(row, dict) and all(c in row for c in COLUMNS) and isinstance(row["variant"], str)
+            and isinstance(row["settings"], dict))
+
+
+def mend_last_row(out: Path) -> None:
+    """A sweep killed as it wrote a row leaves the row's start without an end of line: that is cut off
+    (its variant runs again), saying so. A whole last row without one (a file saved by an editor) gets
+    its end of line, so that the next row starts a line of its own. Call it holding the sweep's lock."""
+    path = out / RESULTS
+    if not path.exists():
+        return
+    text = path.read_bytes()
+    if not text or text.endswith(b"\n"):
+        return
+    start = text.rfind(b"\n") + 1
+    if _is_row(text[start:]):
+        with open(path, "ab") as handle:
+            handle.write(b"\n")
+    elif text[start:].startswith(b'{"variant": '):  # how append_rows begins a row; anything else is refused
+        os.truncate(path, start)
+        line = text.count(b"\n") + 1
+        print(f"warp-cloth sweep: note: {path}: line {line} was cut short (a sweep stopped as it wrote it); its "
+              "variant runs again", file=sys.stderr)
+
+
 def done_variants(out: Path) -> dict[str, dict[str, Any]]:
-    """The rows an earlier run of this sweep wrote, by variant."""
+    """The rows an earlier run of this sweep wrote, by variant; a line that is not one is refused, naming it."""
     path = out / RESULTS
     if not path.exists():
         return {}
     rows = {}
-    for line in path.read_text().splitlines():
-        try:
-            row = json.loads(line)
-        except json.JSONDecodeError:
-            continue  # a line cut short by a kill: its variant runs again
+    for number, line in enumerate(path.read_text(errors="replace").splitlines(), 1):
+        if not line.strip():
+            continue
+        if not _is_row(line):
+            raise SceneError(f"line {number}", f"a row of a sweep's table (an object with {', '.join(COLUMNS)}); "
+                                               "mend the line or move the file away", line, source=str(path))
+        row = json.loads(line)
         rows[row["variant"]] = row
     return rows
 
@@ -317,50 +390,142 @@ def run_local(todo: list[list[Variant]], out: Path, device: str | None, usd: boo
         yield rows
 
 
+def require_ray() -> None:
+    try:
+        import ray  # noqa: F401
+    except ImportError:
+        raise SceneError("--cluster", "Ray installed (it is not: pip install 'warp-cloth[cluster]')", has_got=False,
+                         source="command line") from None
+
+
+_SETTINGS = 0x4  # the type of an HTTP/2 SETTINGS frame
+
+
 def check_cluster_address(address: str) -> None:
-    """Refuse an address no Ray cluster answers at, in a few seconds rather than Ray's minute."""
+    """Refuse, within seconds, an address where no Ray cluster answers (Ray itself tries for minutes).
+    Ray's GCS (``HOST:6379``) and its client server (``ray://HOST:10001``) speak gRPC, HTTP/2 whose server
+    opens every connection with a SETTINGS frame; whatever else answers (a web server, Redis) is named."""
     if address == "local":
         return
     host, _, port = address.removeprefix("ray://").rpartition(":")
     try:
-        with socket.create_connection((host or "127.0.0.1", int(port)), timeout=5):
-            pass
+        answer, what = _first_answer(host.strip("[]") or "127.0.0.1", int(port))
     except (OSError, ValueError) as exc:
-        reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
-        raise SceneError("--cluster", f"the address of a running Ray cluster, HOST:PORT, or local ({reason})",
-                         address, source="command line") from None
+        what = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+    else:
+        if _is_settings_frame(answer):
+            return
+    raise SceneError("--cluster", f"the address of a running Ray cluster, HOST:PORT, or local ({what})", address,
+                     source="command line")
+
+
+def _first_answer(host: str, port: int) -> tuple[bytes, str]:
+    """What the server at ``host:port`` says first, and that in words."""
+    deadline = time.monotonic() + PROBE_SECONDS
+    with socket.create_connection((host, port), timeout=PROBE_SECONDS) as connection:
+        # A gRPC server sends its SETTINGS frame on connecting, whatever it is sent; a web server answers
+        # this with a status line.
+        connection.sendall(f"GET / HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n".encode())
+        answer = b""
+        while len(answer) < 9 or (answer.startswith(b"HTTP/") and b"\n" not in answer and len(answer) < 512):
+            connection.settimeout(max(0.01, deadline - time.monotonic()))
+            try:
+                chunk = connection.recv(512)
+            except TimeoutError:
+                return answer, f"nothing answered there as Ray does within {PROBE_SECONDS:g} s"
+            if not chunk:
+                return answer, "it closed the connection without answering as Ray does"
+            answer += chunk
+    first = answer.split(b"\n")[0].strip().decode("ascii", "replace")
+    if answer.startswith(b"HTTP/"):
+        return answer, f"an HTTP server answered: {first}"
+    return answer, f"something other than Ray answered: {first[:40]!r}"
+
+
+def _is_settings_frame(answer: bytes) -> bool:
+    """An HTTP/2 frame header (length, type, flags, stream) of a SETTINGS frame, not an acknowledgement,
+    on stream 0."""
+    return (len(answer) >= 9 and answer[3] == _SETTINGS and not answer[4] & 0x1
+            and int.from_bytes(answer[5:9], "big") & 0x7FFFFFFF == 0)
 
 
 def run_cluster(todo: list[list[Variant]], out: Path, device: str | None, usd: bool, address: str, workers: int,
-                retries: int) -> Iterator[list]:
-    """Each batch a Ray task; rows come back as tasks end, in whatever order."""
+                retries: int, verbose: bool) -> Iterator[list]:
+    """Each batch a Ray task; rows come back as tasks end, in whatever order. Ray's own log lines (and
+    its workers' output) reach the terminal only where ``verbose``."""
+    import ray
+
+    with contextlib.nullcontext() if verbose else _quiet_logger("ray"):
+        try:
+            with contextlib.nullcontext() if verbose else _stderr_dropped():
+                _start_ray(ray, address, workers, verbose)
+            gpus = ray.cluster_resources().get("GPU", 0) > 0 and device in (None, "cuda")
+            task = ray.remote(num_gpus=1 if gpus else 0, num_cpus=0 if gpus else 1, max_retries=retries,
+                              retry_exceptions=False)(run_batch)
+            pending = [task.remote(chunk, out.absolute(), "cuda" if gpus else "cpu", usd) for chunk in todo]
+            while pending:
+                done, pending = ray.wait(pending, num_returns=1)
+                rows = ray.get(done[0])
+                append_rows(out, rows)
+                yield rows
+        finally:
+            ray.shutdown()
+
+
+class ClusterUnavailable(Exception):
+    """Ray could not start a cluster here or join the one at the address: nothing ran."""
+
+
+def _start_ray(ray, address: str, workers: int, verbose: bool) -> None:
     try:
-        import ray
-    except ImportError:
-        raise SceneError("--cluster", "Ray installed (pip install 'warp-cloth[cluster]')", has_got=False,
-                         source="command line") from None
-    if address == "local":
-        ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False, configure_logging=False)
-    else:
-        ray.init(address=address, log_to_driver=False, configure_logging=False)
+        if address == "local":  # a cluster of its own, not one RAY_ADDRESS or the last "ray start" here names
+            ray.init(address="local", num_cpus=workers, include_dashboard=False, log_to_driver=verbose,
+                     configure_logging=verbose)
+        else:
+            ray.init(address=address, log_to_driver=verbose, configure_logging=verbose)
+    except Exception as exc:
+        action = "start a Ray cluster here" if address == "local" else f"join the Ray cluster at {address}"
+        raise ClusterUnavailable(f"could not {action} ({type(exc).__name__}: {_last_line(exc)})") from exc
+
+
+def _last_line(exc: BaseException) -> str:
+    return (str(exc).strip().splitlines() or [""])[-1]
+
+
+@contextlib.contextmanager
+def _stderr_dropped() -> Iterator[None]:
+    """This process's file descriptor 2, where Ray's C++ core writes its log lines, sent nowhere (and so
+    for the processes started meanwhile: a local cluster's)."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, 2)
+    os.close(devnull)
     try:
-        gpus = ray.cluster_resources().get("GPU", 0) > 0 and device in (None, "cuda")
-        task = ray.remote(num_gpus=1 if gpus else 0, num_cpus=0 if gpus else 1, max_retries=retries,
-                          retry_exceptions=False)(run_batch)
-        pending = [task.remote(chunk, out.absolute(), "cuda" if gpus else "cpu", usd) for chunk in todo]
-        while pending:
-            done, pending = ray.wait(pending, num_returns=1)
-            rows = ray.get(done[0])
-            append_rows(out, rows)
-            yield rows
+        yield
     finally:
-        ray.shutdown()
+        sys.stderr.flush()
+        os.dup2(saved, 2)
+        os.close(saved)
+
+
+@contextlib.contextmanager
+def _quiet_logger(name: str) -> Iterator[None]:
+    """The ``name`` logger and those under it silent (Ray gives its own a handler that writes to stderr)."""
+    logger = logging.getLogger(name)
+    level = logger.level
+    logger.setLevel(logging.CRITICAL + 1)
+    try:
+        yield
+    finally:
+        logger.setLevel(level)
 
 
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="warp-cloth sweep", description=__doc__.split("\n\n")[0],
+    text = __doc__.replace("``", "")  # the docstring's literals, as the help shows them: plain
+    parser = argparse.ArgumentParser(prog="warp-cloth sweep", description=text.split("\n\n")[0],
                                      formatter_class=argparse.RawDescriptionHelpFormatter,
-                                     epilog="\n\n".join(__doc__.split("\n\n")[1:]))
+                                     epilog="\n\n".join(text.split("\n\n")[1:]))
     parser.add_argument("scene", help="built-in scene name or path to a .toml file")
     parser.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=V1,V2,...",
                         help="a key and its values (repeat for more keys)")
@@ -378,38 +543,77 @@ def _parser() -> argparse.ArgumentParser:
                         help="with --cluster local, how many workers (default 2)")
     parser.add_argument("--retries", type=int, default=3,
                         help="with --cluster, how often a batch whose worker was lost runs again (default 3)")
+    parser.add_argument("--verbose", action="store_true",
+                        help="with --cluster, show Ray's own log lines and its workers' output")
     return parser
 
 
-def main(argv: list[str] | None = None) -> int:
-    from .scene_file import load_scene_data
-    from .simulator import StopOnSignal
+def _count(n: int, one: str, many: str) -> str:
+    return f"{n} {one if n == 1 else many}"
 
+
+def check_output_folder(out: Path, variants: list[Variant], usd: bool) -> None:
+    """Every check a run's ``--out`` has, for the sweep's folder and the files it writes there."""
+    from .writers import UsdWriter
+
+    check_folder_output(out, "--out", "command line")
+    table = out / RESULTS
+    check_names_fit(table, [TABLE, f"{TABLE}.incomplete", lock_path(table).name], "--out", "command line")
+    try:
+        for variant in variants if usd else []:
+            UsdWriter(out / f"{file_stem(variant.settings)}.usdc")
+    except SceneError as exc:
+        raise SceneError("--out", exc.expected, str(out), "command line") from None
+
+
+def main(argv: list[str] | None = None) -> int:
     import warp as wp
 
     args = _parser().parse_args(argv)
     wp.config.log_level = wp.LOG_ERROR  # Warp's messages of modules loaded are not for the command's user
     try:
-        if not args.sets:
-            raise SceneError("--set", "at least one KEY=V1,V2,...", has_got=False, source="command line")
-        if args.random is not None and args.random < 1:
-            raise SceneError("--random", "a number of variants >= 1", args.random, source="command line")
-        if args.worlds < 1:
-            raise SceneError("--worlds", "a number of worlds >= 1", args.worlds, source="command line")
-        keys = [parse_set(text, args.random is not None) for text in args.sets]
-        settings = settings_of(keys, args.random, args.seed)
-        if not settings:
-            raise SceneError("--set", "values that make at least one variant", "none", source="command line")
-        if args.cluster is not None:
-            check_cluster_address(args.cluster)
-        base, _ = load_scene_data(args.scene)
-        variants, scenes = build_variants(base, settings, args.frames)
-    except SceneError as exc:
+        return _sweep(args)
+    except SceneError as exc:  # before anything runs, or a batch's (an output another run is writing)
         print(f"warp-cloth sweep: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
+
+
+def _sweep(args: argparse.Namespace) -> int:
+    from .scene_file import load_scene_data
+
+    if not args.sets:
+        raise SceneError("--set", "at least one KEY=V1,V2,...", has_got=False, source="command line")
+    if args.random is not None and args.random < 1:
+        raise SceneError("--random", "a number of variants >= 1", args.random, source="command line")
+    if args.worlds < 1:
+        raise SceneError("--worlds", "a number of worlds >= 1", args.worlds, source="command line")
+    keys = [parse_set(text, args.random is not None) for text in args.sets]
+    check_keys_once(keys)
+    settings = settings_of(keys, args.random, args.seed)
+    if not settings:
+        raise SceneError("--set", "values that make at least one variant", "none", source="command line")
+    if args.cluster is not None:
+        require_ray()
+        check_cluster_address(args.cluster)
+    base, _ = load_scene_data(args.scene)
+    variants, scenes = build_variants(base, settings, args.frames)
     out = args.out or Path("out") / f"sweep-{scenes[0].name}"
-    out.mkdir(parents=True, exist_ok=True)
-    done = done_variants(out)
+    check_output_folder(out, variants, not args.no_usd)
+    lock = OutputLock(out / RESULTS)  # the folder's, held while the sweep runs: a second sweep is refused
+    with file_system_refusals("--out", out, "command line"):
+        lock.acquire("--out", "command line")
+    try:
+        with file_system_refusals("--out", out, "command line"):
+            mend_last_row(out)
+        done = done_variants(out)
+        return _run(args, out, variants, scenes, done)
+    finally:
+        lock.release()  # and the folder, where the sweep made it and left nothing in it
+
+
+def _run(args: argparse.Namespace, out: Path, variants: list[Variant], scenes: list, done: dict) -> int:
+    from .simulator import StopOnSignal
+
     todo = [[variants[k] for k in chunk if variants[k].name not in done]
             for chunk in batches(scenes, args.worlds)]
     todo = [chunk for chunk in todo if chunk]
@@ -419,7 +623,7 @@ def main(argv: list[str] | None = None) -> int:
     finished, unstable, started = skipped, 0, time.perf_counter()
     usd = not args.no_usd
     runs = run_local(todo, out, args.device, usd) if args.cluster is None else \
-        run_cluster(todo, out, args.device, usd, args.cluster, args.cluster_workers, args.retries)
+        run_cluster(todo, out, args.device, usd, args.cluster, args.cluster_workers, args.retries, args.verbose)
     stopped_by = None  # the first Ctrl-C stops the batch in progress after its frame, a second at once
     try:
         with StopOnSignal() as stop:  # a signal between batches
@@ -434,11 +638,17 @@ def main(argv: list[str] | None = None) -> int:
         stopped_by = exc.signum
     except (KeyboardInterrupt, SceneError):
         raise
+    except ClusterUnavailable as exc:
+        bar.close()
+        hint = "" if args.verbose else "; --verbose shows Ray's log lines"
+        print(f"warp-cloth sweep: error: --cluster: {exc}; nothing ran{hint}", file=sys.stderr)
+        return EXIT_FAILED
     except Exception as exc:  # a batch that failed (a full disk; on a cluster, a worker lost past its retries)
         bar.close()
-        print(f"warp-cloth sweep: error: a batch failed ({type(exc).__name__}: {str(exc).strip().splitlines()[-1]}); "
-              f"the {finished - skipped} variants done are in {out / RESULTS}; start the sweep again to go on",
-              file=sys.stderr)
+        kept = (f"the {_count(finished, 'variant', 'variants')} done are in {out / RESULTS}" if finished else
+                "no variant was done")
+        print(f"warp-cloth sweep: error: a batch failed ({type(exc).__name__}: {_last_line(exc)}); {kept}; start "
+              "the sweep again to go on", file=sys.stderr)
         return EXIT_FAILED
     finally:
         runs.close()  # on a cluster, shuts Ray down
@@ -446,7 +656,8 @@ def main(argv: list[str] | None = None) -> int:
         rows = list(done_variants(out).values())
         if rows:
             write_table(out, rows)
-    status = f"{len(variants)} variants ({skipped} done before) in {len(todo)} batches"
+    status = (f"{_count(len(variants), 'variant', 'variants')} ({skipped} done before) in "
+              f"{_count(len(todo), 'batch', 'batches')}")
     if stopped_by is not None:
         status = (f"interrupted by {signal.Signals(stopped_by).name} after {finished} of {len(variants)} variants "
                   f"({skipped} done before); start the sweep again to go on")
