@@ -77,3 +77,22 @@ def test_readme_scene_reference_has_every_simulation_key():
     reference = _readme_paragraph("[simulation]\n")
     documented = set(re.findall(r"(\w+) = ", reference))  # as a line's key, or in a comment ("or substeps = 17")
     assert {f.name for f in dataclasses.fields(wc.Simulation)} <= documented
+
+
+def test_readme_names_the_builtin_scenes_whose_solves_reach_their_cap_as_measured():
+    """The README's claim of which built-in scenes end every limit solve within tolerance is what each
+    scene's full run measured (tools/builtin_solves.py), on every device recorded."""
+    import json
+
+    limited = {name for name in wc.builtin_scene_names() if any(c.limit is not None for c in wc.load_scene(name).cloths)}
+    capped = set()
+    records = sorted((REPO / "docs" / "results").glob("builtin-solves-*.jsonl"))
+    assert records
+    for path in records:
+        rows = [json.loads(line) for line in path.read_text().splitlines()]
+        assert {row["scene"] for row in rows} == limited, path
+        capped |= {row["scene"] for row in rows if row["limit_residual"] is not None and row["limit_residual"] > 1.0}
+    text = " ".join((REPO / "README.md").read_text().split())
+    claim = re.search(r"every solve ends within its tolerance but some of (.*?)'s:", text)
+    assert claim is not None, "the README says which scenes' solves reach their cap"
+    assert set(re.findall(r"`(\w+)`", claim.group(1))) == capped
