@@ -1,4 +1,4 @@
-"""The command line, the README's example, and the built wheel's contents."""
+"""The command line, the README's and the Python guide's examples, and the built wheel's contents."""
 
 import re
 import shutil
@@ -49,15 +49,19 @@ def test_run_output_options(tmp_path):
     assert len(list((tmp_path / "p").iterdir())) == 3 and not (tmp_path / "o").exists()
 
 
-def test_readme_python_example_runs(tmp_path, monkeypatch):
-    text = (REPO / "README.md").read_text()
-    example = re.search(r"## From Python\n\n```python\n(.*?)```", text, re.S).group(1)
-    batch = re.search(r"### Many scenes at once: a batch of worlds\n\n```python\n(.*?)```", text, re.S).group(1)
+def test_readme_and_python_guide_examples_run(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    names: dict = {}
-    exec(compile(example, "README.md", "exec"), names)
+    readme = re.search(r"\nFrom Python:\n\n```python\n(.*?)```", (REPO / "README.md").read_text(), re.S).group(1)
+    exec(compile(readme, "README.md", "exec"), {})
     assert (tmp_path / "out" / "hanging_1s.usdc").is_file()
-    exec(compile(batch, "README.md", "exec"), names)  # goes on from the first example's scene
+    (tmp_path / "out" / "hanging_1s.usdc").unlink()
+    text = (REPO / "docs" / "guide" / "python-api.md").read_text()
+    example = re.search(r"## From Python\n\n```python\n(.*?)```", text, re.S).group(1)
+    batch = re.search(r"## Many scenes at once: a batch of worlds\n\n```python\n(.*?)```", text, re.S).group(1)
+    names: dict = {}
+    exec(compile(example, "python-api.md", "exec"), names)
+    assert (tmp_path / "out" / "hanging_1s.usdc").is_file()
+    exec(compile(batch, "python-api.md", "exec"), names)  # goes on from the first example's scene
     assert names["batch"].frame == 24 and names["batch"].world_count == 3
 
 

@@ -131,18 +131,18 @@ def test_random_cloths_at_their_chosen_step_stay_finite_and_bounded(resolution, 
 
 
 @pytest.fixture
-def readme_example(tmp_path, monkeypatch) -> dict:
-    """The names the README's Python example leaves, after running it in an empty folder."""
-    text = (REPO / "README.md").read_text()
+def guide_example(tmp_path, monkeypatch) -> dict:
+    """The names the Python guide's first example leaves, after running it in an empty folder."""
+    text = (REPO / "docs" / "guide" / "python-api.md").read_text()
     example = re.search(r"## From Python\n\n```python\n(.*?)```", text, re.S).group(1)
     monkeypatch.chdir(tmp_path)
     names: dict = {}
-    exec(compile(example, "README.md", "exec"), names)
+    exec(compile(example, "python-api.md", "exec"), names)
     return names
 
 
-def test_readme_drop_scene_stays_stable_for_48_frames(readme_example):
-    sim = readme_example["sim"]
+def test_python_guide_drop_scene_stays_stable_for_48_frames(guide_example):
+    sim = guide_example["sim"]
     assert sim.scene.name == "drop" and sim.step_choice.automatic
     for _ in range(47):
         sim.step()  # raises UnstableSimulation on a blow-up
