@@ -34,8 +34,7 @@ from .bench_meshes import RINGS_FOR_100K, as_mesh_cloth, sphere_triangles, with_
 from .progress import Progress
 from .scene import Cloth, Collision, Ground, Limit, Oscillation, Pin, Scene, Simulation, Sphere, SpringKind
 from .scene_file import load_scene
-from .cli import EXIT_BAD_INPUT
-from .errors import SceneError, UnstableSimulation
+from .errors import EXIT_BAD_INPUT, SceneError, UnstableSimulation
 from .newton_compare import SOLVERS as NEWTON_SOLVERS, SPHERE_CENTER, SPHERE_RADIUS, SWING_DEGREES, swung_origin
 from .batch import Batch
 from .simulator import Simulator, resolve_device

@@ -13,17 +13,11 @@ import time
 import warnings
 from pathlib import Path
 
-from .errors import SceneError, UnstableSimulation
+from .errors import (EXIT_BAD_INPUT, EXIT_BROKEN_PIPE, EXIT_INTERRUPTED, EXIT_OUTPUT_FAILED, EXIT_SIGNAL_BASE,
+                     EXIT_UNSTABLE, SceneError, UnstableSimulation)
 from .progress import SlowStepNotice
 from .scene import INTEGRATORS, Scene
 from .shot_clock import shot_clock
-
-EXIT_BAD_INPUT = 2
-EXIT_UNSTABLE = 3
-EXIT_INTERRUPTED = 130
-EXIT_OUTPUT_FAILED = 4  # a writer failed (a full disk, ...): the run's frames are kept beside the output
-EXIT_SIGNAL_BASE = 128  # a run stopped by a signal exits with 128 + the signal's number (130 for Ctrl-C)
-EXIT_BROKEN_PIPE = 141  # 128 + SIGPIPE, what a shell reports for a command stopped by a closed pipe
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -323,8 +317,8 @@ def _quiet_warp() -> None:
 
 def _cmd_run(args: argparse.Namespace) -> int:
     _quiet_warp()
-    from .checkpoint import check_scene, checkpoint_path, load_checkpoint
-    from .output import OutputError, check_folder_output
+    from .checkpoint import check_scene, load_checkpoint
+    from .output import OutputError, check_folder_output, checkpoint_path
     from .scene_file import load_scene
     from .simulator import resolve_device
     from .writers import CheckpointWriter
