@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import dataclasses
+import importlib
 import os
 import signal
 import sys
@@ -98,6 +99,10 @@ def _parser() -> argparse.ArgumentParser:
                                         "Blender (see 'preview --help')", add_help=False)
     return parser
 
+
+# The lab's commands (warp_cloth/lab), each imported by its module's name when asked for: nothing of the
+# product imports the lab (tests/test_architecture.py).
+LAB_COMMANDS = {"bench": "warp_cloth.lab.bench", "study": "warp_cloth.lab.study"}
 
 # A [simulation] key the command line sets, by the name argparse keeps its option under, where they differ.
 OPTION_OF_KEY = {"start": "start_frame"}
@@ -498,14 +503,8 @@ def main(argv: list[str] | None = None) -> int:
 
 def _main(argv: list[str] | None) -> int:
     args, rest = _parser().parse_known_args(argv)
-    if args.command == "bench":
-        from .bench import main as bench_main
-
-        return bench_main(rest)
-    if args.command == "study":
-        from .study import main as study_main
-
-        return study_main(rest)
+    if args.command in LAB_COMMANDS:
+        return importlib.import_module(LAB_COMMANDS[args.command]).main(rest)
     if args.command == "sweep":
         from .sweep import main as sweep_main
 

@@ -42,15 +42,15 @@ from typing import Callable, Sequence
 import numpy as np
 import warp as wp
 
+from ..cloth_mesh import STRUCTURAL
+from ..errors import EXIT_BAD_INPUT, SceneError, UnstableSimulation
+from ..model import FLAG_ELASTIC_COMPRESSION, FLAG_ELASTIC_TENSION, Model, Springs
+from ..progress import Progress
+from ..scene import INTEGRATORS, MAX_SUBSTEPS, Cloth, Scene
+from ..scene_file import load_scene
+from ..simulator import Simulator, resolve_device
+from ..stability import UnstableStepWarning, cap_that_fits, scene_with_step
 from .bench import environment
-from .cloth_mesh import STRUCTURAL
-from .errors import EXIT_BAD_INPUT, SceneError, UnstableSimulation
-from .model import FLAG_ELASTIC_COMPRESSION, FLAG_ELASTIC_TENSION, Model, Springs
-from .progress import Progress
-from .scene import INTEGRATORS, MAX_SUBSTEPS, Cloth, Scene
-from .scene_file import load_scene
-from .simulator import Simulator, resolve_device
-from .stability import UnstableStepWarning, cap_that_fits, scene_with_step
 
 REFERENCE_INTEGRATOR = "symplectic"
 REFERENCE_REFINEMENTS = (2, 4, 8, 16, 32)  # the reference steps tried: the smallest study step over these
