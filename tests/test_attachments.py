@@ -9,10 +9,10 @@ import warp as wp
 
 import warp_cloth as wc
 from conftest import spring_strains
-from warp_cloth.bench import matrix_scene
-from warp_cloth.bench_meshes import as_mesh_cloth
+from warp_cloth.lab.bench import matrix_scene
+from warp_cloth.lab.bench_meshes import as_mesh_cloth
 from warp_cloth.model import _nearest_on_grid
-from warp_cloth.newton_compare import grid_strain
+from warp_cloth.lab.newton_compare import grid_strain
 from warp_cloth.kernels.wrapping import way_around_sphere
 from warp_cloth.spring_paths import nearest_along_edges
 

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 import warp_cloth as wc
-from warp_cloth.bench import Case, format_table, matrix_scene, time_case
-from warp_cloth.newton_compare import SIZE, grid_strain
+from warp_cloth.lab.bench import Case, format_table, matrix_scene, time_case
+from warp_cloth.lab.newton_compare import SIZE, grid_strain
 
 
 def test_grid_strain_reads_every_structural_and_shear_edge():
@@ -47,7 +47,7 @@ def test_case_reports_the_worst_edge_strain_over_every_frame_of_its_run():
 
 def test_bench_off_a_terminal_says_each_case_as_it_starts(tmp_path, capsys):
     """A suite's cases take minutes in all: a log (stderr not a terminal) gets a line as each one starts."""
-    from warp_cloth.bench import main
+    from warp_cloth.lab.bench import main
 
     code = main(["--suite", "matrix", "--device", "cpu", "--repeats", "1", "--no-newton", "--json",
                  str(tmp_path / "bench.json"), "--match", "hanging 64^2"])
@@ -64,7 +64,7 @@ def test_a_case_that_blew_up_says_so_with_no_time_or_strain_as_results(tmp_path,
     a suite whose cases all blew up still ends with its summary."""
     import json
 
-    from warp_cloth.bench import main
+    from warp_cloth.lab.bench import main
 
     case = "seed_20x20+self explicit dt=0.0104"
     code = main(["--suite", "integrators", "--device", "cpu", "--repeats", "1", "--json", str(tmp_path / "b.json"),

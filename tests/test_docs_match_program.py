@@ -12,8 +12,8 @@ import pytest
 
 import warp_cloth as wc
 from conftest import REPO, run_cli
-from warp_cloth.bench import SUITES
 from warp_cloth.checks import toml_key
+from warp_cloth.lab.bench import SUITES
 from warp_cloth.scene import INTEGRATORS
 
 DOCS = [REPO / "README.md", *sorted((REPO / "docs").rglob("*.md")), *sorted((REPO / "tools").glob("*.md"))]

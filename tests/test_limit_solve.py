@@ -132,7 +132,7 @@ def test_long_range_limits_and_chebyshev_take_a_fraction_of_the_passes_on_a_fine
 
 
 def test_chebyshev_restarts_where_a_collider_undoes_it_and_converges():
-    from warp_cloth.bench import matrix_scene
+    from warp_cloth.lab.bench import matrix_scene
     scene = matrix_scene("sphere", 32, "symplectic")
     scene = dataclasses.replace(scene, simulation=dataclasses.replace(
         scene.simulation, limit_solve="converged", limit_chebyshev_rho=0.99, limit_max_passes=300))

@@ -9,8 +9,8 @@ import pytest
 pytest.importorskip("newton")
 
 import warp_cloth as wc  # noqa: E402
-from warp_cloth.bench import matrix_scene  # noqa: E402
-from warp_cloth.newton_compare import (SOLVERS, SPHERE_CENTER, SPHERE_RADIUS, NewtonCloth, grid_strain,  # noqa: E402
+from warp_cloth.lab.bench import matrix_scene  # noqa: E402
+from warp_cloth.lab.newton_compare import (SOLVERS, SPHERE_CENTER, SPHERE_RADIUS, NewtonCloth, grid_strain,  # noqa: E402
                                        time_newton)
 
 N = 16
@@ -106,7 +106,7 @@ def test_unknown_names_are_refused():
 
 
 def test_the_module_imports_without_newton():
-    code = ("import sys; sys.modules['newton'] = None; import warp_cloth.newton_compare as m; "
+    code = ("import sys; sys.modules['newton'] = None; import warp_cloth.lab.newton_compare as m; "
             "print(m.newton_available())")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr

@@ -13,7 +13,8 @@ from hypothesis import strategies as st
 
 import warp_cloth as wc
 from conftest import run_cli, run_cli_in_process
-from warp_cloth import bench, scene as scene_module, simulator
+from warp_cloth import scene as scene_module, simulator
+from warp_cloth.lab import bench
 from warp_cloth.writers.shot_layer import prim_name
 from warp_cloth.stability import scene_with_step
 

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 import warp_cloth as wc
-import warp_cloth.study as study_module
-from warp_cloth.study import (StudyRun, Trajectory, converged_frames, main, pareto_front, run_study,
+import warp_cloth.lab.study as study_module
+from warp_cloth.lab.study import (StudyRun, Trajectory, converged_frames, main, pareto_front, run_study,
                               with_resolution)
 
 G = 9.81

@@ -18,7 +18,7 @@ import sys
 import numpy as np
 
 import warp_cloth as wc
-from warp_cloth.bench import matrix_scene
+from warp_cloth.lab.bench import matrix_scene
 from warp_cloth.spring_paths import nearest_along_edges
 
 TOLERANCE = 0.005

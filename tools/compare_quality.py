@@ -23,8 +23,8 @@ import time
 
 import warp as wp
 
-from warp_cloth.bench import Case, environment, matrix_scene, time_case
-from warp_cloth.newton_compare import time_newton
+from warp_cloth.lab.bench import Case, environment, matrix_scene, time_case
+from warp_cloth.lab.newton_compare import time_newton
 from strain_solve_probe import configured
 
 REPEATS = 3

@@ -25,7 +25,7 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "tests"))
 import hard_cases  # noqa: E402
 
 import warp_cloth as wc  # noqa: E402
-from warp_cloth.bench import environment, matrix_scene  # noqa: E402
+from warp_cloth.lab.bench import environment, matrix_scene  # noqa: E402
 from warp_cloth.diagnostics import ContactGaps, TriangleIntersections  # noqa: E402
 
 SCENES = {

@@ -34,7 +34,7 @@ import sys
 import warp as wp
 
 from lanes_probe import per_launch_us
-from warp_cloth.bench import MATRIX_VARIANTS, SPRINGS_ONLY, Case, environment, matrix_frames, matrix_scene, time_case
+from warp_cloth.lab.bench import MATRIX_VARIANTS, SPRINGS_ONLY, Case, environment, matrix_frames, matrix_scene, time_case
 from warp_cloth.kernels import passes as fused
 from warp_cloth.kernels.gathering import gathering_kernel, launch_gathering, load_gathering
 from warp_cloth.passes import GatheringPass

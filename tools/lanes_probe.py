@@ -28,7 +28,7 @@ import time
 
 import warp as wp
 
-from warp_cloth.bench import matrix_scene
+from warp_cloth.lab.bench import matrix_scene
 from warp_cloth.kernels import passes as fused
 from warp_cloth.kernels.gathering import BLOCK, gathering_kernel, launch_gathering, load_gathering
 from warp_cloth.passes import explicit_step_args

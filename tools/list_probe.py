@@ -19,7 +19,7 @@ import time
 
 import warp as wp
 
-from warp_cloth.bench import matrix_scene
+from warp_cloth.lab.bench import matrix_scene
 from warp_cloth.neighbour_lists import NeighbourLists
 from warp_cloth.simulator import Simulator
 

@@ -27,7 +27,7 @@ import time
 import warp as wp
 
 import warp_cloth as wc
-from warp_cloth.bench import environment, matrix_scene, seconds_of_runs
+from warp_cloth.lab.bench import environment, matrix_scene, seconds_of_runs
 from warp_cloth.diagnostics import CheckReport
 
 METHODS = {"fixed": ("fixed", 0.0, False, False), "jacobi": ("converged", 0.0, False, False),

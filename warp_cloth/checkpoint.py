@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import SceneError
-from .output import fsync_path, stem_path
+from .output import fsync_path, temporary_path
 
 FORMAT = 2  # 2: the state's arrays by name (1 named them by the stage that held them)
 _META_FIELDS = {"format": int, "frame": int, "substeps": int, "scene": str}  # what the metadata must hold
@@ -49,17 +49,6 @@ def scene_fingerprint(scene) -> str:
             for array in (surface.points, surface.face_counts, surface.face_indices):
                 digest.update(array.tobytes())
     return digest.hexdigest()
-
-
-def checkpoint_path(output: Path) -> Path:
-    """The checkpoint beside a run's first output: ``out/hanging.usdc`` -> ``out/hanging.checkpoint.npz``,
-    a folder ``poly`` -> ``poly.checkpoint.npz`` (see ``warp_cloth.output.stem_path``)."""
-    return output.with_name(f"{stem_path(output).name}.checkpoint.npz")
-
-
-def temporary_path(path: Path) -> Path:
-    """Where a checkpoint is written before it is renamed to ``path``."""
-    return path.with_name(path.name + ".tmp")
 
 
 def _arrays(sim) -> dict:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import dataclasses
+import importlib
 import os
 import signal
 import sys
@@ -13,17 +14,11 @@ import time
 import warnings
 from pathlib import Path
 
-from .errors import SceneError, UnstableSimulation
+from .errors import (EXIT_BAD_INPUT, EXIT_BROKEN_PIPE, EXIT_INTERRUPTED, EXIT_OUTPUT_FAILED, EXIT_SIGNAL_BASE,
+                     EXIT_UNSTABLE, SceneError, UnstableSimulation)
 from .progress import SlowStepNotice
 from .scene import INTEGRATORS, Scene
 from .shot_clock import shot_clock
-
-EXIT_BAD_INPUT = 2
-EXIT_UNSTABLE = 3
-EXIT_INTERRUPTED = 130
-EXIT_OUTPUT_FAILED = 4  # a writer failed (a full disk, ...): the run's frames are kept beside the output
-EXIT_SIGNAL_BASE = 128  # a run stopped by a signal exits with 128 + the signal's number (130 for Ctrl-C)
-EXIT_BROKEN_PIPE = 141  # 128 + SIGPIPE, what a shell reports for a command stopped by a closed pipe
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -104,6 +99,10 @@ def _parser() -> argparse.ArgumentParser:
                                         "Blender (see 'preview --help')", add_help=False)
     return parser
 
+
+# The lab's commands (warp_cloth/lab), each imported by its module's name when asked for: nothing of the
+# product imports the lab (tests/test_architecture.py).
+LAB_COMMANDS = {"bench": "warp_cloth.lab.bench", "study": "warp_cloth.lab.study"}
 
 # A [simulation] key the command line sets, by the name argparse keeps its option under, where they differ.
 OPTION_OF_KEY = {"start": "start_frame"}
@@ -323,8 +322,8 @@ def _quiet_warp() -> None:
 
 def _cmd_run(args: argparse.Namespace) -> int:
     _quiet_warp()
-    from .checkpoint import check_scene, checkpoint_path, load_checkpoint
-    from .output import OutputError, check_folder_output
+    from .checkpoint import check_scene, load_checkpoint
+    from .output import OutputError, check_folder_output, checkpoint_path
     from .scene_file import load_scene
     from .simulator import resolve_device
     from .writers import CheckpointWriter
@@ -504,14 +503,8 @@ def main(argv: list[str] | None = None) -> int:
 
 def _main(argv: list[str] | None) -> int:
     args, rest = _parser().parse_known_args(argv)
-    if args.command == "bench":
-        from .bench import main as bench_main
-
-        return bench_main(rest)
-    if args.command == "study":
-        from .study import main as study_main
-
-        return study_main(rest)
+    if args.command in LAB_COMMANDS:
+        return importlib.import_module(LAB_COMMANDS[args.command]).main(rest)
     if args.command == "sweep":
         from .sweep import main as sweep_main
 

@@ -1,6 +1,13 @@
-"""Errors a user can act on: bad scene input, an unstable run."""
+"""Errors a user can act on: bad scene input, an unstable run; and the exit codes the commands end with."""
 
 from __future__ import annotations
+
+EXIT_BAD_INPUT = 2  # a SceneError: bad input, one line naming the file or the command line
+EXIT_UNSTABLE = 3
+EXIT_INTERRUPTED = 130
+EXIT_OUTPUT_FAILED = 4  # a writer failed (a full disk, ...): the run's frames are kept beside the output
+EXIT_SIGNAL_BASE = 128  # a run stopped by a signal exits with 128 + the signal's number (130 for Ctrl-C)
+EXIT_BROKEN_PIPE = 141  # 128 + SIGPIPE, what a shell reports for a command stopped by a closed pipe
 
 
 class SceneError(ValueError):

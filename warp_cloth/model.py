@@ -15,12 +15,12 @@ import numpy as np
 from warp_cloth.kernels import springs as spring_kernels
 
 from .adjacency import Adjacency
-from .cloth_grid import build_grid, grid_positions, pinned_indices, rotation_matrix
+from .cloth_grid import build_grid, rotation_matrix
 from .cloth_mesh import BEND, SHEAR, STRUCTURAL, ClothMesh, enclosing_radii, rest_adjacent_pairs
-from .errors import SceneError
 from .hierarchy import Hierarchy, build_hierarchy
-from .mesh_cloth import build_mesh_cloth, mesh_positions
+from .mesh_cloth import build_mesh_cloth
 from .mesh_io import unique_pairs
+from .pin_selection import select_pins
 from .scene import Cloth, Scene, SpringKind, TransformKey
 from .shot_clock import shot_clock
 from .spring_paths import nearest_along_edges
@@ -438,36 +438,6 @@ def _nearest_on_grid(gx: np.ndarray, gy: np.ndarray, px: np.ndarray, py: np.ndar
             best[closer] = d2[closer]
             best_index[closer] = order[side[closer]]
     return best_index, np.sqrt(best)
-
-
-def select_pins(scene: Scene) -> list[list[np.ndarray]]:
-    """Per cloth, per pin, the particles it selects (cloth-local indices); a SceneError if a pin selects
-    nothing, an index out of range, or a particle another pin already holds."""
-    selections = []
-    for c, cloth in enumerate(scene.cloths):
-        if not cloth.pins:
-            selections.append([])
-            continue
-        # Only a region needs the particles' positions: a whole grid's worth, skipped for corners and edges.
-        positions = initial_positions(cloth) if any(pin.region is not None for pin in cloth.pins) else None
-        owner: dict[int, str] = {}
-        chosen_per_pin = []
-        for p, pin in enumerate(cloth.pins):
-            key = f"cloth[{c}].pins[{p}]"
-            chosen = pinned_indices(cloth, pin, positions, key)
-            for i in chosen.tolist():
-                if i in owner:
-                    raise SceneError(key, f"pins that select each particle once (particle {i} is also pinned "
-                                          f"by {owner[i]})", has_got=False)
-                owner[i] = key
-            chosen_per_pin.append(chosen)
-        selections.append(chosen_per_pin)
-    return selections
-
-
-def initial_positions(cloth: Cloth) -> np.ndarray:
-    """A cloth's particles in its initial pose, (n, 3) float64, without building the rest of it."""
-    return grid_positions(cloth) if cloth.mesh is None else mesh_positions(cloth)
 
 
 def _pins(scene: Scene, meshes, offsets, selections: list[list[np.ndarray]]) -> Pins | None:

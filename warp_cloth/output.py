@@ -71,6 +71,17 @@ def lock_path(output: Path) -> Path:
     return output.with_name(f"{stem_path(output).name}.lock")
 
 
+def checkpoint_path(output: Path) -> Path:
+    """The checkpoint beside a run's first output: ``out/hanging.usdc`` -> ``out/hanging.checkpoint.npz``,
+    a folder ``poly`` -> ``poly.checkpoint.npz`` (see ``stem_path``)."""
+    return output.with_name(f"{stem_path(output).name}.checkpoint.npz")
+
+
+def temporary_path(path: Path) -> Path:
+    """Where a checkpoint is written before it is renamed to ``path``."""
+    return path.with_name(path.name + ".tmp")
+
+
 def _nearest_existing(path: Path) -> Path:
     path = path.absolute()
     while not os.path.exists(path) and path != path.parent:  # os.path: False for a name too long, not OSError
@@ -295,8 +306,6 @@ class StagedOutput:
     def _names_made(self) -> list[str]:
         """The names a run makes beside the output (``interrupted.99`` the longest label, ``.tmp`` the
         checkpoint's temporary name)."""
-        from .checkpoint import checkpoint_path, temporary_path
-
         return [self.staging.name, labelled(self.target, f"{INTERRUPTED}.99", self.suffix).name,
                 self.lock.path.name, temporary_path(checkpoint_path(self.target)).name]
 
@@ -313,8 +322,6 @@ class StagedOutput:
                 raise
 
     def _refuse_an_unfinished_run(self) -> None:
-        from .checkpoint import checkpoint_path
-
         if self.staging.exists():
             raise SceneError(self.key, f"an output without a killed run's frames beside it: {self.staging} holds "
                                        f"them; continue that run with --resume or move the {self.kind} away",

@@ -25,8 +25,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from .cli import EXIT_BAD_INPUT, EXIT_OUTPUT_FAILED
-from .errors import SceneError
+from .errors import EXIT_BAD_INPUT, EXIT_OUTPUT_FAILED, SceneError
 from .output import OutputLock, check_file_output, labelled, png_mark, refuse_replacing_unmarked_png
 from .progress import Progress
 

@@ -824,7 +824,7 @@ class Scene:
         self._check_pin_targets()
         self._check_motion_in_bounds()
         self._check_edge_contacts_limited()
-        from .model import select_pins  # the pins' particles depend on the grid the model builds
+        from .pin_selection import select_pins  # the pins' particles depend on the cloth's initial pose
 
         select_pins(self)
 

@@ -54,8 +54,7 @@ from typing import Any
 
 import numpy as np
 
-from .cli import EXIT_BAD_INPUT, EXIT_SIGNAL_BASE
-from .errors import SceneError
+from .errors import EXIT_BAD_INPUT, EXIT_SIGNAL_BASE, SceneError
 from .output import OutputLock, check_folder_output, check_names_fit, file_system_refusals, lock_path
 from .progress import Progress
 

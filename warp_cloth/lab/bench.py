@@ -6,7 +6,7 @@ number of limit passes a substep) and the speed matrix as first measured, and ev
 that bought; what solving the limit to a tolerance costs is tools/strain_solve_probe.py's
 (docs/strain-solve.md). The built-in scenes run as their files say.
 
-    python -m warp_cloth.bench --suite core --device cpu --json out/bench-core-cpu.json
+    python -m warp_cloth.lab.bench --suite core --device cpu --json out/bench-core-cpu.json
 """
 
 from __future__ import annotations
@@ -30,18 +30,17 @@ from typing import Callable, Sequence
 import numpy as np
 import warp as wp
 
+from ..progress import Progress
+from ..scene import Cloth, Collision, Ground, Limit, Oscillation, Pin, Scene, Simulation, Sphere, SpringKind
+from ..scene_file import load_scene
+from ..errors import EXIT_BAD_INPUT, SceneError, UnstableSimulation
+from ..batch import Batch
+from ..simulator import Simulator, resolve_device
+from ..stability import UnstableStepWarning
+from ..strain import StrainMonitor, StrainReport
+from ..writers import PolyWriter, UsdWriter
 from .bench_meshes import RINGS_FOR_100K, as_mesh_cloth, sphere_triangles, with_mesh_sphere
-from .progress import Progress
-from .scene import Cloth, Collision, Ground, Limit, Oscillation, Pin, Scene, Simulation, Sphere, SpringKind
-from .scene_file import load_scene
-from .cli import EXIT_BAD_INPUT
-from .errors import SceneError, UnstableSimulation
 from .newton_compare import SOLVERS as NEWTON_SOLVERS, SPHERE_CENTER, SPHERE_RADIUS, SWING_DEGREES, swung_origin
-from .batch import Batch
-from .simulator import Simulator, resolve_device
-from .stability import UnstableStepWarning
-from .strain import StrainMonitor, StrainReport
-from .writers import PolyWriter, UsdWriter
 
 # The seed's C++ on this machine kind (docs/seed-baseline.md). It always ran its O(n^2)
 # self collision, so only the "+self" rows do the same work and get a ratio (seed_25x25, without

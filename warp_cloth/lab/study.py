@@ -42,17 +42,16 @@ from typing import Callable, Sequence
 import numpy as np
 import warp as wp
 
+from ..cloth_mesh import STRUCTURAL
+from ..errors import EXIT_BAD_INPUT, SceneError, UnstableSimulation
+from ..model import FLAG_ELASTIC_COMPRESSION, FLAG_ELASTIC_TENSION, Model, Springs
+from ..progress import Progress
+from ..scene import INTEGRATORS, MAX_SUBSTEPS, Cloth, Scene
+from ..scene_file import load_scene
+from ..simulator import Simulator, resolve_device
+from ..stability import UnstableStepWarning, cap_that_fits, scene_with_step
 from .bench import environment
-from .cloth_mesh import STRUCTURAL
-from .errors import SceneError, UnstableSimulation
-from .model import FLAG_ELASTIC_COMPRESSION, FLAG_ELASTIC_TENSION, Model, Springs
-from .progress import Progress
-from .scene import INTEGRATORS, MAX_SUBSTEPS, Cloth, Scene
-from .scene_file import load_scene
-from .simulator import Simulator, resolve_device
-from .stability import UnstableStepWarning, cap_that_fits, scene_with_step
 
-EXIT_BAD_INPUT = 2
 REFERENCE_INTEGRATOR = "symplectic"
 REFERENCE_REFINEMENTS = (2, 4, 8, 16, 32)  # the reference steps tried: the smallest study step over these
 # A first-order reference's own error is about twice its difference from the half-step run, so requiring a

@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .cloth_grid import build_grid
-from .scene import Cloth, MeshCollider, MeshSource, Pin, Scene
+from ..cloth_grid import build_grid
+from ..scene import Cloth, MeshCollider, MeshSource, Pin, Scene
 
 _FOLDER: tempfile.TemporaryDirectory | None = None
 
@@ -39,7 +39,7 @@ def write_obj(path: Path, points: np.ndarray, faces: list[np.ndarray]) -> Path:
 def as_mesh_cloth(scene: Scene, triangles: bool) -> Scene:
     """The scene's (one) grid cloth read back from an OBJ of its quads, or of each quad as two triangles;
     its pins by the indices of the particles the grid's pins held."""
-    from .model import select_pins
+    from ..pin_selection import select_pins
 
     (cloth,) = scene.cloths
     grid = build_grid(cloth)
