@@ -289,8 +289,8 @@ def test_a_second_sweep_into_the_same_folder_is_refused_at_once_and_the_first_co
     first = subprocess.Popen(args, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         deadline = time.monotonic() + 120
-        while time.monotonic() < deadline and first.poll() is None and not list((tmp_path / "s").glob(
-                "*.incomplete.usdc")):
+        while time.monotonic() < deadline and first.poll() is None and len(list((tmp_path / "s").glob(
+                "*.incomplete.usdc"))) < 2:  # the batch's two worlds make their files one after the other
             time.sleep(0.05)
         in_progress = sorted((tmp_path / "s").glob("*.incomplete.usdc"))
         assert len(in_progress) == 2, "the first sweep was not seen writing"
