@@ -376,31 +376,6 @@ def projection_residual(x: wp.array(dtype=wp.vec3), args: ResidualArgs, residual
         wp.atomic_max(residual, 0, worst)
 
 
-# --- the coarse levels of the multilevel limit solve (warp_cloth/hierarchy.py) ------------------------------
-
-@wp.kernel
-def level_pass(first: int, offsets: wp.array(dtype=int), other: wp.array(dtype=int), limit: wp.array(dtype=int),
-               target: wp.array(dtype=wp.vec2), inv_mass: wp.array(dtype=float), colliders: RigidColliders, h: float,
-               x: wp.array(dtype=wp.vec3), x_out: wp.array(dtype=wp.vec3)):
-    """One Jacobi pass over a coarse level's nodes first, first + 1, ... (a thread each), from ``x`` to
-    ``x_out``: each node moves by the mean correction of its limits outside their targets, then is put
-    outside the rigid colliders (a node has no velocity of its own: its particles' change as they follow
-    it); a pinned node stays."""
-    i = first + wp.tid()
-    xi = x[i]
-    wi = inv_mass[i]
-    if wi > 0.0:
-        total = wp.vec4(0.0)
-        for e in range(offsets[i], offsets[i + 1]):
-            j = other[e]
-            bounds = target[limit[e]]
-            c, out = limit_correction(xi, wi, x[j], inv_mass[j], bounds[0], bounds[1])
-            total = total + wp.vec4(c[0], c[1], c[2], float(out))
-        xi = xi + mean_of(total)
-        xi, unused_velocity, unused_hit = collide_particle(i, xi, wp.vec3(0.0), colliders, h)
-    x_out[i] = xi
-
-
 # --- contact velocities, and the end of the substep's list remake -------------------------------------------
 
 @wp.struct

@@ -1,6 +1,6 @@
 """What the converged limit solve takes: the passes a substep (mean and most) and the worst edge strain
 over every frame, for the methods of docs/strain-solve.md (plain Jacobi, Chebyshev-accelerated Jacobi
-with restarts, that with long-range limits, and the multilevel solve), on the hanging cloth at one implicit
+with restarts, and that with long-range limits), on the hanging cloth at one implicit
 step a frame from 10^2 to 160^2 and on the speed matrix's sphere and self-collision cloths at 64^2.
 
     python tools/strain_solve_probe.py OUT.json [--device cpu] [--rho-sweep | --contacts | --matrix N ...]
@@ -11,9 +11,9 @@ Chebyshev with long-range limits at spectral radii 0.95, 0.97 and 0.99 on the 80
 seed_default (60 frames, at most 400 passes): docs/results/strain-solve-rho-cpu.json. With --contacts, the
 fixed passes against Chebyshev (0.95) with long-range limits (or --methods) on the built-in scenes with
 particle collision, 72 frames, with the crossing triangle pairs and the closest contact of every frame:
-docs/results/strain-solve-contacts-cpu.json, and with --methods fixed jacobi multilevel
-docs/results/strain-solve-contacts-multilevel-cpu.json. With --matrix N ... (on a GPU) it times the speed
-matrix's sphere and self-collision cloths (symplectic; with --integrator implicit, springs 50 times
+docs/results/strain-solve-contacts-cpu.json (strain-solve-contacts-multilevel-cpu.json and the other files'
+multilevel rows were made with the multilevel solve, retired since). With --matrix N ... (on a GPU) it
+times the speed matrix's sphere and self-collision cloths (symplectic; with --integrator implicit, springs 50 times
 stiffer) at those sizes over 48 frames after 2 (the swing onto the sphere and the drape), each method in
 turn, and measures their strain over a second run of 50 frames."""
 
@@ -30,18 +30,16 @@ import warp_cloth as wc
 from warp_cloth.bench import environment, matrix_scene, seconds_of_runs
 from warp_cloth.diagnostics import CheckReport
 
-METHODS = {"fixed": ("fixed", 0.0, False, False), "jacobi": ("converged", 0.0, False, False),
-           "chebyshev": ("converged", 0.99, False, False), "chebyshev+long_range": ("converged", 0.99, True, False),
-           "multilevel": ("converged", 0.0, False, True)}
+METHODS = {"fixed": ("fixed", 0.0, False), "jacobi": ("converged", 0.0, False),
+           "chebyshev": ("converged", 0.99, False), "chebyshev+long_range": ("converged", 0.99, True)}
 
 
 def configured(scene: wc.Scene, method: str, max_passes: int, rho: float | None = None) -> wc.Scene:
-    solve, default_rho, long_range, multilevel = METHODS[method]
+    solve, default_rho, long_range = METHODS[method]
     rho = default_rho if rho is None or not default_rho else rho  # plain Jacobi stays plain
     cloths = tuple(dataclasses.replace(c, limit=dataclasses.replace(c.limit, long_range=long_range)) for c in scene.cloths)
     return dataclasses.replace(scene, cloths=cloths, simulation=dataclasses.replace(
-        scene.simulation, limit_solve=solve, limit_chebyshev_rho=rho, limit_max_passes=max_passes,
-        limit_multilevel=multilevel))
+        scene.simulation, limit_solve=solve, limit_chebyshev_rho=rho, limit_max_passes=max_passes))
 
 
 def hanging(n: int) -> wc.Scene:
@@ -149,7 +147,7 @@ def main() -> None:
     else:
         cases = [(hanging(n), 24, m, None, 1000) for n in (10, 20, 40, 80) for m in METHODS
                  if not (n == 80 and m == "jacobi")]
-        cases += [(hanging(160), 24, m, None, 1000) for m in ("fixed", "chebyshev+long_range", "multilevel")]
+        cases += [(hanging(160), 24, m, None, 1000) for m in ("fixed", "chebyshev+long_range")]
         cases += [(matrix_scene(v, 64, "symplectic"), 60, m, None, 1000) for v in ("sphere", "self") for m in METHODS]
     rows = []
     for scene, frames, method, rho, cap in cases:

@@ -102,38 +102,6 @@ class ParticleContacts:
     edges: DeviceContactEdges | None
 
 
-@dataclass(frozen=True)
-class LevelLinks:
-    """Per node (or particle) its parents in the next coarser level and their weights (CSR)."""
-    offsets: wp.array
-    parent: wp.array
-    weight: wp.array
-
-
-@dataclass(frozen=True)
-class LevelLimits:
-    """Per node its coarse limits (CSR): the node at the other end and the limit's index."""
-    offsets: wp.array
-    other: wp.array
-    limit: wp.array
-
-
-@dataclass(frozen=True)
-class DeviceHierarchy:
-    """The coarse levels of the strain limits (warp_cloth/hierarchy.py) on the device."""
-    first: tuple[int, ...]  # where each level's nodes start, and the end
-    particle: wp.array
-    inv_mass: wp.array
-    edge_first: tuple[int, ...]  # where each level's limits start (level 0: the springs'), and the end
-    edge_ends: wp.array  # vec2i
-    edge_longest: wp.array
-    edge_shortest: wp.array
-    edge_path: wp.array  # vec3i
-    limits: LevelLimits
-    parents: LevelLinks  # of the nodes of every level but the coarsest
-    particle_parents: LevelLinks  # of the particles, in the first level
-
-
 class DeviceModel:
     """A model and its scene's settings on a device; an effect the scene does not declare is None here and
     costs no memory. ``h`` is the substep's length in seconds."""
@@ -162,7 +130,6 @@ class DeviceModel:
         self.compensated = simulation.compensated
         self.springs = self._springs(model, n)
         self.limits = self._limits(model)
-        self.hierarchy = self._hierarchy(model) if model.hierarchy is not None and self.limits is not None else None
         self.limit_iterations = simulation.limit_iterations
         self.limit_solve = simulation.limit_solve
         self.limit_tolerance = simulation.limit_tolerance
@@ -230,18 +197,6 @@ class DeviceModel:
         limits.attachment_length = upload(lim.attachment_length, float, device)
         limits.chord_half = 0.5 * float(lim.max_length.max(initial=0.0))
         return limits
-
-    def _hierarchy(self, model: Model) -> DeviceHierarchy:
-        device, levels = self.device, model.hierarchy
-        links = lambda csr: LevelLinks(upload(csr.offsets, int, device), upload(csr.index, int, device),  # noqa: E731
-                                       upload(csr.value, float, device))
-        limits = LevelLimits(upload(levels.limits.offsets, int, device), upload(levels.limits.index, int, device),
-                             upload(levels.limits.value, int, device))
-        return DeviceHierarchy(levels.first, upload(levels.particle, int, device), upload(levels.inv_mass, float, device),
-                               levels.edge_first, upload(levels.edge_ends, wp.vec2i, device),
-                               upload(levels.edge_longest, float, device), upload(levels.edge_shortest, float, device),
-                               upload(levels.edge_path, wp.vec3i, device),
-                               limits, links(levels.parents), links(levels.particle_parents))
 
     def _contacts(self, model: Model, settings: Collision) -> ParticleContacts:
         device, contacts, rules = self.device, model.contacts, PairRules()

@@ -18,7 +18,6 @@ from .adjacency import Adjacency
 from .cloth_grid import build_grid, grid_positions, pinned_indices, rotation_matrix
 from .cloth_mesh import BEND, SHEAR, STRUCTURAL, ClothMesh, enclosing_radii, rest_adjacent_pairs
 from .errors import SceneError
-from .hierarchy import Hierarchy, build_hierarchy
 from .mesh_cloth import build_mesh_cloth, mesh_positions
 from .mesh_io import unique_pairs
 from .scene import Cloth, Scene, SpringKind, TransformKey
@@ -197,7 +196,6 @@ class Model:
     edges: np.ndarray  # (e, 2) int32: every cloth's structural and shear edges, springs or not
     edge_rest: np.ndarray  # (e,) float32: their rest lengths
     edge_kind: np.ndarray  # (e,) int32: STRUCTURAL or SHEAR
-    hierarchy: Hierarchy | None = None  # coarser levels of the strain limits, for the multilevel solve
     mesh_colliders: MeshColliders | None = None
     wind_faces: WindFaces | None = None
     pin_animations: tuple[PinAnimation, ...] = ()
@@ -253,38 +251,10 @@ def build_model(scene: Scene, worlds: Worlds | None = None) -> Model:
     springs = _springs(scene, meshes, offsets, n)
     limits = _limits(springs, n, _attachments(scene, meshes, offsets, selections), _long_range(scene, meshes, offsets))
     edges, edge_rest, edge_kind = _edges(meshes, offsets)
-    hierarchy = _hierarchy(springs, masses, inv_mass, scene, offsets) if scene.simulation.limit_multilevel else None
     return Model(meshes, tuple(offsets), positions, velocities, masses, inv_mass, cloth_id, springs, limits,
-                 pins, _spheres(scene, begins), _contacts(scene, meshes), edges, edge_rest, edge_kind, hierarchy,
+                 pins, _spheres(scene, begins), _contacts(scene, meshes), edges, edge_rest, edge_kind,
                  _mesh_colliders(scene, begins), _wind_faces(meshes, offsets) if scene.wind is not None else None,
                  pin_animations, worlds)
-
-
-def _hierarchy(springs: Springs | None, masses: np.ndarray, inv_mass: np.ndarray, scene: Scene,
-               offsets: list[int]) -> Hierarchy | None:
-    """The coarser levels of the limited springs' graph, every 2nd, 4th, ... row and column of each grid
-    preferred (and along an edge of pins, every 2nd, 4th, ... pin)."""
-    if springs is None or not np.isfinite(springs.limit_max).any():
-        return None
-    limited = np.isfinite(springs.limit_max)
-    lattice = np.zeros(len(masses))
-    for c, cloth in enumerate(scene.cloths):
-        if cloth.mesh is not None:  # no rows to prefer: the pinned particles first, then any
-            lattice[offsets[c]:offsets[c + 1]] = np.where(inv_mass[offsets[c]:offsets[c + 1]] == 0.0, 30, 0)
-            continue
-        columns = cloth.resolution[0] + 1
-        index = np.arange(cloth.particle_count)
-        halvings = _halvings(index % columns), _halvings(index // columns)
-        pinned = inv_mass[offsets[c]:offsets[c + 1]] == 0.0
-        lattice[offsets[c]:offsets[c + 1]] = np.where(pinned, np.maximum(*halvings), np.minimum(*halvings))
-    return build_hierarchy(springs.pairs[limited], springs.limit_min[limited], springs.limit_max[limited], masses,
-                           inv_mass, lattice)
-
-
-def _halvings(k: np.ndarray) -> np.ndarray:
-    """How many times k can be halved and stay whole (30 for 0)."""
-    k = k.astype(np.int64)
-    return np.where(k == 0, 30, np.log2((k & -k).clip(1)).astype(np.int64))
 
 
 def _edges(meshes, offsets) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

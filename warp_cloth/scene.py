@@ -689,9 +689,7 @@ class Simulation:
     contact distance inside it), at most ``limit_max_passes`` a substep (``Simulator.solver_stats()``
     says how many it took; unset: 200, or as many as keep a frame within the simulator's bound on a frame's
     passes at its substeps); ``limit_chebyshev_rho`` > 0 accelerates each pair of passes by Chebyshev's
-    semi-iterative method with that spectral radius; ``limit_multilevel`` begins each pair with passes
-    over coarser and coarser levels of the limits, coarsest first, each finer level following its coarse
-    neighbours' moves (warp_cloth/hierarchy.py, docs/strain-solve.md). ``"fixed"``, a fast mode to be
+    semi-iterative method with that spectral radius. ``"fixed"``, a fast mode to be
     chosen explicitly, runs ``limit_iterations`` passes a substep, however far that leaves the cloth from its
     limits (the run's summary says how far).
 
@@ -722,7 +720,6 @@ class Simulation:
     limit_tolerance: float = 0.005
     limit_max_passes: int | None = None
     limit_chebyshev_rho: float = 0.0
-    limit_multilevel: bool = False
     max_speed: float = 1000.0
     compensated: bool = False
 
@@ -758,11 +755,6 @@ class Simulation:
         _require(not self.compensated or self.integrator != "implicit", "compensated",
                  "false with the implicit integrator (it sums the explicit and symplectic steps' moves)",
                  self.compensated)
-        _require(not self.limit_multilevel or self.limit_solve == "converged", "limit_multilevel",
-                 'false, or true with limit_solve = "converged"', self.limit_multilevel)
-        _require(not (self.limit_multilevel and self.limit_chebyshev_rho), "limit_chebyshev_rho",
-                 "0 with limit_multilevel (the two together diverged on the speed matrix's sphere cloth, "
-                 "docs/strain-solve.md)", self.limit_chebyshev_rho)
 
     @property
     def substeps_per_frame(self) -> int | None:
