@@ -652,15 +652,12 @@ class ImplicitSolver:
     linearised step; more steps solve the nonlinear backward Euler equations until the residual (RMS over
     free particles of |M (v - v0) - h f| / m, in m/s) is below ``newton_tolerance``. Each step is solved
     by conjugate gradient to ``cg_tolerance`` (relative, in the preconditioned norm) or
-    ``cg_max_iterations``. ``cg_loop`` says how the iterations run on the device: ``device_while`` (a
-    conditional loop in the captured graph) or ``unrolled`` (``cg_max_iterations`` captured iterations
-    that skip their work once converged)."""
+    ``cg_max_iterations``, in a conditional loop on the device (inside the captured graph)."""
 
     newton_iterations: int = 1
     newton_tolerance: float = 1e-4
     cg_tolerance: float = 1e-4
     cg_max_iterations: int = 200
-    cg_loop: Literal["device_while", "unrolled"] = "device_while"
 
     def __post_init__(self) -> None:
         check_fields(self)
