@@ -20,6 +20,7 @@ from warp_cloth.device_model import no_colliders
 from warp_cloth.kernels import passes as fused
 from warp_cloth.kernels.gathering import launch_gathering
 from warp_cloth.kernels.limits import StrainLimits
+from warp_cloth import state
 from warp_cloth.passes import edge_separation_pass, separation_pass
 
 # Jacobi passes with averaging leave pairs that are squeezed from several sides slightly inside contact;
@@ -85,12 +86,13 @@ def brute_force_separation(x, v, inv_mass, radius, separation, pairs, h):
 @pytest.mark.parametrize("seed", [0, 1, 2])
 @pytest.mark.parametrize("limit_a", [False, True])
 @pytest.mark.parametrize("self_on, between_on", [(True, True), (True, False), (False, True)])
-def test_hash_grid_stage_matches_brute_force(seed, limit_a, self_on, between_on):
+def test_hash_grid_stage_matches_brute_force(seed, limit_a, self_on, between_on, monkeypatch):
     scene = two_cloth_scene(limit_a)
     scene = dataclasses.replace(scene, collision=wc.Collision(self_collision=self_on, between_cloths=between_on,
-                                                              iterations=1, max_neighbors=64,
-                                                              broad_phase="hash_grid"))
+                                                              iterations=1, max_neighbors=64))
+    monkeypatch.setattr(state, "BRUTE_FORCE_UP_TO", 0)  # the hash grid, however few the particles
     sim = wc.Simulator(scene, device="cpu")
+    assert sim.plan.lists.use_hash
     lists = sim.plan.lists
     rng = np.random.default_rng(seed)
     n = sim.model.particle_count
@@ -353,9 +355,9 @@ def test_kept_neighbour_lists_hold_every_touching_pair():
 
 @pytest.mark.cuda
 @pytest.mark.parametrize("threads", [2, 4, 16])
-def test_several_threads_a_particle_make_the_same_neighbour_lists(threads):
+def test_several_threads_a_particle_make_the_same_neighbour_lists(threads, monkeypatch):
     scene = wc.load_scene("pile")
-    scene = dataclasses.replace(scene, collision=dataclasses.replace(scene.collision, broad_phase="hash_grid"))
+    monkeypatch.setattr(state, "BRUTE_FORCE_UP_TO", 0)  # the hash grid, however few the particles
     one = wc.Simulator(scene, device="cuda", threads_per_particle=1)
     one.run(24)  # layers on top of each other: full lists
     several = wc.Simulator(scene, device="cuda", threads_per_particle=threads)

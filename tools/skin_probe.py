@@ -4,7 +4,7 @@ it (48 frames after warm-up, 3 repeats continuing one simulator), the worst edge
 overflow (candidates lost so far, after 48 frames and a remake) and their mean and longest length then,
 for each search scale.
 
-The scale is the scene's ``collision.search_scale`` (1.5 by default).
+The scale is ``warp_cloth.kernels.particle_collision.SEARCH_SCALE`` (1.5), which the probe sets.
 
     [DEVICE=cpu] python tools/skin_probe.py OUT.json [sizes...]
 
@@ -12,7 +12,6 @@ The scale is the scene's ``collision.search_scale`` (1.5 by default).
 (the sphere scenes' old start, with the sphere through the cloth).
 """
 
-import dataclasses
 import json
 import os
 import sys
@@ -21,6 +20,7 @@ import numpy as np
 import warp as wp
 
 from warp_cloth.bench import Case, matrix_frames, matrix_scene, time_case
+from warp_cloth.kernels import particle_collision
 from warp_cloth.simulator import Simulator
 
 wp.config.log_level = wp.LOG_ERROR
@@ -33,8 +33,8 @@ def main() -> None:
     rows = []
     for n in sizes:
         for scale in SCALES:
+            particle_collision.SEARCH_SCALE = scale  # read by the simulators made from here on
             scene = matrix_scene("self", n, "symplectic")
-            scene = dataclasses.replace(scene, collision=dataclasses.replace(scene.collision, search_scale=scale))
             case = Case(f"self {n}^2", scene, matrix_frames(n, device), fresh=False)
             result = time_case(case, device, 3)
             probe = Simulator(case.scene, device=device)

@@ -23,9 +23,10 @@ import tempfile
 import textwrap
 import time
 import warnings
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import Callable, Iterator, Sequence
 
 import numpy as np
 import warp as wp
@@ -37,6 +38,7 @@ from .scene_file import load_scene
 from .cli import EXIT_BAD_INPUT
 from .errors import SceneError, UnstableSimulation
 from .newton_compare import SOLVERS as NEWTON_SOLVERS, SPHERE_CENTER, SPHERE_RADIUS, SWING_DEGREES, swung_origin
+from . import neighbour_lists, state
 from .batch import Batch
 from .simulator import Simulator, resolve_device
 from .stability import UnstableStepWarning
@@ -144,8 +146,7 @@ def core_cases(device: str) -> list[Case]:
     return cases
 
 
-def stacked_layers_scene(particles: int, broad_phase: str = "hash_grid", layers: int = 4,
-                         lists: str = "when_moved", substeps: int = 1) -> Scene:
+def stacked_layers_scene(particles: int, layers: int = 4, substeps: int = 1) -> Scene:
     """``layers`` square cloths of ``particles / layers`` particles stacked 0.9 contact distances apart, so
     that every particle touches the layers next to it: particle collision's working load."""
     side = max(2, int(round((particles / layers) ** 0.5)))
@@ -155,7 +156,7 @@ def stacked_layers_scene(particles: int, broad_phase: str = "hash_grid", layers:
                          orientation="horizontal", origin=(0.0, 0.9 * contact * k, 0.0), jitter=0.02, seed=k,
                          limit=Limit(0.1, 0.1)) for k in range(layers))
     return Scene(name=f"layers_{particles}", cloths=cloths,
-                 collision=Collision(iterations=4, broad_phase=broad_phase, lists=lists),
+                 collision=Collision(iterations=4),
                  simulation=fixed_solve(fps=24, frames=1, substeps=substeps, gravity=(0.0, 0.0, 0.0)))
 
 
@@ -212,16 +213,28 @@ class CollisionResult:
         return 1e9 * self.seconds_per_substep / self.particles
 
 
+@contextmanager
+def broad_phase_forced(brute_force: bool, every_substep: bool) -> Iterator[None]:
+    """Simulators made inside check all pairs whatever their size (else they use the hash grid) and, with
+    ``every_substep``, remake their lists every substep: the hooks the tests' oracles use."""
+    saved = state.BRUTE_FORCE_UP_TO, neighbour_lists.REMAKE_EVERY_SUBSTEP
+    state.BRUTE_FORCE_UP_TO = sys.maxsize if brute_force else 0
+    neighbour_lists.REMAKE_EVERY_SUBSTEP = every_substep
+    try:
+        yield
+    finally:
+        state.BRUTE_FORCE_UP_TO, neighbour_lists.REMAKE_EVERY_SUBSTEP = saved
+
+
 def time_collision_substep(particles: int, broad_phase: str, device: str, repeats: int,
                          remake_lists: bool = True) -> CollisionResult:
     """Median time per substep of stacked layers at rest, whose substep is mostly particle collision (the
     explicit step, which begins the contacts; the neighbour lists from the spatial hash or brute force; 4
     projection passes; the velocity pass), replayed as a captured frame of 10 substeps. The layers do not
-    move, so kept lists are never remade: ``remake_lists`` has the scene remake them every substep
-    (``collision.lists``), to time the broad phase."""
-    scene = stacked_layers_scene(particles, broad_phase, lists="every_substep" if remake_lists else "when_moved",
-                                 substeps=10)
-    sim = Simulator(scene, device=device)
+    move, so kept lists are never remade: ``remake_lists`` remakes them every substep, to time the broad
+    phase."""
+    with broad_phase_forced(broad_phase == "brute_force", remake_lists):
+        sim = Simulator(stacked_layers_scene(particles, substeps=10), device=device)
     sim.run(1)
     seconds = []
     for _ in range(repeats):

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
-from warp_cloth.kernels import motion
+from warp_cloth.kernels import motion, particle_collision
 from warp_cloth.kernels.colliders import RigidColliders, depth_in_mesh
 from warp_cloth.kernels.edge_collision import EdgeRules
 from warp_cloth.kernels.forces import ExternalForces
@@ -211,7 +211,7 @@ class DeviceModel:
             rules.adjacent_offsets = upload(contacts.rest_adjacent.offsets, int, device)
             rules.adjacent_other = upload(contacts.rest_adjacent.other, int, device)
             rules.exclude_adjacent = upload(contacts.exclude_adjacent, int, device)
-        rules.search_scale = settings.search_scale
+        rules.search_scale = particle_collision.SEARCH_SCALE
         return ParticleContacts(settings, upload(contacts.radius, float, device), rules, contacts.max_radius,
                                 float(contacts.radius.min()), self._contact_edges(model, rules, settings))
 

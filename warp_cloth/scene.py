@@ -595,18 +595,14 @@ class Collision:
     for every cloth. Two particles are kept ``separation`` radii apart (the mean of their radii).
     ``iterations`` Jacobi passes push overlapping pairs apart, then the approaching part of their
     relative velocity is removed, and ``friction`` takes tangential relative speed in proportion.
-    ``broad_phase`` finds the pairs with a hash grid, or the seed's O(n^2) way (``brute_force``: the same
-    contacts, for checking and for measuring what the grid saves); ``auto`` takes the brute force for
-    scenes of at most 512 particles, where it is faster than building a grid. A pass that also limits
-    strain (see ``Simulation.limit_iterations``) does both in one Jacobi kernel where ``projection`` is
-    ``joint`` (each particle moves by its limits' mean correction and its pushes' mean, no limit
-    correction pulling into a contact): a launch less a pass, contacts held closer, strain a little less
-    so; ``sequential`` runs the limit, then the separation on what it left (docs/accuracy.md). Each
-    particle's candidate pairs are listed within ``search_scale`` contact distances and the lists remade
-    ``when_moved``: once some particle has moved half the margin that leaves, so that no pair left out can
-    touch before; ``every_substep`` remakes them every substep (slower, with the same contacts: for
-    measuring the broad phase). A larger ``search_scale`` remakes less often and makes longer lists
-    (tools/skin_probe.py measures the trade). With ``simulation.limit_solve = "converged"`` the passes go on
+    Scenes of at most 512 particles find the pairs by checking all of them, where that is faster than
+    building the grid. A pass that also limits strain (see ``Simulation.limit_iterations``) does both in
+    one Jacobi kernel where ``projection`` is ``joint`` (each particle moves by its limits' mean correction
+    and its pushes' mean, no limit correction pulling into a contact): a launch less a pass, contacts held
+    closer, strain a little less so; ``sequential`` runs the limit, then the separation on what it left
+    (docs/accuracy.md). Each particle's candidate pairs are listed within 1.5 contact distances and the
+    lists remade once some particle has moved half the margin that leaves, so that no pair left out can
+    touch before. With ``simulation.limit_solve = "converged"`` the passes go on
     (``iterations`` is not used) until no candidate pair is more than ``tolerance`` of its contact distance
     inside it, and the strain limits hold to theirs. ``edges`` adds edge contacts: triangle edges too long
     for the particles' spheres to keep from passing through each other (a grid's diagonals, where a cloth
@@ -622,10 +618,7 @@ class Collision:
     iterations: int = 2
     friction: float = 0.0
     max_neighbors: int = 32
-    broad_phase: Literal["auto", "hash_grid", "brute_force"] = "auto"
     projection: Literal["joint", "sequential"] = "joint"
-    lists: Literal["when_moved", "every_substep"] = "when_moved"
-    search_scale: float = 1.5
     tolerance: float = 0.05
     edges: bool = False
 
@@ -642,8 +635,6 @@ class Collision:
         _require(4 <= self.max_neighbors <= 256, "max_neighbors", "a whole number in [4, 256]", self.max_neighbors)
         _require(0.0 < self.tolerance <= 0.5, "tolerance", "a fraction of the contact distance in (0, 0.5]",
                  self.tolerance)
-        _require(1.05 <= self.search_scale <= 4.0, "search_scale", "a number of contact distances in [1.05, 4]",
-                 self.search_scale)
 
 
 @dataclass(frozen=True)
