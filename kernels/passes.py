@@ -16,7 +16,7 @@ from .edge_collision import EdgeContacts, EdgeRules, edge_pushes, may_touch, pai
 from .forces import ExternalForces, external_acceleration, external_damping
 from .gathering import BLOCK, FAST_MATH, gathering_kernel, sum_over_threads, thread_layout
 from .integration import compensated_sum, explicit_move
-from .limits import StrainLimits, hold_to_pin, limit_correction, limit_corrections, limit_violation, mean_of
+from .limits import StrainLimits, hold_to_pin, limit_corrections, limit_violation, mean_of
 from .particle_collision import (Contacts, ListState, PairRules, add_candidate, begin_contact, deepest_overlap,
                                  end_remake, is_candidate, mean_push, pushes, sort_and_drop_repeats, velocity_changes)
 from .solve_loop import chebyshev_extrapolation

@@ -139,17 +139,11 @@ class Limit:
     from its pins over it; meshes are not wrapped around. They are off by default: they
     fight a kinematic collider that pushes the cloth out of their reach (the fast_sphere hard case reached
     36 to 60 m/s and up to 23 crossing triangle pairs with them, 23 to 30 m/s and none without).
-
-    With ``long_range``, each particle is also held within (1 + stretch) times the rest length of the
-    path along its row, its column and its diagonals to the particles 2, 4, 8, ... cells away: limits that
-    the springs' own limits imply (a path of springs each within its limit is), so they never ask for what
-    the cloth cannot give, but that carry a correction across 2^k cells in one pass (docs/strain-solve.md).
     """
 
     stretch: float = 0.10
     compression: float = 0.10
     attachments: bool = False
-    long_range: bool = False
 
     def __post_init__(self) -> None:
         check_fields(self)
@@ -311,9 +305,6 @@ class Cloth:
         for p, pin in enumerate(self.pins):
             _require(not (pin.corners or pin.edges), f"pins[{p}]", "pins by indices, region or group on a mesh "
                      "cloth (corners and edges are a grid's)", has_got=False)
-        if self.limit is not None:
-            _require(not self.limit.long_range, "limit.long_range", "false on a mesh cloth (long-range limits "
-                     "are built along a grid's rows for now)", True)
         surface = self.surface()
         _require(len(surface.points) <= MAX_PARTICLES, "mesh", f"at most {MAX_PARTICLES} vertices",
                  len(surface.points))
