@@ -11,7 +11,7 @@ import warp as wp
 import warp_cloth as wc
 from conftest import run_cli, with_simulation
 from warp_cloth.diagnostics import ContactGaps, TriangleIntersections
-from warp_cloth.kernels import edge_collision, particle_collision, spatial_hash
+from warp_cloth.kernels import attachments, edge_collision, particle_collision, spatial_hash
 from warp_cloth.cloth_grid import build_grid
 from warp_cloth.cloth_mesh import rest_adjacent_pairs
 from warp_cloth.checkpoint import Checkpoint, scene_fingerprint
@@ -431,13 +431,14 @@ def test_a_joint_pass_moves_by_both_means_but_no_limit_pulls_into_a_contact(pin_
     limits = StrainLimits()
     limits.offsets, limits.other = wp.array([0, 1, 2, 2], dtype=int), wp.array([1, 0], dtype=int)
     limits.min_length, limits.max_length = wp.zeros(2, dtype=float), wp.full(2, 1.0, dtype=float)
-    limits.attachment_pin, limits.attachment_length = wp.zeros(0, dtype=int), wp.zeros(0, dtype=float)
     contacts = particle_collision.Contacts()
     contacts.radius, contacts.separation, contacts.max_neighbors = wp.full(3, 0.5, dtype=float), 1.0, 2
     contacts.neighbors, contacts.counts = wp.array([2, -1, -1, -1, 0, -1], dtype=int), wp.array([1, 0, 1], dtype=int)
     contacts.resting, contacts.pushed = wp.zeros(0, dtype=int), wp.zeros(3, dtype=float)
     args = fused.LimitAndSeparationPassArgs()
     args.limits, args.contacts, args.inv_mass, args.h, args.read_bit = limits, contacts, inv_mass, h, 1
+    args.attachments = attachments.Attachments()
+    args.attachments.pin, args.attachments.length = wp.zeros(0, dtype=int), wp.zeros(0, dtype=float)
     args.colliders = no_colliders("cpu")
     x_out, v = wp.zeros(3, dtype=wp.vec3), wp.zeros(3, dtype=wp.vec3)
     launch_gathering(fused.limit_and_separation_pass_kernel(1), 1, 3, x, v, x_out, v, args)

@@ -10,6 +10,7 @@ import numpy as np
 import warp as wp
 
 from warp_cloth.kernels import motion, particle_collision
+from warp_cloth.kernels.attachments import Attachments
 from warp_cloth.kernels.colliders import RigidColliders, depth_in_mesh
 from warp_cloth.kernels.edge_collision import EdgeRules
 from warp_cloth.kernels.forces import ExternalForces
@@ -130,6 +131,7 @@ class DeviceModel:
         self.compensated = simulation.compensated
         self.springs = self._springs(model, n)
         self.limits = self._limits(model)
+        self.attachments = self._attachments(model)  # None: no cloth has attachments to its pins
         self.limit_iterations = simulation.limit_iterations
         self.limit_solve = simulation.limit_solve
         self.limit_tolerance = simulation.limit_tolerance
@@ -193,10 +195,16 @@ class DeviceModel:
         limits.other = upload(lim.other, int, device)
         limits.min_length = upload(lim.min_length, float, device)
         limits.max_length = upload(lim.max_length, float, device)
-        limits.attachment_pin = upload(lim.attachment_pin, int, device)
-        limits.attachment_length = upload(lim.attachment_length, float, device)
-        limits.chord_half = 0.5 * float(lim.max_length.max(initial=0.0))
         return limits
+
+    def _attachments(self, model: Model) -> Attachments | None:
+        if model.limits is None or len(model.limits.attachment_pin) == 0:
+            return None
+        attachments, lim = Attachments(), model.limits
+        attachments.pin = upload(lim.attachment_pin, int, self.device)
+        attachments.length = upload(lim.attachment_length, float, self.device)
+        attachments.chord_half = 0.5 * float(lim.max_length.max(initial=0.0))
+        return attachments
 
     def _contacts(self, model: Model, settings: Collision) -> ParticleContacts:
         device, contacts, rules = self.device, model.contacts, PairRules()
@@ -234,9 +242,17 @@ class DeviceModel:
         limits, empty_int, empty_float = StrainLimits(), wp.zeros(0, dtype=int, device=self.device), \
             wp.zeros(0, dtype=float, device=self.device)
         limits.offsets = wp.zeros(self.particle_count + 1, dtype=int, device=self.device)
-        limits.other = limits.attachment_pin = empty_int
-        limits.min_length = limits.max_length = limits.attachment_length = empty_float
+        limits.other = empty_int
+        limits.min_length = limits.max_length = empty_float
         return limits
+
+    def no_attachments(self) -> Attachments:
+        """No attachments to pins: for passes and checks of scenes without them."""
+        attachments = Attachments()
+        attachments.pin = wp.zeros(0, dtype=int, device=self.device)
+        attachments.length = wp.zeros(0, dtype=float, device=self.device)
+        attachments.chord_half = 0.0
+        return attachments
 
     def no_contacts(self) -> Contacts:
         """No particle collision: for checks of scenes without it (never read)."""

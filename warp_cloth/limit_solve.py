@@ -14,7 +14,7 @@ from warp_cloth.kernels import solve_loop
 from warp_cloth.kernels.colliders import RigidColliders
 
 from .device_model import DeviceModel
-from .passes import Pass, contacts_args
+from .passes import Pass, attachments_of, contacts_args
 from .state import DeviceState
 
 
@@ -35,6 +35,7 @@ class ConvergedProjection:
         args = fused.ResidualArgs()
         args.check_limits = int(model.limits is not None)
         args.limits = model.limits if model.limits is not None else model.no_limits()
+        args.attachments = attachments_of(model)
         args.limit_tolerance = model.limit_tolerance
         args.check_contacts = int(model.contacts is not None)
         args.contacts = contacts_args(model, state) if model.contacts is not None else model.no_contacts()
