@@ -3,15 +3,11 @@
 Each particle gathers the corrections of its limited springs that are out of range, weighted by inverse
 mass (a pinned end does not move), and moves by their average. Reading one buffer and writing another
 keeps the pass free of races and deterministic. The velocity gets the same correction divided by h, so
-that it stays consistent with the positions (as the seed's velocity fix does). Long-range attachments
-(``attachment_pin``, empty for none) then pull each particle back within reach of its pin, measured around
-the spheres between them (wrapping.py); a pin does not move in the pass, so this needs no averaging.
+that it stays consistent with the positions (as the seed's velocity fix does). Long-range attachments to
+pins, which a limit pass may also apply, are attachments.py's.
 """
 
 import warp as wp
-
-from .colliders import RigidColliders
-from .wrapping import distance_to_pin
 
 
 @wp.struct
@@ -20,9 +16,6 @@ class StrainLimits:
     other: wp.array(dtype=int)  # per incidence: the particle at the other end
     min_length: wp.array(dtype=float)  # per incidence: the allowed range of the spring's length
     max_length: wp.array(dtype=float)
-    attachment_pin: wp.array(dtype=int)  # (n,) or empty: each particle's nearest pin (-1: none)
-    attachment_length: wp.array(dtype=float)  # (n,) or empty: how far from it the particle may be
-    chord_half: float  # half the longest limited spring at its limit (wrapping.distance_to_pin)
 
 
 @wp.func
@@ -60,30 +53,9 @@ def mean_of(total: wp.vec4) -> wp.vec3:
 
 
 @wp.func
-def hold_to_pin(limits: StrainLimits, colliders: RigidColliders, i: int, p: wp.vec3, vel: wp.vec3, h: float,
-                x: wp.array(dtype=wp.vec3)):
-    """Particle i, farther than its attachment length from its pin (around the spheres between them), is
-    moved back by the excess along the way's last straight piece, its velocity changed by that correction
-    over h, as for every projection here. (Only removing its speed away from the pin instead left the
-    fast_sphere hard case at 50 % strain with 24 crossing pairs.)"""
-    if limits.attachment_pin.shape[0] == 0:
-        return p, vel
-    pin = limits.attachment_pin[i]
-    if pin < 0:
-        return p, vel
-    length, direction = distance_to_pin(colliders, i, x[pin], p, limits.chord_half)
-    excess = length - limits.attachment_length[i]
-    if excess <= 0.0:
-        return p, vel
-    correction = -excess * direction
-    return p + correction, vel + correction / h
-
-
-@wp.func
-def limit_violation(limits: StrainLimits, colliders: RigidColliders, i: int, x: wp.array(dtype=wp.vec3)) -> float:
-    """How far particle i's limited springs and its attachment (around the spheres between it and its pin)
-    lie outside their allowed lengths, the worst of them, as a fraction of the length it should be within
-    (0 where all hold)."""
+def limit_violation(limits: StrainLimits, i: int, x: wp.array(dtype=wp.vec3)) -> float:
+    """How far particle i's limited springs lie outside their allowed lengths, the worst of them, as a
+    fraction of the length it should be within (0 where all hold)."""
     xi = x[i]
     worst = float(0.0)
     for e in range(limits.offsets[i], limits.offsets[i + 1]):
@@ -94,10 +66,4 @@ def limit_violation(limits: StrainLimits, colliders: RigidColliders, i: int, x: 
             worst = wp.max(worst, (length - longest) / longest)
         elif length < shortest:
             worst = wp.max(worst, (shortest - length) / shortest)
-    if limits.attachment_pin.shape[0] > 0:
-        pin = limits.attachment_pin[i]
-        if pin >= 0:
-            reach = limits.attachment_length[i]
-            length, unused_direction = distance_to_pin(colliders, i, x[pin], xi, limits.chord_half)
-            worst = wp.max(worst, (length - reach) / wp.max(reach, 1.0e-12))
     return worst

@@ -18,6 +18,10 @@ import warp as wp
 
 wp.set_module_options({"fast_math": True})  # as the gathering kernels (see gathering.py)
 
+# Candidates are listed within this many contact distances: a wider skin remakes the lists less often and
+# makes them longer (tools/skin_probe.py measures the trade, and sets this to do so).
+SEARCH_SCALE = 1.5
+
 
 @wp.struct
 class Contacts:

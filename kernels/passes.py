@@ -11,12 +11,13 @@ from typing import Any
 
 import warp as wp
 
+from .attachments import Attachments, attachment_violation, hold_to_pin
 from .colliders import RigidColliders, collide_and_mark, collide_particle
 from .edge_collision import EdgeContacts, EdgeRules, edge_pushes, may_touch, pair_gap
 from .forces import ExternalForces, external_acceleration, external_damping
 from .gathering import BLOCK, FAST_MATH, gathering_kernel, sum_over_threads, thread_layout
 from .integration import compensated_sum, explicit_move
-from .limits import StrainLimits, hold_to_pin, limit_correction, limit_corrections, limit_violation, mean_of
+from .limits import StrainLimits, limit_corrections, limit_violation, mean_of
 from .particle_collision import (Contacts, ListState, PairRules, add_candidate, begin_contact, deepest_overlap,
                                  end_remake, is_candidate, mean_push, pushes, sort_and_drop_repeats, velocity_changes)
 from .solve_loop import chebyshev_extrapolation
@@ -148,6 +149,7 @@ def contact_start(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), args: 
 @wp.struct
 class LimitPassArgs:
     limits: StrainLimits
+    attachments: Attachments  # empty arrays: none
     inv_mass: wp.array(dtype=float)
     h: float
     colliders: RigidColliders  # empty arrays and no ground: none
@@ -167,6 +169,7 @@ class SeparationPassArgs:
 @wp.struct
 class LimitAndSeparationPassArgs:
     limits: StrainLimits
+    attachments: Attachments
     contacts: Contacts
     inv_mass: wp.array(dtype=float)
     h: float
@@ -178,7 +181,7 @@ class LimitAndSeparationPassArgs:
 def held_and_collided(args: Any, i: int, p: wp.vec3, vel: wp.vec3, x: wp.array(dtype=wp.vec3),
                       resting: wp.array(dtype=int)):
     """The end of a pass that limits: the particle held to its pin, then put out of the colliders."""
-    p, vel = hold_to_pin(args.limits, args.colliders, i, p, vel, args.h, x)
+    p, vel = hold_to_pin(args.attachments, args.colliders, i, p, vel, args.h, x)
     return collide_and_mark(i, p, vel, args.colliders, args.h, resting, args.read_bit)
 
 
@@ -351,6 +354,7 @@ def chebyshev_step_and_colliders(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=w
 @wp.struct
 class ResidualArgs:
     limits: StrainLimits
+    attachments: Attachments
     check_limits: int  # 0: the scene limits no strain (the limits' arrays are empty)
     limit_tolerance: float  # of an allowed length
     contacts: Contacts
@@ -369,36 +373,14 @@ def projection_residual(x: wp.array(dtype=wp.vec3), args: ResidualArgs, residual
         return
     worst = float(0.0)
     if args.check_limits != 0:
-        worst = limit_violation(args.limits, args.colliders, i, x) / args.limit_tolerance
+        worst = limit_violation(args.limits, i, x)
+        if args.attachments.pin.shape[0] > 0:
+            worst = wp.max(worst, attachment_violation(args.attachments, args.colliders, i, x))
+        worst = worst / args.limit_tolerance
     if args.check_contacts != 0:
         worst = wp.max(worst, deepest_overlap(args.contacts, i, x) / args.contact_tolerance)
     if worst > 1.0:
         wp.atomic_max(residual, 0, worst)
-
-
-# --- the coarse levels of the multilevel limit solve (warp_cloth/hierarchy.py) ------------------------------
-
-@wp.kernel
-def level_pass(first: int, offsets: wp.array(dtype=int), other: wp.array(dtype=int), limit: wp.array(dtype=int),
-               target: wp.array(dtype=wp.vec2), inv_mass: wp.array(dtype=float), colliders: RigidColliders, h: float,
-               x: wp.array(dtype=wp.vec3), x_out: wp.array(dtype=wp.vec3)):
-    """One Jacobi pass over a coarse level's nodes first, first + 1, ... (a thread each), from ``x`` to
-    ``x_out``: each node moves by the mean correction of its limits outside their targets, then is put
-    outside the rigid colliders (a node has no velocity of its own: its particles' change as they follow
-    it); a pinned node stays."""
-    i = first + wp.tid()
-    xi = x[i]
-    wi = inv_mass[i]
-    if wi > 0.0:
-        total = wp.vec4(0.0)
-        for e in range(offsets[i], offsets[i + 1]):
-            j = other[e]
-            bounds = target[limit[e]]
-            c, out = limit_correction(xi, wi, x[j], inv_mass[j], bounds[0], bounds[1])
-            total = total + wp.vec4(c[0], c[1], c[2], float(out))
-        xi = xi + mean_of(total)
-        xi, unused_velocity, unused_hit = collide_particle(i, xi, wp.vec3(0.0), colliders, h)
-    x_out[i] = xi
 
 
 # --- contact velocities, and the end of the substep's list remake -------------------------------------------

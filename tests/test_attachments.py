@@ -71,10 +71,17 @@ def test_attachments_go_to_the_nearest_pin_of_the_same_cloth_only():
 
 def test_without_pins_or_with_attachments_off_nothing_is_allocated():
     free = wc.Simulator(wc.Scene(cloths=(wc.Cloth(resolution=(3, 3), limit=wc.Limit(attachments=True)),)),
-                        device="cpu").model
-    assert free.limits.attachment_pin.shape == (0,)
-    pinned = wc.Simulator(wc.load_scene("hanging"), device="cpu").model  # off by default
-    assert pinned.pins is not None and pinned.limits.attachment_pin.shape == (0,)
+                        device="cpu")
+    assert free.model.limits.attachment_pin.shape == (0,) and free.device_model.attachments is None
+    pinned = wc.Simulator(wc.load_scene("hanging"), device="cpu")  # off by default
+    assert pinned.model.pins is not None and pinned.model.limits.attachment_pin.shape == (0,)
+    assert pinned.device_model.attachments is None and "attachments" not in str(pinned.plan)
+
+
+def test_the_plan_shows_the_limit_passes_that_hold_to_the_pins():
+    sim = wc.Simulator(with_attachments(wc.load_scene("hanging"), True), device="cpu")
+    assert sim.device_model.attachments is not None
+    assert "2 at a time: limits+attachments, limits+attachments" in str(sim.plan)
 
 
 def shortest_paths_by_relaxation(n, pairs, lengths, sources):

@@ -11,7 +11,7 @@ import warp as wp
 import warp_cloth as wc
 from conftest import run_cli, with_simulation
 from warp_cloth.diagnostics import ContactGaps, TriangleIntersections
-from warp_cloth.kernels import edge_collision, particle_collision, spatial_hash
+from warp_cloth.kernels import attachments, edge_collision, particle_collision, spatial_hash
 from warp_cloth.cloth_grid import build_grid
 from warp_cloth.cloth_mesh import rest_adjacent_pairs
 from warp_cloth.checkpoint import Checkpoint, scene_fingerprint
@@ -20,6 +20,7 @@ from warp_cloth.device_model import no_colliders
 from warp_cloth.kernels import passes as fused
 from warp_cloth.kernels.gathering import launch_gathering
 from warp_cloth.kernels.limits import StrainLimits
+from warp_cloth import state
 from warp_cloth.passes import edge_separation_pass, separation_pass
 
 # Jacobi passes with averaging leave pairs that are squeezed from several sides slightly inside contact;
@@ -85,12 +86,13 @@ def brute_force_separation(x, v, inv_mass, radius, separation, pairs, h):
 @pytest.mark.parametrize("seed", [0, 1, 2])
 @pytest.mark.parametrize("limit_a", [False, True])
 @pytest.mark.parametrize("self_on, between_on", [(True, True), (True, False), (False, True)])
-def test_hash_grid_stage_matches_brute_force(seed, limit_a, self_on, between_on):
+def test_hash_grid_stage_matches_brute_force(seed, limit_a, self_on, between_on, monkeypatch):
     scene = two_cloth_scene(limit_a)
     scene = dataclasses.replace(scene, collision=wc.Collision(self_collision=self_on, between_cloths=between_on,
-                                                              iterations=1, max_neighbors=64,
-                                                              broad_phase="hash_grid"))
+                                                              iterations=1, max_neighbors=64))
+    monkeypatch.setattr(state, "BRUTE_FORCE_UP_TO", 0)  # the hash grid, however few the particles
     sim = wc.Simulator(scene, device="cpu")
+    assert sim.plan.lists.use_hash
     lists = sim.plan.lists
     rng = np.random.default_rng(seed)
     n = sim.model.particle_count
@@ -353,9 +355,9 @@ def test_kept_neighbour_lists_hold_every_touching_pair():
 
 @pytest.mark.cuda
 @pytest.mark.parametrize("threads", [2, 4, 16])
-def test_several_threads_a_particle_make_the_same_neighbour_lists(threads):
+def test_several_threads_a_particle_make_the_same_neighbour_lists(threads, monkeypatch):
     scene = wc.load_scene("pile")
-    scene = dataclasses.replace(scene, collision=dataclasses.replace(scene.collision, broad_phase="hash_grid"))
+    monkeypatch.setattr(state, "BRUTE_FORCE_UP_TO", 0)  # the hash grid, however few the particles
     one = wc.Simulator(scene, device="cuda", threads_per_particle=1)
     one.run(24)  # layers on top of each other: full lists
     several = wc.Simulator(scene, device="cuda", threads_per_particle=threads)
@@ -429,13 +431,14 @@ def test_a_joint_pass_moves_by_both_means_but_no_limit_pulls_into_a_contact(pin_
     limits = StrainLimits()
     limits.offsets, limits.other = wp.array([0, 1, 2, 2], dtype=int), wp.array([1, 0], dtype=int)
     limits.min_length, limits.max_length = wp.zeros(2, dtype=float), wp.full(2, 1.0, dtype=float)
-    limits.attachment_pin, limits.attachment_length = wp.zeros(0, dtype=int), wp.zeros(0, dtype=float)
     contacts = particle_collision.Contacts()
     contacts.radius, contacts.separation, contacts.max_neighbors = wp.full(3, 0.5, dtype=float), 1.0, 2
     contacts.neighbors, contacts.counts = wp.array([2, -1, -1, -1, 0, -1], dtype=int), wp.array([1, 0, 1], dtype=int)
     contacts.resting, contacts.pushed = wp.zeros(0, dtype=int), wp.zeros(3, dtype=float)
     args = fused.LimitAndSeparationPassArgs()
     args.limits, args.contacts, args.inv_mass, args.h, args.read_bit = limits, contacts, inv_mass, h, 1
+    args.attachments = attachments.Attachments()
+    args.attachments.pin, args.attachments.length = wp.zeros(0, dtype=int), wp.zeros(0, dtype=float)
     args.colliders = no_colliders("cpu")
     x_out, v = wp.zeros(3, dtype=wp.vec3), wp.zeros(3, dtype=wp.vec3)
     launch_gathering(fused.limit_and_separation_pass_kernel(1), 1, 3, x, v, x_out, v, args)

@@ -220,8 +220,6 @@ def test_mesh_cloth_refuses_grid_settings_and_usd_prims_that_are_not_meshes(tmp_
         wc.Cloth.from_mesh(path, resolution=(4, 4))
     with pytest.raises(wc.SceneError, match=r"pins\[0\]: expected pins by indices, region or group on a mesh cloth"):
         wc.Cloth.from_mesh(path, pins=(wc.Pin(corners=("top-left",)),))
-    with pytest.raises(wc.SceneError, match=r"limit.long_range: expected false on a mesh cloth"):
-        wc.Cloth.from_mesh(path, limit=wc.Limit(long_range=True))
     shot = usd_shot(tmp_path / "shot.usda")
     with pytest.raises(wc.SceneError, match=r"mesh.prim: expected a Mesh prim \(in .*shot.usda at /World/Ball\)"):
         wc.Cloth.from_mesh(shot, prim="/World/Ball")

@@ -30,7 +30,6 @@ integrator = "symplectic"
 [collision]
 self = true
 iterations = 4
-broad_phase = "hash_grid"
 [ground]
 height = 0.0
 friction = 0.5

@@ -11,6 +11,8 @@ import warp as wp
 
 import warp_cloth as wc
 from conftest import with_simulation
+from warp_cloth import neighbour_lists
+from warp_cloth.kernels import particle_collision
 from warp_cloth.neighbour_lists import LIST_THREADS_BY_SIZE
 from warp_cloth.passes import ContactStart, explicit_step
 from warp_cloth.plan import threads_per_particle
@@ -122,10 +124,9 @@ def test_collision_stage_exists_only_when_declared(name, launches):
     assert not any("separation" in name or "lists" in name for name in without.plan.pass_names)
 
 
-def test_lists_remade_every_substep_where_the_scene_asks(launches):
-    scene = wc.load_scene("pile")
-    scene = dataclasses.replace(scene, collision=dataclasses.replace(scene.collision, lists="every_substep"))
-    sim = wc.Simulator(scene, device="cpu", graph=False)
+def test_lists_remade_every_substep_where_a_test_asks(launches, monkeypatch):
+    monkeypatch.setattr(neighbour_lists, "REMAKE_EVERY_SUBSTEP", True)  # the bench's and tests' reference
+    sim = wc.Simulator(wc.load_scene("pile"), device="cpu", graph=False)
     epochs = [int(sim.state.contacts.epoch.numpy()[0])]
     for _ in range(3):
         sim.substep()
@@ -254,13 +255,12 @@ def test_driven_pins_keep_the_collision_stage_beginning_its_contacts(launches):
     assert launches["contact_start"] == 1
 
 
-def test_search_scale_sets_how_far_candidates_reach():
+def test_search_scale_sets_how_far_candidates_reach(monkeypatch):
     scene = wc.load_scene("pile")
     lengths = []
     for scale in (1.5, 3.0):
-        sim = wc.Simulator(dataclasses.replace(scene, collision=dataclasses.replace(scene.collision,
-                                                                                    search_scale=scale)),
-                           device="cpu", graph=False)
+        monkeypatch.setattr(particle_collision, "SEARCH_SCALE", scale)  # as tools/skin_probe.py sets it
+        sim = wc.Simulator(scene, device="cpu", graph=False)
         sim.run(24)  # the layers have landed on each other
         sim.plan.lists.remake_now(sim.state.x)
         lengths.append(sum(len(c) for c in sim.plan.lists.candidates()))
@@ -269,5 +269,3 @@ def test_search_scale_sets_how_far_candidates_reach():
             reach = scale * separation * 0.5 * (radius[i] + radius[candidates])
             assert (np.linalg.norm(x[candidates] - x[i], axis=1) < reach).all()
     assert lengths[1] > 2 * lengths[0]
-    with pytest.raises(wc.SceneError, match="search_scale"):
-        wc.Collision(search_scale=1.0)

@@ -85,7 +85,6 @@ OUT_OF_RANGE: dict[tuple[str, str], list[Any]] = {
     ("Collision", "friction"): [-1.0],
     ("Collision", "max_neighbors"): [3, 300],
     ("Collision", "radius"): [0.0, -1.0],
-    ("Collision", "search_scale"): [1.0, 5.0],
     ("Collision", "tolerance"): [0.0, 0.6],
 }
 WRONG_FLOAT = [NAN, INF, -INF, 1e39, -1e39, "1.0", True, [1.0], {"x": 1.0}]

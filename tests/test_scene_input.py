@@ -106,6 +106,38 @@ def test_bad_scene_is_one_clear_error_with_exit_code_2_and_no_output(tmp_path, t
     assert not (tmp_path / "out").exists()
 
 
+RETIRED = [
+    # (change to VALID, key path, what the message tells the user to do instead)
+    (VALID.replace("substeps = 2", "substeps = 2\nlimit_multilevel = true"), "simulation.limit_multilevel",
+     "the converged solve is the default"),
+    (VALID + "\n[implicit]\ncg_loop = \"unrolled\"\n", "implicit.cg_loop", "a conditional loop"),
+    (VALID + "\n[collision]\nbroad_phase = \"brute_force\"\n", "collision.broad_phase", "the hash grid"),
+    (VALID + "\n[collision]\nlists = \"every_substep\"\n", "collision.lists", "moved far enough"),
+    (VALID + "\n[collision]\nsearch_scale = 2.0\n", "collision.search_scale", "1.5 contact distances"),
+    (VALID.replace("size = [1.0, 1.0]", "size = [1.0, 1.0]\nlimit = { long_range = true }"),
+     "cloth[0].limit.long_range", "limit_chebyshev_rho"),
+]
+
+
+@pytest.mark.parametrize("text, key, instead", RETIRED, ids=[r[1] for r in RETIRED])
+def test_a_retired_key_is_refused_saying_it_was_retired_and_what_to_do(tmp_path, text, key, instead):
+    path = tmp_path / "old.toml"
+    path.write_text(text)
+    code, out, err = run_cli_in_process("run", str(path), "--out", str(tmp_path / "out"), cwd=tmp_path)
+    assert code == 2 and out == "" and "Traceback" not in err
+    message = err.strip()
+    assert message.startswith(f"warp-cloth: error: {path}: {key}: expected ") and "\n" not in message
+    assert "retired" in message and "remove it" in message and instead in message
+    assert not (tmp_path / "out").exists()
+
+
+def test_no_retired_key_names_a_key_the_scene_still_has():
+    from warp_cloth.checks import toml_key
+    from warp_cloth.scene_file import RETIRED_KEYS
+    for table, key in RETIRED_KEYS:
+        assert key not in {toml_key(f) for f in dataclasses.fields(getattr(scene_module, table))}
+
+
 def test_missing_file_names_the_file_and_the_builtins(tmp_path):
     result = run_cli("run", "nowhere.toml", cwd=tmp_path)
     assert result.returncode == 2 and "Traceback" not in result.stderr

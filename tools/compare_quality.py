@@ -7,7 +7,7 @@
 variant is hanging, sphere or self; engine is ours (the matrix's fixed 2 limit passes), ours_sequential
 (the self rows' collision passes with ``projection = "sequential"``), ours_METHOD for a method of
 tools/strain_solve_probe.py (``ours_chebyshev``: the limit solved, Chebyshev 0.95, at most 400 passes a
-substep; ``ours_chebyshev+long_range``), semi_implicit, xpbd or vbd; substeps (default 10) sets the step,
+substep), semi_implicit, xpbd or vbd; substeps (default 10) sets the step,
 the springs stiffening with 1/dt^2 in both engines (``matrix_scene``, newton_compare), and worlds (default
 1) runs that many copies, as the worlds of one batch (ours) or of one model (Newton's). Each row is 2 warm-up
 frames, then the median of 3 x 48 timed frames (8 for VBD from 1024^2 on), then the strain over every frame

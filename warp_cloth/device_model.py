@@ -9,7 +9,8 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
-from warp_cloth.kernels import motion
+from warp_cloth.kernels import motion, particle_collision
+from warp_cloth.kernels.attachments import Attachments
 from warp_cloth.kernels.colliders import RigidColliders, depth_in_mesh
 from warp_cloth.kernels.edge_collision import EdgeRules
 from warp_cloth.kernels.forces import ExternalForces
@@ -102,38 +103,6 @@ class ParticleContacts:
     edges: DeviceContactEdges | None
 
 
-@dataclass(frozen=True)
-class LevelLinks:
-    """Per node (or particle) its parents in the next coarser level and their weights (CSR)."""
-    offsets: wp.array
-    parent: wp.array
-    weight: wp.array
-
-
-@dataclass(frozen=True)
-class LevelLimits:
-    """Per node its coarse limits (CSR): the node at the other end and the limit's index."""
-    offsets: wp.array
-    other: wp.array
-    limit: wp.array
-
-
-@dataclass(frozen=True)
-class DeviceHierarchy:
-    """The coarse levels of the strain limits (warp_cloth/hierarchy.py) on the device."""
-    first: tuple[int, ...]  # where each level's nodes start, and the end
-    particle: wp.array
-    inv_mass: wp.array
-    edge_first: tuple[int, ...]  # where each level's limits start (level 0: the springs'), and the end
-    edge_ends: wp.array  # vec2i
-    edge_longest: wp.array
-    edge_shortest: wp.array
-    edge_path: wp.array  # vec3i
-    limits: LevelLimits
-    parents: LevelLinks  # of the nodes of every level but the coarsest
-    particle_parents: LevelLinks  # of the particles, in the first level
-
-
 class DeviceModel:
     """A model and its scene's settings on a device; an effect the scene does not declare is None here and
     costs no memory. ``h`` is the substep's length in seconds."""
@@ -162,7 +131,7 @@ class DeviceModel:
         self.compensated = simulation.compensated
         self.springs = self._springs(model, n)
         self.limits = self._limits(model)
-        self.hierarchy = self._hierarchy(model) if model.hierarchy is not None and self.limits is not None else None
+        self.attachments = self._attachments(model)  # None: no cloth has attachments to its pins
         self.limit_iterations = simulation.limit_iterations
         self.limit_solve = simulation.limit_solve
         self.limit_tolerance = simulation.limit_tolerance
@@ -226,22 +195,16 @@ class DeviceModel:
         limits.other = upload(lim.other, int, device)
         limits.min_length = upload(lim.min_length, float, device)
         limits.max_length = upload(lim.max_length, float, device)
-        limits.attachment_pin = upload(lim.attachment_pin, int, device)
-        limits.attachment_length = upload(lim.attachment_length, float, device)
-        limits.chord_half = 0.5 * float(lim.max_length.max(initial=0.0))
         return limits
 
-    def _hierarchy(self, model: Model) -> DeviceHierarchy:
-        device, levels = self.device, model.hierarchy
-        links = lambda csr: LevelLinks(upload(csr.offsets, int, device), upload(csr.index, int, device),  # noqa: E731
-                                       upload(csr.value, float, device))
-        limits = LevelLimits(upload(levels.limits.offsets, int, device), upload(levels.limits.index, int, device),
-                             upload(levels.limits.value, int, device))
-        return DeviceHierarchy(levels.first, upload(levels.particle, int, device), upload(levels.inv_mass, float, device),
-                               levels.edge_first, upload(levels.edge_ends, wp.vec2i, device),
-                               upload(levels.edge_longest, float, device), upload(levels.edge_shortest, float, device),
-                               upload(levels.edge_path, wp.vec3i, device),
-                               limits, links(levels.parents), links(levels.particle_parents))
+    def _attachments(self, model: Model) -> Attachments | None:
+        if model.limits is None or len(model.limits.attachment_pin) == 0:
+            return None
+        attachments, lim = Attachments(), model.limits
+        attachments.pin = upload(lim.attachment_pin, int, self.device)
+        attachments.length = upload(lim.attachment_length, float, self.device)
+        attachments.chord_half = 0.5 * float(lim.max_length.max(initial=0.0))
+        return attachments
 
     def _contacts(self, model: Model, settings: Collision) -> ParticleContacts:
         device, contacts, rules = self.device, model.contacts, PairRules()
@@ -256,7 +219,7 @@ class DeviceModel:
             rules.adjacent_offsets = upload(contacts.rest_adjacent.offsets, int, device)
             rules.adjacent_other = upload(contacts.rest_adjacent.other, int, device)
             rules.exclude_adjacent = upload(contacts.exclude_adjacent, int, device)
-        rules.search_scale = settings.search_scale
+        rules.search_scale = particle_collision.SEARCH_SCALE
         return ParticleContacts(settings, upload(contacts.radius, float, device), rules, contacts.max_radius,
                                 float(contacts.radius.min()), self._contact_edges(model, rules, settings))
 
@@ -279,9 +242,17 @@ class DeviceModel:
         limits, empty_int, empty_float = StrainLimits(), wp.zeros(0, dtype=int, device=self.device), \
             wp.zeros(0, dtype=float, device=self.device)
         limits.offsets = wp.zeros(self.particle_count + 1, dtype=int, device=self.device)
-        limits.other = limits.attachment_pin = empty_int
-        limits.min_length = limits.max_length = limits.attachment_length = empty_float
+        limits.other = empty_int
+        limits.min_length = limits.max_length = empty_float
         return limits
+
+    def no_attachments(self) -> Attachments:
+        """No attachments to pins: for passes and checks of scenes without them."""
+        attachments = Attachments()
+        attachments.pin = wp.zeros(0, dtype=int, device=self.device)
+        attachments.length = wp.zeros(0, dtype=float, device=self.device)
+        attachments.chord_half = 0.0
+        return attachments
 
     def no_contacts(self) -> Contacts:
         """No particle collision: for checks of scenes without it (never read)."""

@@ -170,11 +170,7 @@ class BackwardEuler:
                    outputs=[self.scalars, active, self.cg_iterating, self.cg_iterations])
             launch(cg.update_direction, self.n, inputs=[self.z, world, self.scalars, active], outputs=[self.p])
 
-        if s.cg_loop == "device_while":
-            wp.capture_while(self.cg_iterating, iteration)
-        else:
-            for _ in range(s.cg_max_iterations):
-                iteration()
+        wp.capture_while(self.cg_iterating, iteration)
         launch(cg.record_solve, worlds, inputs=[self.scalars, self.cg_iterations, self.newton], outputs=[self.stats])
 
     def _newton_residual(self, y: wp.array, v: wp.array, v0: wp.array) -> None:

@@ -3,84 +3,31 @@ separation together), every pass ending with the rigid colliders, run in pairs i
 (with an edge contacts' pass before each where the scene has them, which the cap does not count) until
 the limits and contacts hold to their tolerances or the cap on passes is reached; each pair optionally
 accelerated by Chebyshev's semi-iterative method (``limit_chebyshev_rho``, the pair's spectral radius as
-estimated for it; docs/strain-solve.md measures both), and optionally begun by a cascade down the coarse
-levels of the limits (``limit_multilevel``, warp_cloth/hierarchy.py)."""
+estimated for it; docs/strain-solve.md measures both)."""
 
 from __future__ import annotations
 
 import warp as wp
 
-from warp_cloth.kernels import hierarchy as levels
 from warp_cloth.kernels import passes as fused
 from warp_cloth.kernels import solve_loop
 from warp_cloth.kernels.colliders import RigidColliders
 
-from .device_model import DeviceHierarchy, DeviceModel
-from .passes import Pass, contacts_args
+from .device_model import DeviceModel
+from .passes import Pass, attachments_of, contacts_args
 from .state import DeviceState
 
 
-LEVEL_PASSES = 2  # Jacobi passes of each coarse level's limits in a cascade (even: they alternate buffers)
-
-
-class Cascade:
-    """Each coarse limit's path measured and its target set (finest first); then the coarsest level's
-    limits, LEVEL_PASSES Jacobi passes of them; each finer level's nodes following their parents and
-    taking their own passes; the particles last, in place, their velocities changed by their moves over h.
-    Every level's nodes are put outside the rigid colliders after each pass; particle contacts are left to
-    the particles' passes that follow."""
-
-    def __init__(self, model: DeviceModel, hierarchy: DeviceHierarchy, colliders: RigidColliders | None) -> None:
-        self.hierarchy, self.h, self.inv_mass = hierarchy, model.h, model.inv_mass
-        self.colliders = colliders if colliders is not None else model.no_colliders()
-        nodes, limits = hierarchy.first[-1], hierarchy.edge_first[-1]
-        self.start, self.current, self.spare = (wp.zeros(nodes, dtype=wp.vec3, device=model.device)
-                                                for _ in range(3))
-        self.length = wp.zeros(limits, dtype=float, device=model.device)
-        self.target = wp.zeros(limits, dtype=wp.vec2, device=model.device)
-        sizes = [hierarchy.first[k] - hierarchy.first[k - 1] for k in range(1, len(hierarchy.first))]
-        self.name = "multilevel cascade over " + " > ".join(str(size) for size in reversed(sizes)) + " nodes"
-
-    def run(self, state: DeviceState) -> None:
-        h, device = self.hierarchy, state.device
-        launch = lambda kernel, dim, inputs, outputs: wp.launch(kernel, dim=dim, inputs=inputs,  # noqa: E731
-                                                                outputs=outputs, device=device)
-        launch(levels.start_levels, h.first[-1], [h.particle, state.x], [self.start, self.current])
-        launch(levels.measure_springs, h.edge_first[1], [h.edge_ends, state.x], [self.length])
-        for k in range(1, len(h.edge_first) - 1):
-            launch(levels.measure_paths, h.edge_first[k + 1] - h.edge_first[k],
-                   [h.edge_first[k], h.edge_ends, h.edge_path, h.edge_shortest, h.edge_longest, self.start],
-                   [self.length, self.target])
-        for k in range(len(h.first) - 1, 0, -1):
-            first, size = h.first[k - 1], h.first[k] - h.first[k - 1]
-            for _ in range(LEVEL_PASSES // 2):
-                for x, x_out in ((self.current, self.spare), (self.spare, self.current)):
-                    launch(fused.level_pass, size, [first, h.limits.offsets, h.limits.other, h.limits.limit,
-                                                    self.target, h.inv_mass, self.colliders, self.h, x], [x_out])
-            if k > 1:
-                finer = h.first[k - 2]
-                launch(levels.follow_parents, first - finer,
-                       [finer, h.parents.offsets, h.parents.parent, h.parents.weight, h.inv_mass, self.start],
-                       [self.current])
-        links = h.particle_parents
-        launch(levels.particles_follow_parents, state.x.shape[0],
-               [links.offsets, links.parent, links.weight, self.inv_mass, self.start, self.current, self.h],
-               [state.x, state.v])
-
-
 class ConvergedProjection:
-    """Runs ``body`` (passes that leave the positions' buffer parity as they found it), after a multilevel
-    cascade where the model has coarse levels, until the check after it finds every limit and contact
-    within tolerance, or ``limit_max_passes`` passes have run."""
+    """Runs ``body`` (passes that leave the positions' buffer parity as they found it) until the check after
+    it finds every limit and contact within tolerance, or ``limit_max_passes`` passes have run."""
 
     def __init__(self, model: DeviceModel, state: DeviceState, body: list[Pass],
                  colliders: RigidColliders | None, counted: int | None = None) -> None:
         assert len(body) % 2 == 0, "a loop's body must leave the positions where it found them"
         self.body = body
         self.counted = len(body) if counted is None else counted  # the body's passes that count to the cap
-        self.cascade = Cascade(model, model.hierarchy, colliders) if model.hierarchy is not None else None
-        steps = ([self.cascade] if self.cascade is not None else []) + body
-        self.name = f"until within tolerance, {len(body)} at a time: " + ", ".join(p.name for p in steps)
+        self.name = f"until within tolerance, {len(body)} at a time: " + ", ".join(p.name for p in body)
         self.colliders = colliders if colliders is not None else model.no_colliders()
         self.max_passes = model.limit_max_passes
         self.h = model.h
@@ -88,6 +35,7 @@ class ConvergedProjection:
         args = fused.ResidualArgs()
         args.check_limits = int(model.limits is not None)
         args.limits = model.limits if model.limits is not None else model.no_limits()
+        args.attachments = attachments_of(model)
         args.limit_tolerance = model.limit_tolerance
         args.check_contacts = int(model.contacts is not None)
         args.contacts = contacts_args(model, state) if model.contacts is not None else model.no_contacts()
@@ -116,8 +64,6 @@ class ConvergedProjection:
             wp.copy(self.iterates[0], state.x)
 
         def iteration() -> None:
-            if self.cascade is not None:
-                self.cascade.run(state)
             for step in self.body:
                 step.run(state)
             if self.rho is not None:

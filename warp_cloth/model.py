@@ -17,7 +17,6 @@ from warp_cloth.kernels import springs as spring_kernels
 from .adjacency import Adjacency
 from .cloth_grid import build_grid, rotation_matrix
 from .cloth_mesh import BEND, SHEAR, STRUCTURAL, ClothMesh, enclosing_radii, rest_adjacent_pairs
-from .hierarchy import Hierarchy, build_hierarchy
 from .mesh_cloth import build_mesh_cloth
 from .mesh_io import unique_pairs
 from .pin_selection import select_pins
@@ -197,7 +196,6 @@ class Model:
     edges: np.ndarray  # (e, 2) int32: every cloth's structural and shear edges, springs or not
     edge_rest: np.ndarray  # (e,) float32: their rest lengths
     edge_kind: np.ndarray  # (e,) int32: STRUCTURAL or SHEAR
-    hierarchy: Hierarchy | None = None  # coarser levels of the strain limits, for the multilevel solve
     mesh_colliders: MeshColliders | None = None
     wind_faces: WindFaces | None = None
     pin_animations: tuple[PinAnimation, ...] = ()
@@ -251,40 +249,12 @@ def build_model(scene: Scene, worlds: Worlds | None = None) -> Model:
     for animation in pin_animations:
         positions[animation.index] = keyed_at(animation.key_times, animation.key_points, begins)
     springs = _springs(scene, meshes, offsets, n)
-    limits = _limits(springs, n, _attachments(scene, meshes, offsets, selections), _long_range(scene, meshes, offsets))
+    limits = _limits(springs, n, _attachments(scene, meshes, offsets, selections))
     edges, edge_rest, edge_kind = _edges(meshes, offsets)
-    hierarchy = _hierarchy(springs, masses, inv_mass, scene, offsets) if scene.simulation.limit_multilevel else None
     return Model(meshes, tuple(offsets), positions, velocities, masses, inv_mass, cloth_id, springs, limits,
-                 pins, _spheres(scene, begins), _contacts(scene, meshes), edges, edge_rest, edge_kind, hierarchy,
+                 pins, _spheres(scene, begins), _contacts(scene, meshes), edges, edge_rest, edge_kind,
                  _mesh_colliders(scene, begins), _wind_faces(meshes, offsets) if scene.wind is not None else None,
                  pin_animations, worlds)
-
-
-def _hierarchy(springs: Springs | None, masses: np.ndarray, inv_mass: np.ndarray, scene: Scene,
-               offsets: list[int]) -> Hierarchy | None:
-    """The coarser levels of the limited springs' graph, every 2nd, 4th, ... row and column of each grid
-    preferred (and along an edge of pins, every 2nd, 4th, ... pin)."""
-    if springs is None or not np.isfinite(springs.limit_max).any():
-        return None
-    limited = np.isfinite(springs.limit_max)
-    lattice = np.zeros(len(masses))
-    for c, cloth in enumerate(scene.cloths):
-        if cloth.mesh is not None:  # no rows to prefer: the pinned particles first, then any
-            lattice[offsets[c]:offsets[c + 1]] = np.where(inv_mass[offsets[c]:offsets[c + 1]] == 0.0, 30, 0)
-            continue
-        columns = cloth.resolution[0] + 1
-        index = np.arange(cloth.particle_count)
-        halvings = _halvings(index % columns), _halvings(index // columns)
-        pinned = inv_mass[offsets[c]:offsets[c + 1]] == 0.0
-        lattice[offsets[c]:offsets[c + 1]] = np.where(pinned, np.maximum(*halvings), np.minimum(*halvings))
-    return build_hierarchy(springs.pairs[limited], springs.limit_min[limited], springs.limit_max[limited], masses,
-                           inv_mass, lattice)
-
-
-def _halvings(k: np.ndarray) -> np.ndarray:
-    """How many times k can be halved and stay whole (30 for 0)."""
-    k = k.astype(np.int64)
-    return np.where(k == 0, 30, np.log2((k & -k).clip(1)).astype(np.int64))
 
 
 def _edges(meshes, offsets) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -324,59 +294,16 @@ def _springs(scene: Scene, meshes, offsets, n: int) -> Springs | None:
                    Adjacency.of(pairs, n))
 
 
-def _limits(springs: Springs | None, n: int, attachments: tuple[np.ndarray, np.ndarray],
-            long_range: tuple[np.ndarray, np.ndarray]) -> StrainLimits | None:
-    """The limited springs and the long-range limits (longest lengths only) as incidence lists."""
+def _limits(springs: Springs | None, n: int, attachments: tuple[np.ndarray, np.ndarray]) -> StrainLimits | None:
+    """The limited springs as incidence lists."""
     if springs is None:
         return None
     limited = np.isfinite(springs.limit_max)
     if not limited.any():
         return None
-    far_pairs, far_max = long_range
-    pairs = np.concatenate([springs.pairs[limited], far_pairs])
-    lo = np.concatenate([springs.limit_min[limited], np.zeros(len(far_pairs), dtype=np.float32)])
-    hi = np.concatenate([springs.limit_max[limited], far_max])
-    adjacency = Adjacency.of(pairs, n)
+    lo, hi = springs.limit_min[limited], springs.limit_max[limited]
+    adjacency = Adjacency.of(springs.pairs[limited], n)
     return StrainLimits(adjacency.offsets, adjacency.other, lo[adjacency.spring], hi[adjacency.spring], *attachments)
-
-
-LONG_RANGE_DIRECTIONS = ((1, 0), (0, 1), (1, 1), (1, -1))  # along rows, columns and both diagonals
-
-
-def _long_range(scene: Scene, meshes, offsets) -> tuple[np.ndarray, np.ndarray]:
-    """Pairs 2, 4, 8, ... cells apart along the rows, columns and diagonals of the cloths whose limit asks
-    for ``long_range``, with (1 + stretch) times the rest length of the path of structural or shear springs
-    between them as their longest length."""
-    pairs, longest = [np.zeros((0, 2), dtype=np.int64)], [np.zeros(0, dtype=np.float32)]
-    for c, (cloth, mesh) in enumerate(zip(scene.cloths, meshes)):
-        if cloth.limit is None or not cloth.limit.long_range:
-            continue
-        nx, ny = cloth.resolution
-        rest = mesh.positions.reshape(ny + 1, nx + 1, 3)
-        gy, gx = np.mgrid[0:ny + 1, 0:nx + 1]
-        for dx, dy in LONG_RANGE_DIRECTIONS:
-            # path[span][y, x]: rest length of the path from (x, y) span steps on (nan past the edge)
-            path = _shifted(rest, dx, dy) - rest
-            path = np.linalg.norm(path, axis=2)
-            span = 1
-            while 2 * span <= max(nx, ny):
-                path = path + _shifted(path[..., None], span * dx, span * dy)[..., 0]
-                span *= 2
-                inside = np.isfinite(path)
-                start = (gy * (nx + 1) + gx)[inside]
-                end = ((gy + span * dy) * (nx + 1) + gx + span * dx)[inside]
-                pairs.append(np.stack([start, end], axis=1) + offsets[c])
-                longest.append(((1.0 + cloth.limit.stretch) * path[inside]).astype(np.float32))
-    return np.concatenate(pairs), np.concatenate(longest)
-
-
-def _shifted(values: np.ndarray, dx: int, dy: int) -> np.ndarray:
-    """values[y + dy, x + dx] at [y, x] (nan where that lies past the grid's edge)."""
-    out = np.full(values.shape, np.nan)
-    ny, nx = values.shape[:2]
-    ys, xs = slice(max(0, -dy), min(ny, ny - dy)), slice(max(0, -dx), min(nx, nx - dx))
-    out[ys, xs] = values[max(0, dy):min(ny, ny + dy), max(0, dx):min(nx, nx + dx)]
-    return out
 
 
 def _attachments(scene: Scene, meshes, offsets: list[int],

@@ -22,19 +22,24 @@ from .state import (BUCKET_CAPACITY, EDGE_BUCKET_CAPACITY, DeviceState, edge_has
 # fastest at 64^2, 4 at 256^2, one at 1024^2 (docs/results/list-probe-h200.json).
 LIST_THREADS_BY_SIZE = ((8192, 16), (131072, 4))
 
+# Tests and the bench set this to remake the lists in every substep: the same contacts as lists kept until
+# a particle has moved far enough (a reference for them), at the broad phase's full cost.
+REMAKE_EVERY_SUBSTEP = False
+
 
 class NeighbourLists:
     """The pass that remakes every particle's candidate list where ``rebuild`` is set (by the contacts'
-    start, or at every substep where the scene's ``collision.lists`` is ``every_substep``), from the spatial
-    hash or by checking all pairs; its kernels launch every substep and return at once otherwise.
+    start, or at every substep with ``REMAKE_EVERY_SUBSTEP``), from the spatial hash or, up to
+    ``BRUTE_FORCE_UP_TO`` particles, by checking all pairs; its kernels launch every substep and return at
+    once otherwise.
 
-    A pair left out of a list was farther apart than ``search_scale`` contact distances when it was made,
+    A pair left out of a list was farther apart than ``SEARCH_SCALE`` contact distances when it was made,
     so it cannot touch before some particle has moved ``rebuild_distance``."""
 
     def __init__(self, model: DeviceModel, state: DeviceState, threads: int) -> None:
         settings = model.contacts.settings
         n = model.particle_count
-        self.every_substep = settings.lists == "every_substep"
+        self.every_substep = REMAKE_EVERY_SUBSTEP
         self.name = "lists:remake" + ("" if self.every_substep else "-if-moved")
         self.contacts = contacts_args(model, state)
         self.rules = model.contacts.rules
@@ -43,7 +48,7 @@ class NeighbourLists:
         self.state = state.contacts
         self.n = n
         self.rebuild_distance = 0.5 * (self.rules.search_scale - 1.0) * settings.separation * model.contacts.min_radius
-        self.use_hash = uses_hash(settings.broad_phase, n)
+        self.use_hash = uses_hash(n)
         self.threads = threads if self.use_hash else 1
         self.grid = HashGrid()
         self.grid.inv_cell = 1.0 / (self.rules.search_scale * settings.separation * model.contacts.max_radius)

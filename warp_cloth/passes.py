@@ -8,6 +8,7 @@ from typing import Protocol
 import warp as wp
 
 from warp_cloth.kernels import colliders, gathering, motion, passes as fused, wind
+from warp_cloth.kernels.attachments import Attachments
 from warp_cloth.kernels.colliders import RigidColliders
 from warp_cloth.kernels.edge_collision import EdgeContacts
 from warp_cloth.kernels.particle_collision import Contacts
@@ -126,9 +127,10 @@ def limit_pass(model: DeviceModel, threads: int, bundle: RigidColliders | None, 
                read_bit: int) -> GatheringPass:
     """One Jacobi pass of the strain limits; its colliders mark in ``resting`` (None: no marks)."""
     args = fused.LimitPassArgs()
-    args.limits = model.limits
+    args.limits, args.attachments = model.limits, attachments_of(model)
     args.resting = resting if resting is not None else model.no_marks
-    return projection_pass("limits", fused.limit_pass_kernel(threads), args, model, threads, bundle, read_bit)
+    return projection_pass(limits_name(model), fused.limit_pass_kernel(threads), args, model, threads, bundle,
+                           read_bit)
 
 
 def separation_pass(model: DeviceModel, state: DeviceState, threads: int, bundle: RigidColliders | None,
@@ -144,9 +146,18 @@ def limit_and_separation_pass(model: DeviceModel, state: DeviceState, threads: i
                               read_bit: int) -> GatheringPass:
     """The limit's and the separation's Jacobi pass in one (see kernels/passes.py)."""
     args = fused.LimitAndSeparationPassArgs()
-    args.limits, args.contacts = model.limits, contacts_args(model, state)
-    return projection_pass("limits+separation", fused.limit_and_separation_pass_kernel(threads), args, model,
-                           threads, bundle, read_bit)
+    args.limits, args.attachments, args.contacts = model.limits, attachments_of(model), contacts_args(model, state)
+    return projection_pass(limits_name(model) + "+separation", fused.limit_and_separation_pass_kernel(threads), args,
+                           model, threads, bundle, read_bit)
+
+
+def attachments_of(model: DeviceModel) -> Attachments:
+    """What a limit pass holds to the pins: the model's attachments, or none (kernels/attachments.py)."""
+    return model.attachments if model.attachments is not None else model.no_attachments()
+
+
+def limits_name(model: DeviceModel) -> str:
+    return "limits+attachments" if model.attachments is not None else "limits"
 
 
 def edge_separation_pass(model: DeviceModel, state: DeviceState, threads: int,

@@ -136,20 +136,18 @@ class Limit:
     then hold a hanging cloth's length whatever its resolution, where springs alone pass a pull on one row
     per pass. The distance is measured around the world's spheres (the shortest way that stays outside
     each, shrunk by a spring's chord: kernels/wrapping.py), so a cloth that drapes over a sphere still hangs
-    from its pins over it; meshes are not wrapped around. They are off by default: they
-    fight a kinematic collider that pushes the cloth out of their reach (the fast_sphere hard case reached
-    36 to 60 m/s and up to 23 crossing triangle pairs with them, 23 to 30 m/s and none without).
+    from its pins over it; meshes are not wrapped around (kernels/attachments.py).
 
-    With ``long_range``, each particle is also held within (1 + stretch) times the rest length of the
-    path along its row, its column and its diagonals to the particles 2, 4, 8, ... cells away: limits that
-    the springs' own limits imply (a path of springs each within its limit is), so they never ask for what
-    the cloth cannot give, but that carry a correction across 2^k cells in one pass (docs/strain-solve.md).
+    Use them for a cloth that hangs from pins (a curtain, a flag, a garment on a hanger): they hold the
+    speed matrix's hanging 256^2 cloth at +10.1% with 10 substeps, 37 times faster than Newton's solver at
+    equal quality (docs/benchmarks.md). They are off by default because they fight a kinematic collider
+    that pushes the cloth out of their reach (the fast_sphere hard case reached 36 to 60 m/s and up to 23
+    crossing triangle pairs with them, 23 to 30 m/s and none without).
     """
 
     stretch: float = 0.10
     compression: float = 0.10
     attachments: bool = False
-    long_range: bool = False
 
     def __post_init__(self) -> None:
         check_fields(self)
@@ -311,9 +309,6 @@ class Cloth:
         for p, pin in enumerate(self.pins):
             _require(not (pin.corners or pin.edges), f"pins[{p}]", "pins by indices, region or group on a mesh "
                      "cloth (corners and edges are a grid's)", has_got=False)
-        if self.limit is not None:
-            _require(not self.limit.long_range, "limit.long_range", "false on a mesh cloth (long-range limits "
-                     "are built along a grid's rows for now)", True)
         surface = self.surface()
         _require(len(surface.points) <= MAX_PARTICLES, "mesh", f"at most {MAX_PARTICLES} vertices",
                  len(surface.points))
@@ -595,18 +590,14 @@ class Collision:
     for every cloth. Two particles are kept ``separation`` radii apart (the mean of their radii).
     ``iterations`` Jacobi passes push overlapping pairs apart, then the approaching part of their
     relative velocity is removed, and ``friction`` takes tangential relative speed in proportion.
-    ``broad_phase`` finds the pairs with a hash grid, or the seed's O(n^2) way (``brute_force``: the same
-    contacts, for checking and for measuring what the grid saves); ``auto`` takes the brute force for
-    scenes of at most 512 particles, where it is faster than building a grid. A pass that also limits
-    strain (see ``Simulation.limit_iterations``) does both in one Jacobi kernel where ``projection`` is
-    ``joint`` (each particle moves by its limits' mean correction and its pushes' mean, no limit
-    correction pulling into a contact): a launch less a pass, contacts held closer, strain a little less
-    so; ``sequential`` runs the limit, then the separation on what it left (docs/accuracy.md). Each
-    particle's candidate pairs are listed within ``search_scale`` contact distances and the lists remade
-    ``when_moved``: once some particle has moved half the margin that leaves, so that no pair left out can
-    touch before; ``every_substep`` remakes them every substep (slower, with the same contacts: for
-    measuring the broad phase). A larger ``search_scale`` remakes less often and makes longer lists
-    (tools/skin_probe.py measures the trade). With ``simulation.limit_solve = "converged"`` the passes go on
+    Scenes of at most 512 particles find the pairs by checking all of them, where that is faster than
+    building the grid. A pass that also limits strain (see ``Simulation.limit_iterations``) does both in
+    one Jacobi kernel where ``projection`` is ``joint`` (each particle moves by its limits' mean correction
+    and its pushes' mean, no limit correction pulling into a contact): a launch less a pass, contacts held
+    closer, strain a little less so; ``sequential`` runs the limit, then the separation on what it left
+    (docs/accuracy.md). Each particle's candidate pairs are listed within 1.5 contact distances and the
+    lists remade once some particle has moved half the margin that leaves, so that no pair left out can
+    touch before. With ``simulation.limit_solve = "converged"`` the passes go on
     (``iterations`` is not used) until no candidate pair is more than ``tolerance`` of its contact distance
     inside it, and the strain limits hold to theirs. ``edges`` adds edge contacts: triangle edges too long
     for the particles' spheres to keep from passing through each other (a grid's diagonals, where a cloth
@@ -622,10 +613,7 @@ class Collision:
     iterations: int = 2
     friction: float = 0.0
     max_neighbors: int = 32
-    broad_phase: Literal["auto", "hash_grid", "brute_force"] = "auto"
     projection: Literal["joint", "sequential"] = "joint"
-    lists: Literal["when_moved", "every_substep"] = "when_moved"
-    search_scale: float = 1.5
     tolerance: float = 0.05
     edges: bool = False
 
@@ -642,8 +630,6 @@ class Collision:
         _require(4 <= self.max_neighbors <= 256, "max_neighbors", "a whole number in [4, 256]", self.max_neighbors)
         _require(0.0 < self.tolerance <= 0.5, "tolerance", "a fraction of the contact distance in (0, 0.5]",
                  self.tolerance)
-        _require(1.05 <= self.search_scale <= 4.0, "search_scale", "a number of contact distances in [1.05, 4]",
-                 self.search_scale)
 
 
 @dataclass(frozen=True)
@@ -652,15 +638,12 @@ class ImplicitSolver:
     linearised step; more steps solve the nonlinear backward Euler equations until the residual (RMS over
     free particles of |M (v - v0) - h f| / m, in m/s) is below ``newton_tolerance``. Each step is solved
     by conjugate gradient to ``cg_tolerance`` (relative, in the preconditioned norm) or
-    ``cg_max_iterations``. ``cg_loop`` says how the iterations run on the device: ``device_while`` (a
-    conditional loop in the captured graph) or ``unrolled`` (``cg_max_iterations`` captured iterations
-    that skip their work once converged)."""
+    ``cg_max_iterations``, in a conditional loop on the device (inside the captured graph)."""
 
     newton_iterations: int = 1
     newton_tolerance: float = 1e-4
     cg_tolerance: float = 1e-4
     cg_max_iterations: int = 200
-    cg_loop: Literal["device_while", "unrolled"] = "device_while"
 
     def __post_init__(self) -> None:
         check_fields(self)
@@ -689,9 +672,7 @@ class Simulation:
     contact distance inside it), at most ``limit_max_passes`` a substep (``Simulator.solver_stats()``
     says how many it took; unset: 200, or as many as keep a frame within the simulator's bound on a frame's
     passes at its substeps); ``limit_chebyshev_rho`` > 0 accelerates each pair of passes by Chebyshev's
-    semi-iterative method with that spectral radius; ``limit_multilevel`` begins each pair with passes
-    over coarser and coarser levels of the limits, coarsest first, each finer level following its coarse
-    neighbours' moves (warp_cloth/hierarchy.py, docs/strain-solve.md). ``"fixed"``, a fast mode to be
+    semi-iterative method with that spectral radius. ``"fixed"``, a fast mode to be
     chosen explicitly, runs ``limit_iterations`` passes a substep, however far that leaves the cloth from its
     limits (the run's summary says how far).
 
@@ -722,7 +703,6 @@ class Simulation:
     limit_tolerance: float = 0.005
     limit_max_passes: int | None = None
     limit_chebyshev_rho: float = 0.0
-    limit_multilevel: bool = False
     max_speed: float = 1000.0
     compensated: bool = False
 
@@ -758,11 +738,6 @@ class Simulation:
         _require(not self.compensated or self.integrator != "implicit", "compensated",
                  "false with the implicit integrator (it sums the explicit and symplectic steps' moves)",
                  self.compensated)
-        _require(not self.limit_multilevel or self.limit_solve == "converged", "limit_multilevel",
-                 'false, or true with limit_solve = "converged"', self.limit_multilevel)
-        _require(not (self.limit_multilevel and self.limit_chebyshev_rho), "limit_chebyshev_rho",
-                 "0 with limit_multilevel (the two together diverged on the speed matrix's sphere cloth, "
-                 "docs/strain-solve.md)", self.limit_chebyshev_rho)
 
     @property
     def substeps_per_frame(self) -> int | None:

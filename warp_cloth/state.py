@@ -59,11 +59,13 @@ EDGE_NEIGHBORS = 32  # candidates an edge's list holds (overflow is counted with
 EDGE_BUCKET_CAPACITY = 64  # edges a bucket of their hash holds: its cells are wider than an edge is long
 
 BUCKET_CAPACITY = 16  # particles a spatial-hash bucket holds (overflow is counted, tests keep it 0)
-BRUTE_FORCE_UP_TO = 512  # particles; below, checking all pairs costs less than the hash
+# Particles up to which the lists are made by checking all pairs, which costs less there than the hash
+# (docs/benchmarks.md). Tests and the bench set it to choose the broad phase they compare: 0 for the hash.
+BRUTE_FORCE_UP_TO = 512
 
 
-def uses_hash(broad_phase: str, particles: int) -> bool:
-    return broad_phase == "hash_grid" or (broad_phase == "auto" and particles > BRUTE_FORCE_UP_TO)
+def uses_hash(particles: int) -> bool:
+    return particles > BRUTE_FORCE_UP_TO
 
 
 def hash_table_size(particles: int) -> int:
@@ -105,7 +107,7 @@ class DeviceState:
         n, device = model.particle_count, model.device
         settings = model.contacts.settings
         per_list = n * settings.max_neighbors
-        table = hash_table_size(n) if uses_hash(settings.broad_phase, n) else 0
+        table = hash_table_size(n) if uses_hash(n) else 0
         zeros = lambda count, dtype=int: wp.zeros(count, dtype=dtype, device=device)  # noqa: E731
         far = wp.full(n, wp.vec3(1.0e30), dtype=wp.vec3, device=device)  # lists never made: remake at once
         return ContactState(neighbors=zeros(per_list), counts=zeros(n), x_built=far,

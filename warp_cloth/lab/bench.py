@@ -23,9 +23,10 @@ import tempfile
 import textwrap
 import time
 import warnings
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import Callable, Iterator, Sequence
 
 import numpy as np
 import warp as wp
@@ -41,6 +42,7 @@ from ..strain import StrainMonitor, StrainReport
 from ..writers import PolyWriter, UsdWriter
 from .bench_meshes import RINGS_FOR_100K, as_mesh_cloth, sphere_triangles, with_mesh_sphere
 from .newton_compare import SOLVERS as NEWTON_SOLVERS, SPHERE_CENTER, SPHERE_RADIUS, SWING_DEGREES, swung_origin
+from .. import neighbour_lists, state
 
 # The seed's C++ on this machine kind (docs/seed-baseline.md). It always ran its O(n^2)
 # self collision, so only the "+self" rows do the same work and get a ratio (seed_25x25, without
@@ -143,8 +145,7 @@ def core_cases(device: str) -> list[Case]:
     return cases
 
 
-def stacked_layers_scene(particles: int, broad_phase: str = "hash_grid", layers: int = 4,
-                         lists: str = "when_moved", substeps: int = 1) -> Scene:
+def stacked_layers_scene(particles: int, layers: int = 4, substeps: int = 1) -> Scene:
     """``layers`` square cloths of ``particles / layers`` particles stacked 0.9 contact distances apart, so
     that every particle touches the layers next to it: particle collision's working load."""
     side = max(2, int(round((particles / layers) ** 0.5)))
@@ -154,7 +155,7 @@ def stacked_layers_scene(particles: int, broad_phase: str = "hash_grid", layers:
                          orientation="horizontal", origin=(0.0, 0.9 * contact * k, 0.0), jitter=0.02, seed=k,
                          limit=Limit(0.1, 0.1)) for k in range(layers))
     return Scene(name=f"layers_{particles}", cloths=cloths,
-                 collision=Collision(iterations=4, broad_phase=broad_phase, lists=lists),
+                 collision=Collision(iterations=4),
                  simulation=fixed_solve(fps=24, frames=1, substeps=substeps, gravity=(0.0, 0.0, 0.0)))
 
 
@@ -184,11 +185,8 @@ def integrator_cases(device: str) -> list[Case]:
             if not any(c.name == name for c in cases):
                 cases.append(Case(name, seed_cloth_scene(20, True, integrator, dt), 240))
     if device != "cpu":
-        scene = hanging_cloth_scene(256, "implicit", 1)
-        for loop in ("device_while", "unrolled"):
-            solver = dataclasses.replace(scene.implicit, cg_loop=loop)
-            cases.append(Case(f"hanging_256x256 implicit 1 step/frame {loop}",
-                              dataclasses.replace(scene, implicit=solver), 48, fresh=False))
+        cases.append(Case("hanging_256x256 implicit 1 step/frame", hanging_cloth_scene(256, "implicit", 1), 48,
+                          fresh=False))
     return cases
 
 
@@ -214,16 +212,28 @@ class CollisionResult:
         return 1e9 * self.seconds_per_substep / self.particles
 
 
+@contextmanager
+def broad_phase_forced(brute_force: bool, every_substep: bool) -> Iterator[None]:
+    """Simulators made inside check all pairs whatever their size (else they use the hash grid) and, with
+    ``every_substep``, remake their lists every substep: the hooks the tests' oracles use."""
+    saved = state.BRUTE_FORCE_UP_TO, neighbour_lists.REMAKE_EVERY_SUBSTEP
+    state.BRUTE_FORCE_UP_TO = sys.maxsize if brute_force else 0
+    neighbour_lists.REMAKE_EVERY_SUBSTEP = every_substep
+    try:
+        yield
+    finally:
+        state.BRUTE_FORCE_UP_TO, neighbour_lists.REMAKE_EVERY_SUBSTEP = saved
+
+
 def time_collision_substep(particles: int, broad_phase: str, device: str, repeats: int,
                          remake_lists: bool = True) -> CollisionResult:
     """Median time per substep of stacked layers at rest, whose substep is mostly particle collision (the
     explicit step, which begins the contacts; the neighbour lists from the spatial hash or brute force; 4
     projection passes; the velocity pass), replayed as a captured frame of 10 substeps. The layers do not
-    move, so kept lists are never remade: ``remake_lists`` has the scene remake them every substep
-    (``collision.lists``), to time the broad phase."""
-    scene = stacked_layers_scene(particles, broad_phase, lists="every_substep" if remake_lists else "when_moved",
-                                 substeps=10)
-    sim = Simulator(scene, device=device)
+    move, so kept lists are never remade: ``remake_lists`` remakes them every substep, to time the broad
+    phase."""
+    with broad_phase_forced(broad_phase == "brute_force", remake_lists):
+        sim = Simulator(stacked_layers_scene(particles, substeps=10), device=device)
     sim.run(1)
     seconds = []
     for _ in range(repeats):
