@@ -82,6 +82,13 @@ def coincident() -> wc.Scene:
                     simulation=wc.Simulation(fps=24, frames=24, substeps=17, integrator="symplectic"))
 
 
+def pile() -> wc.Scene:
+    """The built-in pile over its first two seconds: six cloths dropped one above the other onto a sphere and
+    the ground, the upper layers landing on the lower ones."""
+    seed = wc.load_scene("pile")
+    return dataclasses.replace(seed, simulation=dataclasses.replace(seed.simulation, frames=48))
+
+
 def long_run() -> wc.Scene:
     """The seed's hanging cloth, symplectic with a little air drag, for 2000 frames (83 s)."""
     seed = wc.load_scene("hanging")

@@ -10,7 +10,7 @@ import pytest
 from pxr import Usd
 
 import warp_cloth as wc
-from conftest import REPO, run_cli
+from conftest import REPO, run_cli, run_cli_in_process
 
 
 def test_scenes_lists_every_builtin_with_its_description(tmp_path):
@@ -28,10 +28,10 @@ def test_help_everywhere(tmp_path, args):
 
 
 def test_run_writes_usd_and_poly_and_prints_one_summary_line(tmp_path):
-    result = run_cli("run", "sphere_push", "--frames", "5", "--substeps", "6", "--integrator", "symplectic",
-                     "--device", "cpu", cwd=tmp_path)
-    assert result.returncode == 0, result.stderr
-    lines = result.stdout.strip().splitlines()
+    code, out, err = run_cli_in_process("run", "sphere_push", "--frames", "5", "--substeps", "6", "--integrator",
+                                        "symplectic", "--device", "cpu", cwd=tmp_path)
+    assert code == 0, err
+    lines = out.strip().splitlines()
     assert len(lines) == 2 and lines[0].startswith("sphere_push: step 6.94 ms (6 substeps/frame), as set;")
     assert re.match(r"sphere_push: 5 frames \(30 substeps of 6.94 ms, symplectic\) of 121 particles on cpu", lines[1])
     stage = Usd.Stage.Open(str(tmp_path / "out" / "sphere_push.usdc"))

@@ -9,7 +9,7 @@ import pytest
 import warp as wp
 
 import warp_cloth as wc
-from conftest import run_cli, with_simulation
+from conftest import run_cli_in_process, with_simulation
 from warp_cloth.diagnostics import ContactGaps, TriangleIntersections
 from warp_cloth.kernels import attachments, edge_collision, particle_collision, spatial_hash
 from warp_cloth.cloth_grid import build_grid
@@ -323,9 +323,10 @@ def test_flat_cloth_has_no_intersections():
 
 
 def test_check_option_prints_one_line_per_frame(tmp_path):
-    result = run_cli("run", "fold", "--frames", "3", "--check", "--no-usd", "--no-poly", cwd=tmp_path)
-    assert result.returncode == 0, result.stderr
-    lines = result.stdout.strip().splitlines()[1:]  # after the line saying the step
+    code, out, err = run_cli_in_process("run", "fold", "--frames", "3", "--check", "--no-usd", "--no-poly",
+                                        cwd=tmp_path)
+    assert code == 0, err
+    lines = out.strip().splitlines()[1:]  # after the line saying the step
     assert [line.split(":")[0] for line in lines[:4]] == ["frame 0", "frame 1", "frame 2", "frame 3"]
     assert all("0 intersecting triangle pairs" in line for line in lines[:4])
     assert "most intersecting triangle pairs 0" in lines[-1]

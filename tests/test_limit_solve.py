@@ -7,7 +7,7 @@ import re
 import pytest
 
 import warp_cloth as wc
-from conftest import run_cli
+from conftest import run_cli_in_process
 from warp_cloth.strain import StrainMonitor
 
 TOLERANCE = 0.005
@@ -71,10 +71,10 @@ def test_converged_solve_with_contacts_keeps_particles_apart_and_strain_within()
 
 
 def test_run_summary_says_what_the_solve_took(tmp_path):
-    result = run_cli("run", "hanging", "--frames", "4", "--no-usd", "--no-poly", "--limit-solve", "converged",
-                     cwd=tmp_path)
-    assert result.returncode == 0, result.stderr
-    summary = result.stdout.strip().splitlines()[-1]
+    code, out, err = run_cli_in_process("run", "hanging", "--frames", "4", "--no-usd", "--no-poly", "--limit-solve",
+                                        "converged", cwd=tmp_path)
+    assert code == 0, err
+    summary = out.strip().splitlines()[-1]
     said = re.search(r"limit solve ([\d.]+) passes a substep on average, (\d+) at most, every solve ended within "
                      r"tolerance", summary)
     assert said, summary
@@ -83,15 +83,15 @@ def test_run_summary_says_what_the_solve_took(tmp_path):
 
 
 def test_the_command_line_sets_the_cap_and_is_named_where_the_cap_breaks_the_frame_bound(tmp_path):
-    capped = run_cli("run", "hanging", "--frames", "24", "--integrator", "implicit", "--dt", "0.04165",
-                     "--limit-max-passes", "4", "--no-usd", "--no-poly", cwd=tmp_path)
-    assert capped.returncode == 0, capped.stderr
-    assert "4 at most, some reached the cap of 4 passes" in capped.stdout.strip().splitlines()[-1]
+    code, out, err = run_cli_in_process("run", "hanging", "--frames", "24", "--integrator", "implicit", "--dt",
+                                        "0.04165", "--limit-max-passes", "4", "--no-usd", "--no-poly", cwd=tmp_path)
+    assert code == 0, err
+    assert "4 at most, some reached the cap of 4 passes" in out.strip().splitlines()[-1]
     # 100 substeps x (1 + 1000) passes is past the 50,000 a frame: the option that set the cap is named
-    refused = run_cli("run", "hanging", "--substeps", "100", "--limit-max-passes", "1000", "--no-usd", "--no-poly",
-                      cwd=tmp_path)
-    assert refused.returncode == 2 and refused.stdout == ""
-    assert refused.stderr.strip() == ("warp-cloth: error: command line: --limit-max-passes: expected at most 50,000 "
+    code, out, err = run_cli_in_process("run", "hanging", "--substeps", "100", "--limit-max-passes", "1000",
+                                        "--no-usd", "--no-poly", cwd=tmp_path)
+    assert code == 2 and out == ""
+    assert err.strip() == ("warp-cloth: error: command line: --limit-max-passes: expected at most 50,000 "
                                       "passes a frame, so that a frame ends: 100 substeps x 1001 passes a substep "
                                       "is 100,100, got 1000")
     assert list(tmp_path.iterdir()) == []

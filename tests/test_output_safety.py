@@ -60,6 +60,12 @@ def usd_points(path: Path) -> list[np.ndarray]:
     return [np.array(attr.Get(t)) for t in attr.GetTimeSamples()]
 
 
+def run_here(*args: str, cwd: Path) -> subprocess.CompletedProcess:
+    """``run_cli``'s answer from ``run_cli_in_process``: the same command without a Python to start."""
+    code, out, err = run_cli_in_process(*args, cwd=cwd)
+    return subprocess.CompletedProcess(args, code, out, err)
+
+
 def one_error_line(result: subprocess.CompletedProcess, warned: bool = False) -> str:
     """The one line of a failed run's standard error (after the step warning, where ``warned``)."""
     lines = result.stderr.splitlines()
@@ -81,8 +87,8 @@ def test_poly_folder_keeps_the_users_files_and_the_usd_of_the_same_run(tmp_path)
     (tmp_path / "notes.txt").write_text("mine")
     (tmp_path / "src").mkdir()
     (tmp_path / "src" / "main.c").write_text("int main;")
-    result = run_cli("run", "hanging", "--frames", "3", "--out", str(tmp_path), "--poly", str(tmp_path), "--quiet",
-                     cwd=REPO)
+    result = run_here("run", "hanging", "--frames", "3", "--out", str(tmp_path), "--poly", str(tmp_path), "--quiet",
+                      cwd=REPO)
     assert result.returncode == 0, result.stderr
     assert (tmp_path / "notes.txt").read_text() == "mine"
     assert (tmp_path / "src" / "main.c").read_text() == "int main;"
@@ -108,10 +114,10 @@ def test_poly_frames_replace_only_files_of_the_same_names(tmp_path):
 
 
 def test_unstable_run_keeps_the_previous_output_and_its_frames_beside_it(tmp_path):
-    good = run_cli("run", "hanging", "--frames", "4", "--out", str(tmp_path), "--quiet", cwd=REPO)
+    good = run_here("run", "hanging", "--frames", "4", "--out", str(tmp_path), "--quiet", cwd=REPO)
     assert good.returncode == 0, good.stderr
     before = files_under(tmp_path)
-    bad = run_cli("run", "hanging", "--frames", "40", "--substeps", "1", "--out", str(tmp_path), "--quiet", cwd=REPO)
+    bad = run_here("run", "hanging", "--frames", "40", "--substeps", "1", "--out", str(tmp_path), "--quiet", cwd=REPO)
     assert bad.returncode == 3
     line = one_error_line(bad, warned=True)
     failed_usd, failed_poly = tmp_path / "hanging.failed.usdc", tmp_path / "hanging" / "poly.failed"
@@ -269,7 +275,7 @@ def test_a_second_run_on_the_same_output_is_refused_at_once(tmp_path):
 
 def test_a_lock_left_by_a_dead_run_is_taken_over(tmp_path):
     (tmp_path / "hanging.lock").write_text("999999\n")
-    result = run_cli("run", "hanging", "--frames", "3", "--out", str(tmp_path), "--no-poly", "--quiet", cwd=REPO)
+    result = run_here("run", "hanging", "--frames", "3", "--out", str(tmp_path), "--no-poly", "--quiet", cwd=REPO)
     assert result.returncode == 0, result.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["hanging.usdc"]
 
@@ -293,7 +299,7 @@ def wait_for(path: Path, process: subprocess.Popen, timeout: float = 120) -> Non
 
 @pytest.mark.parametrize("stop", [signal.SIGTERM, signal.SIGHUP])
 def test_sigterm_and_sighup_stop_after_a_frame_like_ctrl_c(tmp_path, stop):
-    previous = run_cli("run", "hanging", "--frames", "2", "--out", str(tmp_path), "--quiet", cwd=REPO)
+    previous = run_here("run", "hanging", "--frames", "2", "--out", str(tmp_path), "--quiet", cwd=REPO)
     assert previous.returncode == 0
     before = files_under(tmp_path)
     process = start_run("hanging", "--frames", "100000", "--out", str(tmp_path), "--quiet")
@@ -357,8 +363,8 @@ def test_a_scene_read_again_matches_its_checkpoint_where_the_simulator_chose_its
 def test_a_killed_run_resumes_to_the_frames_of_an_uninterrupted_run(tmp_path):
     scene = scene_file(tmp_path)
     frames = "1200"
-    reference = run_cli("run", str(scene), "--frames", frames, "--device", "cpu", "--out", str(tmp_path / "ref"),
-                        "--quiet", cwd=REPO)
+    reference = run_here("run", str(scene), "--frames", frames, "--device", "cpu", "--out", str(tmp_path / "ref"),
+                         "--quiet", cwd=REPO)
     assert reference.returncode == 0, reference.stderr
     out = tmp_path / "killed"
     process = start_run(str(scene), "--frames", frames, "--device", "cpu", "--out", str(out), "--quiet")
@@ -368,11 +374,11 @@ def test_a_killed_run_resumes_to_the_frames_of_an_uninterrupted_run(tmp_path):
     process.wait(timeout=60)
     assert (out / "fold_push.incomplete.usdc").exists() and (out / "fold_push.checkpoint.npz").exists()
     frames_left = {k: v for k, v in files_under(out).items() if not k.endswith(".lock")}  # dead runs' locks go
-    fresh = run_cli("run", str(scene), "--frames", frames, "--device", "cpu", "--out", str(out), "--quiet", cwd=REPO)
+    fresh = run_here("run", str(scene), "--frames", frames, "--device", "cpu", "--out", str(out), "--quiet", cwd=REPO)
     assert fresh.returncode == 2 and "--resume" in one_error_line(fresh)
     assert {k: v for k, v in files_under(out).items() if not k.endswith(".lock")} == frames_left
-    resumed = run_cli("run", str(scene), "--frames", frames, "--device", "cpu", "--out", str(out), "--quiet",
-                      "--resume", cwd=REPO)
+    resumed = run_here("run", str(scene), "--frames", frames, "--device", "cpu", "--out", str(out), "--quiet",
+                       "--resume", cwd=REPO)
     assert resumed.returncode == 0, resumed.stderr
     assert "resumed at frame" in resumed.stdout
     expected, got = usd_points(tmp_path / "ref" / "fold_push.usdc"), usd_points(out / "fold_push.usdc")
@@ -387,7 +393,7 @@ def test_a_killed_run_resumes_to_the_frames_of_an_uninterrupted_run(tmp_path):
 def test_a_stopped_run_resumes_from_where_its_frames_went(tmp_path, previous):
     out = tmp_path / "out"
     if previous:
-        assert run_cli("run", "hanging", "--frames", "2", "--out", str(out), "--quiet", cwd=REPO).returncode == 0
+        assert run_here("run", "hanging", "--frames", "2", "--out", str(out), "--quiet", cwd=REPO).returncode == 0
     process = start_run("hanging", "--frames", "100000", "--out", str(out), "--quiet")
     wait_for(out / "hanging.checkpoint.npz", process)
     process.send_signal(signal.SIGINT)
@@ -395,7 +401,7 @@ def test_a_stopped_run_resumes_from_where_its_frames_went(tmp_path, previous):
     assert process.returncode == 130, err
     kept = int(stopped.split("interrupted after ")[1].split()[0])
     total = str(kept + 12)
-    resumed = run_cli("run", "hanging", "--frames", total, "--out", str(out), "--quiet", "--resume", cwd=REPO)
+    resumed = run_here("run", "hanging", "--frames", total, "--out", str(out), "--quiet", "--resume", cwd=REPO)
     assert resumed.returncode == 0, resumed.stderr
     reference = tmp_path / "reference.usdc"
     wc.Simulator(wc.load_scene("hanging"), device="cpu").run(int(total), writers=[wc.UsdWriter(reference)])
@@ -420,8 +426,8 @@ def test_a_resumed_run_measures_and_reports_the_whole_run(tmp_path):
     stopped, err = process.communicate(timeout=120)
     assert process.returncode == 130, err
     total = int(stopped.split("interrupted after ")[1].split()[0]) + 12
-    resumed = run_cli("run", "hanging", "--frames", str(total), "--out", str(out), "--quiet", "--resume",
-                      "--metrics", str(metrics), cwd=REPO)
+    resumed = run_here("run", "hanging", "--frames", str(total), "--out", str(out), "--quiet", "--resume",
+                       "--metrics", str(metrics), cwd=REPO)
     assert resumed.returncode == 0, resumed.stderr
     strain = wc.StrainMonitor()
     reference = tmp_path / "reference.csv"
@@ -437,13 +443,13 @@ def test_a_resumed_run_measures_and_reports_the_whole_run(tmp_path):
 
 
 def test_resume_refuses_a_changed_scene_and_a_missing_checkpoint(tmp_path):
-    missing = run_cli("run", "hanging", "--frames", "3", "--out", str(tmp_path), "--resume", "--quiet", cwd=REPO)
+    missing = run_here("run", "hanging", "--frames", "3", "--out", str(tmp_path), "--resume", "--quiet", cwd=REPO)
     assert missing.returncode == 2 and "checkpoint" in one_error_line(missing)
     process = start_run("hanging", "--frames", "100000", "--out", str(tmp_path), "--quiet")
     wait_for(tmp_path / "hanging.checkpoint.npz", process)
     process.send_signal(signal.SIGINT)
     process.communicate(timeout=120)
-    changed = run_cli("run", "hanging", "--substeps", "30", "--out", str(tmp_path), "--resume", "--quiet", cwd=REPO)
+    changed = run_here("run", "hanging", "--substeps", "30", "--out", str(tmp_path), "--resume", "--quiet", cwd=REPO)
     assert changed.returncode == 2
     assert "changed since" in one_error_line(changed)
 
@@ -461,8 +467,8 @@ def test_resume_refuses_a_changed_scene_and_a_missing_checkpoint(tmp_path):
 def test_output_paths_that_cannot_work_are_refused_with_one_line(tmp_path, option, value, expected):
     (tmp_path / "a_file").write_text("mine")
     (tmp_path / "a_folder").mkdir()
-    result = run_cli("run", "hanging", "--frames", "2", "--out", str(tmp_path / "out"), option,
-                     str(tmp_path / value), "--quiet", cwd=REPO)
+    result = run_here("run", "hanging", "--frames", "2", "--out", str(tmp_path / "out"), option,
+                      str(tmp_path / value), "--quiet", cwd=REPO)
     assert result.returncode == 2
     line = one_error_line(result)
     assert line.startswith("warp-cloth: error: command line: " + option) and expected in line
@@ -472,7 +478,7 @@ def test_output_paths_that_cannot_work_are_refused_with_one_line(tmp_path, optio
 @pytest.mark.parametrize("suffix", [".usd", ".usda", ".usdc"])
 def test_every_usd_suffix_is_written_in_its_format(tmp_path, suffix):
     path = tmp_path / f"shot{suffix}"
-    result = run_cli("run", "hanging", "--frames", "3", "--usd", str(path), "--no-poly", "--quiet", cwd=REPO)
+    result = run_here("run", "hanging", "--frames", "3", "--usd", str(path), "--no-poly", "--quiet", cwd=REPO)
     assert result.returncode == 0, result.stderr
     assert (path.read_bytes()[:8] == b"PXR-USDC") == (suffix != ".usda")
     assert len(usd_points(path)) == 4
@@ -489,7 +495,7 @@ def test_a_read_only_output_folder_is_refused_before_simulating(tmp_path):
     else:
         folder.chmod(0o555)
     try:
-        result = run_cli("run", "hanging", "--frames", "2", "--out", str(folder), "--quiet", cwd=REPO)
+        result = run_here("run", "hanging", "--frames", "2", "--out", str(folder), "--quiet", cwd=REPO)
         assert result.returncode == 2
         assert "read-only" in one_error_line(result)
         assert list(folder.iterdir()) == []

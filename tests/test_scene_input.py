@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import warp_cloth as wc
-from conftest import run_cli, run_cli_in_process
+from conftest import run_cli_in_process
 from warp_cloth import scene as scene_module, simulator
 from warp_cloth.lab import bench
 from warp_cloth.writers.shot_layer import prim_name
@@ -139,15 +139,15 @@ def test_no_retired_key_names_a_key_the_scene_still_has():
 
 
 def test_missing_file_names_the_file_and_the_builtins(tmp_path):
-    result = run_cli("run", "nowhere.toml", cwd=tmp_path)
-    assert result.returncode == 2 and "Traceback" not in result.stderr
-    assert "nowhere.toml" in result.stderr and "no such file" in result.stderr and "hanging" in result.stderr
+    code, _, err = run_cli_in_process("run", "nowhere.toml", cwd=tmp_path)
+    assert code == 2 and "Traceback" not in err
+    assert "nowhere.toml" in err and "no such file" in err and "hanging" in err
 
 
 def test_bad_command_line_value_is_named(tmp_path):
-    result = run_cli("run", "hanging", "--dt", "-1", "--out", str(tmp_path / "out"), cwd=tmp_path)
-    assert result.returncode == 2 and "Traceback" not in result.stderr
-    assert "--dt" in result.stderr and "> 0" in result.stderr
+    code, _, err = run_cli_in_process("run", "hanging", "--dt", "-1", "--out", str(tmp_path / "out"), cwd=tmp_path)
+    assert code == 2 and "Traceback" not in err
+    assert "--dt" in err and "> 0" in err
     assert not (tmp_path / "out").exists()
 
 

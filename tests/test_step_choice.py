@@ -17,7 +17,7 @@ from warp_cloth.model import FLAG_DAMPING_COMPRESSION, FLAG_DAMPING_TENSION, FLA
     FLAG_ELASTIC_TENSION, build_model
 from warp_cloth.scene import INTEGRATORS
 from warp_cloth.stability import SAFETY, automatic_substeps, model_bound, stable_step
-from conftest import REPO, run_cli, spring_strains, with_simulation
+from conftest import REPO, run_cli_in_process, spring_strains, with_simulation
 
 LINEAR = FLAG_ELASTIC_TENSION | FLAG_ELASTIC_COMPRESSION | FLAG_DAMPING_TENSION | FLAG_DAMPING_COMPRESSION
 TWO_CORNERS = (wc.Pin(corners=("top-left", "top-right")),)
@@ -212,35 +212,37 @@ def test_a_scene_whose_stable_step_needs_too_many_substeps_is_refused_before_run
 
 
 def test_cli_says_the_chosen_step_first_and_warns_of_a_set_one_before_running(tmp_path):
-    result = run_cli("run", "drape", "--frames", "1", "--no-usd", "--no-poly", "--device", "cpu", cwd=tmp_path)
-    assert result.returncode == 0, result.stderr
+    code, out, err = run_cli_in_process("run", "drape", "--frames", "1", "--no-usd", "--no-poly", "--device", "cpu",
+                                        cwd=tmp_path)
+    assert code == 0, err
     choice = wc.Simulator(wc.load_scene("drape"), device="cpu").step_choice
-    assert result.stdout.splitlines()[0] == f"drape: {choice.describe()}"
+    assert out.splitlines()[0] == f"drape: {choice.describe()}"
     assert re.match(r"step [\d.]+ ms \(\d+ substeps/frame\), chosen for stability", choice.describe())
-    assert "warp-cloth: warning" not in result.stderr
-    result = run_cli("run", "drape", "--frames", "1", "--substeps", "4", "--no-usd", "--no-poly", "--device", "cpu",
-                     cwd=tmp_path)
-    warning = [line for line in result.stderr.splitlines() if line.startswith("warp-cloth: warning")]
+    assert "warp-cloth: warning" not in err
+    code, out, err = run_cli_in_process("run", "drape", "--frames", "1", "--substeps", "4", "--no-usd", "--no-poly",
+                                        "--device", "cpu", cwd=tmp_path)
+    warning = [line for line in err.splitlines() if line.startswith("warp-cloth: warning")]
     assert len(warning) == 1 and warning[0].startswith("warp-cloth: warning: command line: substeps = 4 gives a "
                                                        "step of 10.4 ms, past the stable bound")
-    assert result.stdout.splitlines()[0].startswith("drape: step 10.4 ms (4 substeps/frame), as set;")
+    assert out.splitlines()[0].startswith("drape: step 10.4 ms (4 substeps/frame), as set;")
     (tmp_path / "light.toml").write_text("[simulation]\nframes = 1\nsubsteps = 2\n\n[[cloth]]\nmass = 0.005\n")
-    result = run_cli("run", "light.toml", "--no-usd", "--no-poly", "--device", "cpu", cwd=tmp_path)
-    warning = [line for line in result.stderr.splitlines() if line.startswith("warp-cloth: warning")]
+    code, out, err = run_cli_in_process("run", "light.toml", "--no-usd", "--no-poly", "--device", "cpu", cwd=tmp_path)
+    warning = [line for line in err.splitlines() if line.startswith("warp-cloth: warning")]
     assert len(warning) == 1 and warning[0].startswith("warp-cloth: warning: light.toml: substeps = 2 gives a step")
 
 
 def test_one_substep_a_frame_is_said_in_the_singular(tmp_path):
     scene = with_simulation(wc.load_scene("hanging"), integrator="implicit", substeps=1, dt=None)
     assert wc.Simulator(scene, device="cpu").step_choice.describe().startswith("step 41.7 ms (1 substep/frame), as set")
-    result = run_cli("run", "hanging", "--frames", "1", "--substeps", "1", "--integrator", "implicit", "--no-usd",
-                     "--no-poly", "--device", "cpu", cwd=tmp_path)
-    assert result.returncode == 0, result.stderr
-    first, summary = result.stdout.splitlines()
+    code, out, err = run_cli_in_process("run", "hanging", "--frames", "1", "--substeps", "1", "--integrator",
+                                        "implicit", "--no-usd", "--no-poly", "--device", "cpu", cwd=tmp_path)
+    assert code == 0, err
+    first, summary = out.splitlines()
     assert first.startswith("hanging: step 41.7 ms (1 substep/frame), as set")
     assert summary.startswith("hanging: 1 frame (1 substep of 41.7 ms, implicit)"), summary
-    planned = run_cli("plan", "hanging", "--substeps", "1", "--integrator", "implicit", "--device", "cpu", cwd=tmp_path)
-    assert planned.stdout.startswith("hanging on cpu, 1 substep a frame;"), planned.stdout
+    planned = run_cli_in_process("plan", "hanging", "--substeps", "1", "--integrator", "implicit", "--device", "cpu",
+                                 cwd=tmp_path)[1]
+    assert planned.startswith("hanging on cpu, 1 substep a frame;"), planned
 
 
 def test_a_simulator_prints_as_one_line_with_its_step_and_why():

@@ -4,7 +4,7 @@ run, and reported where a user reads it: the run's summary, --check, the bench."
 import numpy as np
 
 import warp_cloth as wc
-from conftest import run_cli
+from conftest import run_cli_in_process
 from warp_cloth.cloth_mesh import SHEAR, STRUCTURAL
 from warp_cloth.strain import BINS_PER_UNIT, StrainMonitor
 
@@ -54,8 +54,9 @@ def test_monitor_gives_every_frames_worst_stretch_and_compression_and_percentile
 
 
 def test_run_summary_and_check_say_the_worst_edge_strain(tmp_path):
-    result = run_cli("run", "hanging", "--frames", "3", "--no-usd", "--no-poly", "--check", cwd=tmp_path)
-    assert result.returncode == 0, result.stderr
-    lines = result.stdout.strip().splitlines()
+    code, out, err = run_cli_in_process("run", "hanging", "--frames", "3", "--no-usd", "--no-poly", "--check",
+                                        cwd=tmp_path)
+    assert code == 0, err
+    lines = out.strip().splitlines()
     assert all("worst edge +" in line for line in lines[1:5])  # frames 0 to 3
     assert "worst edge strain +" in lines[-1] and "over 4 frames" in lines[-1] and "p99.9" in lines[-1]
