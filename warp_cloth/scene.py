@@ -623,7 +623,7 @@ class Collision:
     friction: float = 0.0
     max_neighbors: int = 32
     broad_phase: Literal["auto", "hash_grid", "brute_force"] = "auto"
-    projection: Literal["joint", "sequential"] = "joint"
+    projection: Literal["joint", "sequential"] | None = None
     lists: Literal["when_moved", "every_substep"] = "when_moved"
     search_scale: float = 1.5
     tolerance: float = 0.05
@@ -721,7 +721,7 @@ class Simulation:
     limit_solve: Literal["fixed", "converged"] = "converged"
     limit_tolerance: float = 0.005
     limit_max_passes: int | None = None
-    limit_chebyshev_rho: float = 0.0
+    limit_chebyshev_rho: float | None = None
     limit_multilevel: bool = False
     max_speed: float = 1000.0
     compensated: bool = False
@@ -753,8 +753,9 @@ class Simulation:
                  self.limit_tolerance)
         if self.limit_max_passes is not None:
             _whole_in(self.limit_max_passes, 2, MAX_ITERATIONS, "limit_max_passes")
-        _require(0.0 <= self.limit_chebyshev_rho < 1.0, "limit_chebyshev_rho",
-                 "0 (no acceleration) or a spectral radius in (0, 1)", self.limit_chebyshev_rho)
+        if self.limit_chebyshev_rho is not None:
+            _require(0.0 <= self.limit_chebyshev_rho < 1.0, "limit_chebyshev_rho",
+                     "0 (no acceleration) or a spectral radius in (0, 1)", self.limit_chebyshev_rho)
         _require(not self.compensated or self.integrator != "implicit", "compensated",
                  "false with the implicit integrator (it sums the explicit and symplectic steps' moves)",
                  self.compensated)
