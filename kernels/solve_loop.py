@@ -63,7 +63,7 @@ def chebyshev_extrapolation(i: int, x: wp.array(dtype=wp.vec3), omega: wp.array(
 
 @wp.func
 def next_chebyshev_weight(omega: wp.array(dtype=float)):
-    """1, then 2 / (2 - rho^2), then 4 / (4 - rho^2 omega)."""
+    """1 (and 1 before it from a solve's start), then 2 / (2 - rho^2), then 4 / (4 - rho^2 omega)."""
     k = omega[2] + 1.0
     omega[2] = k
     if k < 1.5:
@@ -89,11 +89,12 @@ def set_rho(omega: wp.array(dtype=float), gap: float):
 
 @wp.kernel
 def start_chebyshev(omega: wp.array(dtype=float)):
-    """A solve's first iteration (a plain one). ``omega`` = [this iteration's weight, the spectral radius
+    """A solve's first two iterations (plain ones: a solve that ends within them ends as plain passes
+    would, and the scenes' easy substeps take one or two). ``omega`` = [this iteration's weight, the spectral radius
     squared, iterations since the acceleration (re)started, the last residual, the spectral radius, 1 where
     the solver estimates it (0: the scene's, fixed)]. An estimated radius starts from the one the solve
     before ended with, halfway back to RHO_MOST (from 1 - it)."""
-    omega[2] = 0.0
+    omega[2] = -1.0
     omega[3] = 1.0e30
     if omega[5] > 0.5:
         set_rho(omega, 0.5 * (1.0 - omega[4]))

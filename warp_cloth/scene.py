@@ -601,7 +601,9 @@ class Collision:
     strain (see ``Simulation.limit_iterations``) does both in one Jacobi kernel where ``projection`` is
     ``joint`` (each particle moves by its limits' mean correction and its pushes' mean, no limit
     correction pulling into a contact): a launch less a pass, contacts held closer, strain a little less
-    so; ``sequential`` runs the limit, then the separation on what it left (docs/accuracy.md). Each
+    so; ``sequential`` runs the limit, then the separation on what it left (docs/accuracy.md). Unset, the
+    fixed passes are joint and a converged solve is joint for its first 200 passes, then sequential (a
+    chain of springs pulled taut over a contact converges only so; docs/strain-solve.md). Each
     particle's candidate pairs are listed within ``search_scale`` contact distances and the lists remade
     ``when_moved``: once some particle has moved half the margin that leaves, so that no pair left out can
     touch before; ``every_substep`` remakes them every substep (slower, with the same contacts: for
@@ -687,9 +689,10 @@ class Simulation:
     pairs until no limited spring is more than ``limit_tolerance`` of its
     allowed length outside it (and no pair of particles more than ``collision.tolerance`` of their
     contact distance inside it), at most ``limit_max_passes`` a substep (``Simulator.solver_stats()``
-    says how many it took; unset: 200, or as many as keep a frame within the simulator's bound on a frame's
-    passes at its substeps); ``limit_chebyshev_rho`` > 0 accelerates each pair of passes by Chebyshev's
-    semi-iterative method with that spectral radius; ``limit_multilevel`` begins each pair with passes
+    says how many it took; unset: 1000, or as many as keep a frame within the simulator's bound on a frame's
+    passes at its substeps). Each pair of passes is accelerated by Chebyshev's semi-iterative method with a
+    spectral radius the solver adjusts (lowered where a pair leaves the residual growing, back up from solve
+    to solve); ``limit_chebyshev_rho`` fixes that radius instead, 0 for plain passes; ``limit_multilevel`` begins each pair with passes
     over coarser and coarser levels of the limits, coarsest first, each finer level following its coarse
     neighbours' moves (warp_cloth/hierarchy.py, docs/strain-solve.md). ``"fixed"``, a fast mode to be
     chosen explicitly, runs ``limit_iterations`` passes a substep, however far that leaves the cloth from its

@@ -48,8 +48,8 @@ from .scene import Scene, Simulation
 # references (10000 substeps a frame of 4 limit passes) fit.
 MAX_PASSES_PER_FRAME = 50_000
 # A converged limit solve's passes a substep at most, where the scene sets none (or fewer where its
-# substeps would not fit a frame): every built-in scene's solves end within tolerance at it on this
-# project's CPU (seed_default's at 200 ended 4 tolerances out; docs/strain-solve.md).
+# substeps would not fit a frame, ``cap_that_fits``): 200 stopped seed_default's solves 4 tolerances out
+# (+12%), and the built-in scenes' hardest solves take up to 400 (docs/strain-solve.md, issue 32).
 DEFAULT_LIMIT_MAX_PASSES = 1000
 
 SAFETY = 0.8  # the automatic step is this fraction of the bound: the bound is of the linearised cloth
