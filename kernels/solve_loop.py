@@ -77,6 +77,7 @@ def next_chebyshev_weight(omega: wp.array(dtype=float)):
 CHEBYSHEV_SLOTS = 6
 RESTART_GROWTH = wp.constant(1.5)
 RHO_MOST = wp.constant(0.95)  # the estimate's start and the most it rises to
+FAR = wp.constant(4.0)  # tolerances: a solve's first iteration left it so far out that it will take more
 
 
 @wp.func
@@ -89,8 +90,8 @@ def set_rho(omega: wp.array(dtype=float), gap: float):
 
 @wp.kernel
 def start_chebyshev(omega: wp.array(dtype=float)):
-    """A solve's first two iterations (plain ones: a solve that ends within them ends as plain passes
-    would, and the scenes' easy substeps take one or two). ``omega`` = [this iteration's weight, the spectral radius
+    """A solve's first iteration, and its second unless the first left it more than FAR tolerances out
+    (plain ones: an easy substep's solve, of one or two iterations, ends as plain passes end it). ``omega`` = [this iteration's weight, the spectral radius
     squared, iterations since the acceleration (re)started, the last residual, the spectral radius, 1 where
     the solver estimates it (0: the scene's, fixed)]. An estimated radius starts from the one the solve
     before ended with, halfway back to RHO_MOST (from 1 - it)."""
@@ -111,12 +112,15 @@ def continue_chebyshev_solve(tolerance: float, passes: int, active: wp.array(dty
     extrapolation), the acceleration starts over: the next iteration is a plain one. Without it the
     matrix's sphere cloth never converged (30 to 50 tolerances at 300 passes); at every growth the hanging
     cloth took 2 to 8 times as many passes (docs/strain-solve.md). Where the solver estimates the radius,
-    a growth also doubles its distance from 1 (0.95, 0.9, 0.8, 0.6, 0.2, then plain passes). One kernel
+    a growth also doubles its distance from 1 (0.95, 0.9, 0.8, 0.6, 0.2, then plain passes). A first
+    iteration that left more than FAR tolerances has the second accelerated. One kernel
     for all of it, as the loop's launches are what a small cloth's iteration costs."""
     if residual[0] > RESTART_GROWTH * omega[3]:
         omega[2] = 0.0
         if omega[5] > 0.5:
             set_rho(omega, 2.0 * (1.0 - omega[4]))
+    elif omega[2] < 0.5 and residual[0] > FAR:
+        omega[2] = 1.0  # far out after the first iteration: accelerate from the second
     omega[3] = residual[0]
     continue_or_stop(tolerance, passes, active, counts, residual, stats, switched)
     next_chebyshev_weight(omega)

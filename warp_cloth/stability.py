@@ -49,7 +49,7 @@ from .scene import Scene, Simulation
 MAX_PASSES_PER_FRAME = 50_000
 # A converged limit solve's passes a substep at most, where the scene sets none (or fewer where its
 # substeps would not fit a frame, ``cap_that_fits``): 200 stopped seed_default's solves 4 tolerances out
-# (+12%), and the built-in scenes' hardest solves take up to 400 (docs/strain-solve.md, issue 32).
+# (+12%), and the built-in scenes' hardest solves take up to 600 (docs/strain-solve.md, issue 32).
 DEFAULT_LIMIT_MAX_PASSES = 1000
 
 SAFETY = 0.8  # the automatic step is this fraction of the bound: the bound is of the linearised cloth
