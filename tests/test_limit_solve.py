@@ -4,6 +4,7 @@ the device until every limited spring is within tolerance, capped, and reported.
 import dataclasses
 import re
 
+import numpy as np
 import pytest
 
 import warp_cloth as wc
