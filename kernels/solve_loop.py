@@ -89,7 +89,7 @@ def continue_chebyshev_solve(tolerance: float, passes: int, active: wp.array(dty
     residual more than RESTART_GROWTH times the one before (a collider's projection undoing the
     extrapolation), the acceleration starts over: the next iteration is a plain one. Without it the
     matrix's sphere cloth never converged (30 to 50 tolerances at 300 passes); at every growth the hanging
-    cloth took 2 to 8 times as many passes (docs/strain-solve.md). One kernel for the three, as the loop's
+    cloth took 2 to 8 times as many passes (docs/notebook/strain-solve.md). One kernel for the three, as the loop's
     launches are what a small cloth's iteration costs."""
     if residual[0] > RESTART_GROWTH * omega[3]:
         omega[2] = 0.0

@@ -26,7 +26,7 @@ def fast_sphere() -> wc.Scene:
     """A sphere going through a cloth hanging from two corners at 20 m/s, back and forth (1.5 m either
     side at 2.1 Hz): the cloth has to swing out of its way. It drags the cloth past the reach its limit
     allows, so the limit and the collider cannot both hold: with the limit solved the nearly inextensible
-    cloth whips (70-100 m/s, faster at smaller steps; docs/strain-solve.md), with the fixed passes it gives.
+    cloth whips (70-100 m/s, faster at smaller steps; docs/notebook/strain-solve.md), with the fixed passes it gives.
     This case tests the fixed passes, chosen here; ``test_stability`` runs it solved as well."""
     cloth = wc.Cloth(resolution=(20, 20), size=(4.0, 4.0), origin=(-2.0, 0.0, 0.0), density=0.2, limit=LIMIT,
                      pins=(wc.Pin(corners=("top-left", "top-right")),), **SOFT)

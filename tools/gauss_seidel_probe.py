@@ -1,5 +1,5 @@
 """Would Gauss-Seidel over a colouring of the particles converge the settled drape's limits in fewer passes
-than the averaged Jacobi passes? A probe for issue 15 (docs/strain-solve.md).
+than the averaged Jacobi passes? A probe for issue 15 (docs/notebook/strain-solve.md).
 
 The speed matrix's sphere cloth at n^2 runs with the converged limit solve (cap 1000), as
 tools/anchor_probe.py does, and from its state every 5 frames one substep's prediction is projected by a

@@ -1,5 +1,5 @@
 """What the converged limit solve takes: the passes a substep (mean and most) and the worst edge strain
-over every frame, for the methods of docs/strain-solve.md (fixed passes, plain Jacobi, and
+over every frame, for the methods of docs/notebook/strain-solve.md (fixed passes, plain Jacobi, and
 Chebyshev-accelerated Jacobi with restarts), on the hanging cloth at one implicit step a frame from 10^2
 to 160^2 and on the speed matrix's sphere and self-collision cloths at 64^2.
 

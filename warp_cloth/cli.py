@@ -431,9 +431,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
         wrote += f" ({older} older .poly files of other frames left there)"
     if args.preview and not summary.interrupted:
         wrote += _preview(outputs, args)
-    print(f"{scene.name}: {status} ({summary.substeps} substep{'s' if summary.substeps != 1 else ''} of {sim.dt * 1e3:.3g} ms, "
-          f"{sim_settings.integrator}) of {summary.particles} particles on {sim.device.alias} in "
-          f"{summary.wall_seconds:.2f} s (+{building + summary.prepare_seconds:.1f} s building and compiling; "
+    substeps = f"{summary.substeps} substep{'s' if summary.substeps != 1 else ''}"
+    print(f"{scene.name}: {status} ({substeps} of {sim.dt * 1e3:.3g} ms, {sim_settings.integrator}) of "
+          f"{summary.particles} particles on {sim.device.alias} in {summary.wall_seconds:.2f} s (+{building + summary.prepare_seconds:.1f} s building and compiling; "
           f"{summary.particle_substeps_per_second:.3g} particle-substeps/s); "
           f"wrote {wrote}; {_strain(strain)}{_limit_solve(sim)}" + (f"; {check.summary()}" if check else ""))
     return EXIT_SIGNAL_BASE + summary.stop_signal if summary.interrupted else 0

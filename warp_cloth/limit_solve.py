@@ -3,7 +3,7 @@ separation together), every pass ending with the rigid colliders, run in pairs i
 (with an edge contacts' pass before each where the scene has them, which the cap does not count) until
 the limits and contacts hold to their tolerances or the cap on passes is reached; each pair optionally
 accelerated by Chebyshev's semi-iterative method (``limit_chebyshev_rho``, the pair's spectral radius as
-estimated for it; docs/strain-solve.md measures both)."""
+estimated for it; docs/notebook/strain-solve.md measures both)."""
 
 from __future__ import annotations
 

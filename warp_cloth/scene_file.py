@@ -23,7 +23,7 @@ _BUILTIN_PACKAGE = "warp_cloth.scenes"
 _BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")  # a key printed as it is; any other is quoted
 
 # Keys that older scene files may still set, by table, with what the program does instead: their options
-# lost their experiments (docs/strain-solve.md, docs/benchmarks.md).
+# lost their experiments (docs/notebook/strain-solve.md, docs/notebook/benchmarks.md).
 RETIRED_KEYS = {
     ("Simulation", "limit_multilevel"): "the converged solve is the default, and limit_chebyshev_rho "
                                         "accelerates it",

@@ -4,7 +4,7 @@ device and versions. Never a test: time is measured here and asserted nowhere.
 The scenes built here run with ``limit_solve = "fixed"`` (``fixed_solve``): they time the seed's loop (a set
 number of limit passes a substep) and the speed matrix as first measured, and every row says the worst strain
 that bought; what solving the limit to a tolerance costs is tools/strain_solve_probe.py's
-(docs/strain-solve.md). The built-in scenes run as their files say.
+(docs/notebook/strain-solve.md). The built-in scenes run as their files say.
 
     python -m warp_cloth.lab.bench --suite core --device cpu --json out/bench-core-cpu.json
 """
