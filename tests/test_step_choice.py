@@ -251,3 +251,10 @@ def test_a_simulator_prints_as_one_line_with_its_step_and_why():
     assert "\n" not in text and text == repr(sim)
     assert text.startswith(f"<Simulator drape on cpu: {sim.model.particle_count} particles, frame 0; step ")
     assert sim.step_choice.describe() in text and "chosen for stability" in text
+
+
+def test_counts_are_said_in_the_singular_for_one_and_the_plural_otherwise():
+    from warp_cloth.wording import counted
+
+    assert [counted(n, "substep") for n in (0, 1, 2)] == ["0 substeps", "1 substep", "2 substeps"]
+    assert counted(1, "batch", "batches") == "1 batch" and counted(3, "batch", "batches") == "3 batches"

@@ -19,6 +19,7 @@ from .errors import (EXIT_BAD_INPUT, EXIT_BROKEN_PIPE, EXIT_INTERRUPTED, EXIT_OU
 from .progress import SlowStepNotice
 from .scene import INTEGRATORS, Scene
 from .shot_clock import shot_clock
+from .wording import counted
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -200,7 +201,7 @@ def _cmd_plan(args: argparse.Namespace) -> int:
         warnings.simplefilter("ignore")  # a step past the bound is for a run to warn of
         sim = Simulator(scene, device=args.device)
     substeps = sim.substeps_per_frame
-    print(f"{scene.name} on {sim.device.alias}, {substeps} substep{'s' if substeps != 1 else ''} a frame; {sim.plan}")
+    print(f"{scene.name} on {sim.device.alias}, {counted(substeps, 'substep')} a frame; {sim.plan}")
     return 0
 
 
@@ -420,7 +421,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
                   f"{name}")
         wrote += _resume_hint(checkpointer)
     else:
-        status = f"{summary.frames} frame{'s' if summary.frames != 1 else ''}"
+        status = counted(summary.frames, "frame")
     if sim.clock.start or sim.clock.preroll:
         status += f" (frames {sim.clock.start} to {sim.clock.end} of the shot" + \
                   (f", after a preroll of {sim.clock.preroll})" if sim.clock.preroll else ")")
@@ -431,9 +432,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
         wrote += f" ({older} older .poly files of other frames left there)"
     if args.preview and not summary.interrupted:
         wrote += _preview(outputs, args)
-    substeps = f"{summary.substeps} substep{'s' if summary.substeps != 1 else ''}"
-    print(f"{scene.name}: {status} ({substeps} of {sim.dt * 1e3:.3g} ms, {sim_settings.integrator}) of "
-          f"{summary.particles} particles on {sim.device.alias} in {summary.wall_seconds:.2f} s (+{building + summary.prepare_seconds:.1f} s building and compiling; "
+    print(f"{scene.name}: {status} ({counted(summary.substeps, 'substep')} of {sim.dt * 1e3:.3g} ms, "
+          f"{sim_settings.integrator}) of {summary.particles} particles on {sim.device.alias} in "
+          f"{summary.wall_seconds:.2f} s (+{building + summary.prepare_seconds:.1f} s building and compiling; "
           f"{summary.particle_substeps_per_second:.3g} particle-substeps/s); "
           f"wrote {wrote}; {_strain(strain)}{_limit_solve(sim)}" + (f"; {check.summary()}" if check else ""))
     return EXIT_SIGNAL_BASE + summary.stop_signal if summary.interrupted else 0

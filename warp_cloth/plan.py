@@ -18,6 +18,7 @@ from .passes import (AdvanceClock, Collide, ContactStart, DrivePins, FollowKeys,
                      explicit_step, limit_and_separation_pass, limit_pass, separation_pass)
 from .scene import ImplicitSolver
 from .state import DeviceState
+from .wording import counted
 
 # Threads per particle of the gathering passes on a GPU by particle count (up to the first number), from
 # the spring kernel's launch times on an H200 (docs/results/lanes-probe-h200.json): 16 are fastest at
@@ -50,7 +51,7 @@ class Plan:
         return [p.name for p in self.passes]
 
     def __str__(self) -> str:
-        threads = f"{self.threads} thread{'s' if self.threads > 1 else ''} a particle"
+        threads = f"{counted(self.threads, 'thread')} a particle"
         lines = [f"substep of {self.h * 1000:.4g} ms, {threads} on the gathering passes:"]
         for number, (name, group) in enumerate(groupby(self.pass_names), start=1):
             repeats = len(list(group))

@@ -40,6 +40,7 @@ from .errors import SceneError
 from .model import (FLAG_DAMPING_COMPRESSION, FLAG_DAMPING_TENSION, FLAG_ELASTIC_COMPRESSION,
                     FLAG_ELASTIC_TENSION, Model, build_model)
 from .scene import Scene, Simulation
+from .wording import counted
 
 # Passes over the particles in one frame (substeps x the passes of a substep). Ctrl-C stops a run only
 # between frames, and a captured frame holds every launch (about 0.4 kB and 50 us of capture each on the
@@ -96,7 +97,7 @@ class StepChoice:
 
     def describe(self) -> str:
         """One line: the step, and why it is what it is."""
-        head = f"step {_ms(self.step)} ({self.substeps} substep{'s' if self.substeps != 1 else ''}/frame)"
+        head = f"step {_ms(self.step)} ({counted(self.substeps, 'substep')}/frame)"
         if self.bound is None:
             return head + (", the implicit integrator's default (no stability bound on its step)" if self.automatic
                            else ", as set (the implicit integrator has no stability bound on its step)")

@@ -57,6 +57,7 @@ import numpy as np
 from .errors import EXIT_BAD_INPUT, EXIT_SIGNAL_BASE, SceneError
 from .output import OutputLock, check_folder_output, check_names_fit, file_system_refusals, lock_path
 from .progress import Progress
+from .wording import counted
 
 EXIT_FAILED = 4
 DEFAULT_WORLDS = 1024
@@ -547,10 +548,6 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _count(n: int, one: str, many: str) -> str:
-    return f"{n} {one if n == 1 else many}"
-
-
 def check_output_folder(out: Path, variants: list[Variant], usd: bool) -> None:
     """Every check a run's ``--out`` has, for the sweep's folder and the files it writes there."""
     from .writers import UsdWriter
@@ -644,7 +641,7 @@ def _run(args: argparse.Namespace, out: Path, variants: list[Variant], scenes: l
         return EXIT_FAILED
     except Exception as exc:  # a batch that failed (a full disk; on a cluster, a worker lost past its retries)
         bar.close()
-        kept = (f"the {_count(finished, 'variant', 'variants')} done are in {out / RESULTS}" if finished else
+        kept = (f"the {counted(finished, 'variant')} done are in {out / RESULTS}" if finished else
                 "no variant was done")
         print(f"warp-cloth sweep: error: a batch failed ({type(exc).__name__}: {_last_line(exc)}); {kept}; start "
               "the sweep again to go on", file=sys.stderr)
@@ -655,8 +652,8 @@ def _run(args: argparse.Namespace, out: Path, variants: list[Variant], scenes: l
         rows = list(done_variants(out).values())
         if rows:
             write_table(out, rows)
-    status = (f"{_count(len(variants), 'variant', 'variants')} ({skipped} done before) in "
-              f"{_count(len(todo), 'batch', 'batches')}")
+    status = (f"{counted(len(variants), 'variant')} ({skipped} done before) in "
+              f"{counted(len(todo), 'batch', 'batches')}")
     if stopped_by is not None:
         status = (f"interrupted by {signal.Signals(stopped_by).name} after {finished} of {len(variants)} variants "
                   f"({skipped} done before); start the sweep again to go on")

@@ -43,6 +43,7 @@ from ..writers import PolyWriter, UsdWriter
 from .bench_meshes import RINGS_FOR_100K, as_mesh_cloth, sphere_triangles, with_mesh_sphere
 from .newton_compare import SOLVERS as NEWTON_SOLVERS, SPHERE_CENTER, SPHERE_RADIUS, SWING_DEGREES, swung_origin
 from .. import neighbour_lists, state
+from ..wording import counted
 
 # The seed's C++ on this machine kind (docs/seed-baseline.md). It always ran its O(n^2)
 # self collision, so only the "+self" rows do the same work and get a ratio (seed_25x25, without
@@ -624,7 +625,7 @@ def main(argv: list[str] | None = None) -> int:
     stable = [r for r in results if r.stable]
     blew_up = len(results) - len(stable)
     best = max(stable, key=lambda r: r.particle_substeps_per_second) if stable else None
-    print(f"bench {args.suite}: {len(results)} case{'s' if len(results) != 1 else ''} on {env['device']}"
+    print(f"bench {args.suite}: {counted(len(results), 'case')} on {env['device']}"
           + (f", {blew_up} blew up" if blew_up else "")
           + (f"; best {best.particle_substeps_per_second:.3g} particle-substeps/s ({best.case})" if best else "")
           + f"; wrote {path}")
