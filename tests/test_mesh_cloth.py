@@ -220,13 +220,29 @@ def test_mesh_cloth_refuses_grid_settings_and_usd_prims_that_are_not_meshes(tmp_
         wc.Cloth.from_mesh(path, resolution=(4, 4))
     with pytest.raises(wc.SceneError, match=r"pins\[0\]: expected pins by indices, region or group on a mesh cloth"):
         wc.Cloth.from_mesh(path, pins=(wc.Pin(corners=("top-left",)),))
+    # A mesh file is read where the scene's geometry is checked: by the simulator, for a scene built in Python.
     shot = usd_shot(tmp_path / "shot.usda")
-    with pytest.raises(wc.SceneError, match=r"mesh.prim: expected a Mesh prim \(in .*shot.usda at /World/Ball\)"):
-        wc.Cloth.from_mesh(shot, prim="/World/Ball")
-    with pytest.raises(wc.SceneError, match=r"mesh.prim: expected the absolute path of a prim in the stage"):
-        wc.Cloth.from_mesh(shot, prim="/World/Nothing")
-    with pytest.raises(wc.SceneError, match=r"mesh.prim: expected no prim for an OBJ file"):
-        wc.Cloth.from_mesh(path, prim="/World/Shirt")
+    with pytest.raises(wc.SceneError,
+                       match=r"cloth\[0\].mesh.prim: expected a Mesh prim \(in .*shot.usda at /World/Ball\)"):
+        wc.Simulator(wc.Scene(cloths=(wc.Cloth.from_mesh(shot, prim="/World/Ball"),)), device="cpu")
+    with pytest.raises(wc.SceneError, match=r"cloth\[0\].mesh.prim: expected the absolute path of a prim in the stage"):
+        wc.Simulator(wc.Scene(cloths=(wc.Cloth.from_mesh(shot, prim="/World/Nothing"),)), device="cpu")
+    with pytest.raises(wc.SceneError, match=r"cloth\[0\].mesh.prim: expected no prim for an OBJ file"):
+        wc.Simulator(wc.Scene(cloths=(wc.Cloth.from_mesh(path, prim="/World/Shirt"),)), device="cpu")
+
+
+def test_a_scene_reads_no_mesh_when_made_and_is_checked_where_its_geometry_is_built(tmp_path):
+    """The dataclasses check values only: a mesh is read, and the particles a pin selects found, when a scene
+    file is loaded or a simulator (or batch) made, with the same one-line errors."""
+    boxed = wc.Pin(region=wc.Box((5.0, 5.0, 5.0), (6.0, 6.0, 6.0)))
+    scene = wc.Scene(cloths=(wc.Cloth.from_mesh(tmp_path / "quads.obj", pins=(boxed,)),))  # no such file yet
+    with pytest.raises(wc.SceneError, match=r"^cloth\[0\]\.mesh: expected an existing, readable mesh file"):
+        wc.Simulator(scene, device="cpu")
+    grid_as_obj(tmp_path, GRID)
+    with pytest.raises(wc.SceneError, match=r"^cloth\[0\]\.pins\[0\]\.region: expected a box containing"):
+        wc.Simulator(scene, device="cpu")
+    with pytest.raises(wc.SceneError, match=r"^scenes\[1\]\.cloth\[0\]\.pins\[0\]\.region: expected a box"):
+        wc.Batch([wc.Scene(cloths=(GRID,)), scene], device="cpu")
 
 
 def test_a_checkpoint_knows_the_mesh_it_was_made_with_not_only_its_path(tmp_path):

@@ -20,6 +20,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from .errors import SceneError, UnstableSimulation
+from .geometry_checks import validate
 from .model import Model, Worlds, build_model
 from .output import RunOutcome
 from .scene import Scene
@@ -134,8 +135,12 @@ class Batch:
             raise SceneError("scenes", "at least one scene", 0)
         # Each scene with the step it takes alone; copies of one scene (a benchmark's worlds) resolved once.
         resolved: dict[int, Scene] = {}
-        for scene in self.scenes:
+        for w, scene in enumerate(self.scenes):
             if id(scene) not in resolved:
+                try:
+                    validate(scene)
+                except SceneError as exc:
+                    raise exc.within(f"scenes[{w}]") from None
                 resolved[id(scene)] = scene_with_step(scene)
         stepped = [resolved[id(scene)] for scene in self.scenes]
         self.groups: list[StepGroup] = []

@@ -8,15 +8,12 @@ upper neighbours, shear on both diagonals of each quad, bend two apart along row
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .cloth_mesh import BEND, SHEAR, STRUCTURAL, ClothMesh
 from .errors import SceneError
-
-if TYPE_CHECKING:  # annotations only: the scene checks its pins with this module
-    from .scene import Cloth, Pin
+from .scene import Cloth, Pin
 
 
 def rotation_matrix(degrees_xyz: tuple[float, float, float]) -> np.ndarray:

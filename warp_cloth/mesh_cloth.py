@@ -3,15 +3,11 @@ the cloth's ``rotation`` and ``origin``, springs from its faces (cloth_mesh.py),
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 
 from .cloth_grid import rotation_matrix
 from .cloth_mesh import ClothMesh, lumped_masses, mesh_springs
-
-if TYPE_CHECKING:  # annotations only: the scene checks its pins with this module
-    from .scene import Cloth
+from .scene import Cloth
 
 
 def mesh_positions(cloth: Cloth) -> np.ndarray:

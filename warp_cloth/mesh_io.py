@@ -324,7 +324,20 @@ def load_transform_motion(file: str | Path, prim_path: str) -> tuple[np.ndarray,
     """How a USD prim's world transform moves what starts with it: (times in seconds, (k, 4, 4) matrices
     in USD's row-vector convention taking a point of the simulation's world at the stage's earliest time (where
     a mesh of the stage is read) to where the transform carries it then), sampled as an animated mesh is; None
-    for a prim that does not move."""
+    for a prim that does not move. Read once per file version: the scene's checks ask, then the model."""
+    try:
+        stat = Path(file).stat()
+    except OSError:  # opening it says why, in the error's terms
+        return _transform_motion(str(file), prim_path)
+    return _transform_motion_cached(str(file), prim_path, str(Path(file).absolute()), stat.st_mtime_ns, stat.st_size)
+
+
+@functools.lru_cache(maxsize=32)
+def _transform_motion_cached(file: str, prim_path: str, _absolute: str, _mtime: int, _size: int):
+    return _transform_motion(file, prim_path)
+
+
+def _transform_motion(file: str, prim_path: str) -> tuple[np.ndarray, np.ndarray] | None:
     from pxr import Usd, UsdGeom
 
     where = f"{file} at {prim_path}"

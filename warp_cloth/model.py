@@ -18,7 +18,7 @@ from .adjacency import Adjacency
 from .cloth_grid import build_grid, rotation_matrix
 from .cloth_mesh import BEND, SHEAR, STRUCTURAL, ClothMesh, enclosing_radii, rest_adjacent_pairs
 from .mesh_cloth import build_mesh_cloth
-from .mesh_io import unique_pairs
+from .mesh_io import load_transform_motion, unique_pairs
 from .pin_selection import select_pins
 from .scene import Cloth, Scene, SpringKind, TransformKey
 from .shot_clock import shot_clock
@@ -400,7 +400,7 @@ def _pin_animations(scene: Scene, meshes, offsets, selections: list[list[np.ndar
                 times, placed = keyed_points(start - centre, pin.keys, scene.simulation.fps)
                 placed = placed + centre
             elif pin.target is not None and pin.target.startswith("/"):
-                motion = cloth.target_motion(pin)
+                motion = load_transform_motion(cloth.usd_file(), pin.target)
                 if motion is None:
                     continue  # a prim that does not move: fixed pins
                 times, matrices = motion

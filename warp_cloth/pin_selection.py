@@ -1,21 +1,16 @@
-"""Which particles each pin of a scene holds: a scene checks its pins with it, and the model pins them.
-
-It reads a cloth's initial pose (the grid's or the mesh's positions) without building the model, and knows
-the scene's types only as annotations, so that ``Scene`` can call it while the model imports the scene.
+"""Which particles each pin of a scene holds: ``geometry_checks.validate`` checks the pins with it, and the
+model pins them. It reads a cloth's initial pose (the grid's or the mesh's positions) without building the
+model.
 """
 
 from __future__ import annotations
-
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .cloth_grid import grid_positions, pinned_indices
 from .errors import SceneError
 from .mesh_cloth import mesh_positions
-
-if TYPE_CHECKING:
-    from .scene import Cloth, Scene
+from .scene import Cloth, Scene
 
 
 def select_pins(scene: Scene) -> list[list[np.ndarray]]:

@@ -1,8 +1,10 @@
 """What a scene declares: cloths, their springs, limits and pins, colliders, time stepping, outputs.
 
 Plain frozen dataclasses. A scene file (TOML) maps one to one onto them (see ``scene_file``); a scene built
-in Python is checked by the same ``__post_init__`` rules. Every effect that a scene leaves out (``None``
-or an empty tuple) costs the simulation nothing.
+in Python is checked by the same ``__post_init__`` rules. They check values and read no file: what needs
+the scene's geometry (its mesh files, its particles, what its pins select) is checked by
+``geometry_checks.validate``, which loading a scene file and making a ``Simulator`` run. Every effect that a
+scene leaves out (``None`` or an empty tuple) costs the simulation nothing.
 """
 
 from __future__ import annotations
@@ -291,30 +293,20 @@ class Cloth:
         _require(not (self.mass is not None and self.density is not None), "density",
                  "either mass (per particle) or density (kg/m^2), not both", self.density)
         if self.mesh is not None:
-            self._check_mesh()
+            self._check_mesh_settings()
         else:
             self._check_grid()
-        cell = self.shortest_edge()
-        farthest = max(abs(c) for c in self.origin) + self.extent()
-        _require(farthest <= MAX_CELLS_FROM_ORIGIN * cell, "origin",
-                 f"a cloth within {MAX_CELLS_FROM_ORIGIN * cell:.4g} m of the world origin ({MAX_CELLS_FROM_ORIGIN} "
-                 f"of its {cell:.3g} m cells: float32 positions farther out cannot resolve its springs)",
-                 list(self.origin))
-        self._check_mass_in_float32()
+            self.check_placement(self.shortest_edge(), max(self.size))
+        if not self.masses_from_mesh:
+            self.check_masses(*self.mass_range())
 
-    def _check_mesh(self) -> None:
+    def _check_mesh_settings(self) -> None:
         for key in self.GRID_KEYS:
             _require(getattr(self, key) == getattr(Cloth, key), key, "no grid setting on a mesh cloth (its "
                      "particles are the mesh's)", getattr(self, key))
         for p, pin in enumerate(self.pins):
             _require(not (pin.corners or pin.edges), f"pins[{p}]", "pins by indices, region or group on a mesh "
                      "cloth (corners and edges are a grid's)", has_got=False)
-        surface = self.surface()
-        _require(len(surface.points) <= MAX_PARTICLES, "mesh", f"at most {MAX_PARTICLES} vertices",
-                 len(surface.points))
-        _require(self.shortest_edge() >= MIN_CELL, "mesh", f"edges of at least {MIN_CELL:g} m (float32 "
-                 "positions cannot resolve shorter springs)", f"an edge of {self.shortest_edge():.3g} m")
-        _within_extent(float(abs(surface.points).max()), "mesh")
 
     def _check_grid(self) -> None:
         for p, pin in enumerate(self.pins):
@@ -335,8 +327,8 @@ class Cloth:
         _require(self.seed >= 0, "seed", "a whole number >= 0", self.seed)
 
     def surface(self):
-        """A mesh cloth's checked mesh (``mesh_io.SurfaceMesh``, read once per file version); its errors
-        name this cloth's ``mesh`` key."""
+        """A mesh cloth's checked mesh (``mesh_io.SurfaceMesh``, read once per file version, when first asked
+        for: by ``geometry_checks.validate``); its errors name this cloth's ``mesh`` key."""
         return _surface_of(self.mesh)
 
     def usd_file(self) -> str | None:
@@ -347,30 +339,30 @@ class Cloth:
             return None
         return self.mesh.file
 
-    def target_motion(self, pin: "Pin"):
-        """For a pin whose target is a prim path: ``mesh_io.load_transform_motion`` of that prim in the
-        cloth's USD file (None where it does not move)."""
-        from .mesh_io import load_transform_motion
-
-        return load_transform_motion(self.usd_file(), pin.target)
-
     def shortest_edge(self) -> float:
         """The shortest rest length of an edge (a grid's shorter cell side)."""
         if self.mesh is None:
             return min(self.size[0] / self.resolution[0], self.size[1] / self.resolution[1])
         return self.surface().shortest_edge
 
-    def extent(self) -> float:
-        """The longest side of the box around the cloth as modelled."""
-        if self.mesh is None:
-            return max(self.size)
-        points = self.surface().points
-        return float((points.max(axis=0) - points.min(axis=0)).max())
+    def check_placement(self, cell: float, extent: float) -> None:
+        """The cloth's particles near enough the world origin for float32 to resolve its springs: ``cell`` is
+        its shortest edge, ``extent`` the longest side of the box around it as modelled."""
+        farthest = max(abs(c) for c in self.origin) + extent
+        _require(farthest <= MAX_CELLS_FROM_ORIGIN * cell, "origin",
+                 f"a cloth within {MAX_CELLS_FROM_ORIGIN * cell:.4g} m of the world origin ({MAX_CELLS_FROM_ORIGIN} "
+                 f"of its {cell:.3g} m cells: float32 positions farther out cannot resolve its springs)",
+                 list(self.origin))
 
-    def _check_mass_in_float32(self) -> None:
+    @property
+    def masses_from_mesh(self) -> bool:
+        """Whether the particles' masses come from the mesh's faces (``density`` on a mesh cloth): then only
+        ``geometry_checks.validate`` knows them."""
+        return self.mesh is not None and self.density is not None
+
+    def check_masses(self, lightest: float, heaviest: float) -> None:
         """Every particle's mass (then its inverse too) and stiffness / mass, as the device holds them in float32."""
         key, value = ("density", self.density) if self.density is not None else ("mass", self.mass)
-        lightest, heaviest = self.mass_range()
         check_float32(lightest, "the lightest particle's mass", key, value)
         check_float32(heaviest, "the heaviest particle's mass", key, value)
         for kind in ("structural", "shear", "bend"):
@@ -528,13 +520,11 @@ class MeshCollider:
         _non_negative(self.thickness, "thickness")
         _within_extent(self.thickness, "thickness")
         _non_negative(self.friction, "friction")
-        _within_extent(float(abs(self.surface().points).max()), "mesh")
         _check_key_times(self.keys)
-        _require(not (self.keys and self.surface().key_points is not None), "keys",
-                 "no keys on a mesh its USD file already animates", has_got=False)
 
     def surface(self):
-        """The collider's checked mesh (``mesh_io.SurfaceMesh``); its errors name this collider's ``mesh``."""
+        """The collider's checked mesh (``mesh_io.SurfaceMesh``, read when first asked for: by
+        ``geometry_checks.validate``); its errors name this collider's ``mesh``."""
         return _surface_of(self.mesh)
 
 
@@ -793,15 +783,10 @@ class Scene:
         check_fields(self)
         check_file_name(self.name, "name")
         _require(len(self.cloths) >= 1, "cloth", "at least one [[cloth]]", len(self.cloths))
-        total = sum(c.particle_count for c in self.cloths)
-        _require(total <= MAX_PARTICLES, "cloth", f"at most {MAX_PARTICLES} particles in all", total)
         self._check_names_unique()
         self._check_pin_targets()
         self._check_motion_in_bounds()
         self._check_edge_contacts_limited()
-        from .pin_selection import select_pins  # the pins' particles depend on the cloth's initial pose
-
-        select_pins(self)
 
     def _check_names_unique(self) -> None:
         """Cloths, spheres and mesh colliders are prims side by side under /World, beside the ground's, and
@@ -827,13 +812,9 @@ class Scene:
         for c, cloth in enumerate(self.cloths):
             for p, pin in enumerate(cloth.pins):
                 key = f"cloth[{c}].pins[{p}].target"
-                if pin.target is not None and pin.target.startswith("/"):
+                if pin.target is not None and pin.target.startswith("/"):  # the prim: geometry_checks.validate
                     _require(cloth.usd_file() is not None, key, "the name of a [[collider]] (a prim path is for "
                              "a cloth from a USD file)", pin.target)
-                    try:
-                        cloth.target_motion(pin)
-                    except SceneError as exc:
-                        raise SceneError(key, exc.expected, exc.got, exc.source, exc.has_got) from None
                     continue
                 _require(pin.target is None or pin.target in colliders, key,
                          "the name of a [[collider]] (" + (", ".join(colliders) or "the scene has none") + ")"
@@ -842,14 +823,9 @@ class Scene:
     def _check_motion_in_bounds(self) -> None:
         """Start-up speeds and forces that the device holds in float32 and the blow-up guard accepts."""
         sim = self.simulation
-        gravity = math.hypot(*sim.gravity)
         for c, cloth in enumerate(self.cloths):
-            heaviest = cloth.mass_range()[1]
-            key, value = (f"cloth[{c}].density", cloth.density) if cloth.density is not None else \
-                (f"cloth[{c}].mass", cloth.mass)
-            _require(heaviest * gravity <= FLOAT32_MAX, key, f"a mass whose weight (mass x |gravity| = "
-                                                             f"{heaviest * gravity:.3g} N) is finite in float32",
-                     value)
+            if not cloth.masses_from_mesh:
+                self.check_weight(c, cloth.mass_range()[1])
             _require(math.hypot(*cloth.velocity) < sim.max_speed, f"cloth[{c}].velocity",
                      f"a speed below simulation.max_speed = {sim.max_speed:g} m/s", list(cloth.velocity))
             for p, pin in enumerate(cloth.pins):
@@ -859,3 +835,12 @@ class Scene:
                 _require(speed < sim.max_speed, f"cloth[{c}].pins[{p}].motion",
                          f"a peak speed (amplitude x 2 pi frequency = {speed:.3g} m/s) below simulation.max_speed "
                          f"= {sim.max_speed:g} m/s", has_got=False)
+
+    def check_weight(self, c: int, heaviest: float) -> None:
+        """Cloth ``c``'s heaviest particle (``heaviest`` kg) of a weight finite in float32, as the device holds it."""
+        cloth = self.cloths[c]
+        weight = heaviest * math.hypot(*self.simulation.gravity)
+        key, value = (f"cloth[{c}].density", cloth.density) if cloth.density is not None else \
+            (f"cloth[{c}].mass", cloth.mass)
+        _require(weight <= FLOAT32_MAX, key, f"a mass whose weight (mass x |gravity| = {weight:.3g} N) is finite in "
+                                             "float32", value)

@@ -17,6 +17,7 @@ from typing import Any, get_args, get_origin
 
 from .checks import describe, file_name_from, toml_key
 from .errors import SceneError
+from .geometry_checks import validate
 from .scene import Scene
 
 _BUILTIN_PACKAGE = "warp_cloth.scenes"
@@ -108,10 +109,12 @@ def _mesh_paths_from(folder: Path, data: dict[str, Any]) -> None:
 
 
 def scene_from_dict(data: dict[str, Any]) -> Scene:
-    """A ``Scene`` from plain data as TOML gives it; errors name the key path. Tables become the dataclasses
-    they stand for and arrays of tables tuples of them; the dataclasses check every value themselves, as
-    they do for a scene built in Python."""
-    return _convert(data, Scene, "")
+    """A ``Scene`` from plain data as TOML gives it, checked; errors name the key path. Tables become the
+    dataclasses they stand for and arrays of tables tuples of them; the dataclasses check every value
+    themselves, as they do for a scene built in Python, and ``geometry_checks.validate`` the rest."""
+    scene = _convert(data, Scene, "")
+    validate(scene)
+    return scene
 
 
 def _join(path: str, key: str) -> str:

@@ -20,6 +20,7 @@ from warp_cloth.kernels import guard
 
 from .checkpoint import Checkpoint, load_checkpoint, restore, save_checkpoint
 from .errors import SceneError, UnstableSimulation
+from .geometry_checks import validate
 from .model import Model, Worlds, build_model
 from .output import RunOutcome
 from .progress import Progress, SlowStepNotice
@@ -202,6 +203,7 @@ class Simulator:
 
     def __init__(self, scene: Scene, device: str | None = None, graph: bool = True,
                  threads_per_particle: int | None = None, worlds: Worlds | None = None) -> None:
+        validate(scene)
         self.device = resolve_device(device)
         allowed = (1,) if self.device.is_cpu else (1, 2, 4, 8, 16, 32, 64)
         if threads_per_particle is not None and threads_per_particle not in allowed:
