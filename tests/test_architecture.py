@@ -152,3 +152,22 @@ def test_kernels_import_nothing_of_the_package_outside_them():
     outside = {name: sorted(m for m in imported if not (m == kernels or m.startswith(f"{kernels}.")))
                for name, imported in graph.items() if name == kernels or name.startswith(f"{kernels}.")}
     assert {name: others for name, others in outside.items() if others} == {}
+
+
+def test_an_integrators_name_becomes_an_object_in_one_place():
+    """Every integrator a scene may name has its object (warp_cloth/integrators.py), and no other module of
+    the product compares a name with one: they ask the object. The scene's own check of its keys and the
+    lab's choice of workloads by name are the exceptions."""
+    from warp_cloth.integrators import BY_NAME
+    from warp_cloth.scene import INTEGRATORS
+
+    assert set(BY_NAME) == set(INTEGRATORS)
+    comparing = []
+    for name, path in module_files().items():
+        if name in ("warp_cloth.integrators", "warp_cloth.scene") or name == LAB or name.startswith(f"{LAB}."):
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Compare) and any(isinstance(c, ast.Constant) and c.value in INTEGRATORS
+                                                     for c in [node.left, *node.comparators]):
+                comparing.append(f"{name}:{node.lineno}")
+    assert comparing == []

@@ -14,7 +14,7 @@ from conftest import with_simulation
 from warp_cloth import neighbour_lists
 from warp_cloth.kernels import particle_collision
 from warp_cloth.neighbour_lists import LIST_THREADS_BY_SIZE
-from warp_cloth.passes import ContactStart, explicit_step
+from warp_cloth.passes import ContactStart
 from warp_cloth.plan import threads_per_particle
 
 OFF = wc.SpringKind(enabled=False)
@@ -224,7 +224,7 @@ def unfused(sim: wc.Simulator) -> wc.Simulator:
     """``sim``'s substep as it was before the integration step began the contacts: the spheres moved
     after the step, and a pass of its own beginning the contacts."""
     fused_step = next(p for p in sim.plan.passes if p.name.endswith("+contact_start"))
-    step = explicit_step(sim.device_model, sim.state, sim.plan.threads, None)
+    step = sim.integrator.step(sim.device_model, sim.state, sim.plan.threads, None)
     movers = [p for p in sim.plan.passes if p.name == "spheres:move"]
     rest = [p for p in sim.plan.passes if p is not fused_step and p not in movers]
     sim.plan = dataclasses.replace(sim.plan, passes=(step, *movers, ContactStart(fused_step.args.start), *rest))

@@ -2,7 +2,7 @@
 ``explicit_step_kernel`` of kernels/passes.py) by threads per particle. Each form is a gathering kernel
 (kernels/gathering.py) of K threads per particle, ``BLOCK / K`` particles to a block of ``BLOCK`` = 128
 threads, launched with ``launch_gathering`` on the arguments the simulator's own explicit step takes
-(``warp_cloth.passes.explicit_step_args``) on the hanging matrix cloth after 2 frames:
+(``warp_cloth.integrators.ExplicitIntegrator.step_args``) on the hanging matrix cloth after 2 frames:
 
 * ``loop``: one thread per particle, built without fast math from the same gather and finish functions;
 * ``K{K}_B128``: K = 2 .. 16 threads per particle, without fast math;
@@ -31,7 +31,6 @@ import warp as wp
 from warp_cloth.lab.bench import matrix_scene
 from warp_cloth.kernels import passes as fused
 from warp_cloth.kernels.gathering import BLOCK, gathering_kernel, launch_gathering, load_gathering
-from warp_cloth.passes import explicit_step_args
 from warp_cloth.simulator import Simulator
 
 wp.config.log_level = wp.LOG_ERROR
@@ -71,7 +70,7 @@ def main() -> None:
     for n in sizes:
         sim = Simulator(matrix_scene("hanging", n, "symplectic"), device=device)
         sim.run(2)
-        args = explicit_step_args(sim.device_model, sim.state)
+        args = sim.integrator.step_args(sim.device_model, sim.state)
         x, v = sim.state.x, sim.state.v
         x_out, v_out = wp.empty_like(x), wp.empty_like(v)
         particles = sim.device_model.particle_count

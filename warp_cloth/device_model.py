@@ -1,6 +1,6 @@
 """The model on the device: everything the passes read that does not change during a run, uploaded once
-and owned here. What changes (positions, velocities, the clock, colliders' motion, contact state) is the
-state's (warp_cloth/state.py)."""
+and owned here. What changes (positions, velocities, the clock, colliders' motion, contact state, the wind's
+accelerations) is the state's (warp_cloth/state.py)."""
 
 from __future__ import annotations
 
@@ -105,16 +105,16 @@ class ParticleContacts:
 
 class DeviceModel:
     """A model and its scene's settings on a device; an effect the scene does not declare is None here and
-    costs no memory. ``h`` is the substep's length in seconds."""
+    costs no memory. ``h`` is the substep's length in seconds; ``masses``: upload the masses, not only their
+    inverses (for an integrator that asks for them)."""
 
-    def __init__(self, model: Model, scene: Scene, h: float, device) -> None:
+    def __init__(self, model: Model, scene: Scene, h: float, device, masses: bool = False) -> None:
         self.device = device
         self.particle_count = n = model.particle_count
         self.h = h
         simulation = scene.simulation
-        self.integrator = simulation.integrator
         self.inv_mass = upload(model.inv_mass, float, device)
-        self.mass = upload(model.masses, float, device) if simulation.integrator == "implicit" else None
+        self.mass = upload(model.masses, float, device) if masses else None
         worlds = model.worlds if model.worlds is not None else Worlds.of_scene(scene)
         self.world_count = worlds.count
         world = model.particle_world
@@ -122,12 +122,9 @@ class DeviceModel:
         self.world_start = upload(model.world_start, int, device)
         self.free_particles = upload(np.maximum(np.bincount(world[model.inv_mass != 0], minlength=worlds.count), 1),
                                      float, device)  # each world's, for RMS residuals
-        self.forces = ExternalForces()
-        self.forces.gravity = upload(worlds.gravity, wp.vec3, device)
-        self.forces.world = self.particle_world
-        self.forces.drag = simulation.drag
+        self._gravity = upload(worlds.gravity, wp.vec3, device)
+        self._drag = simulation.drag
         self.wind = self._wind(model, scene.wind)
-        self.forces.wind = wp.zeros(n if self.wind is not None else 0, dtype=wp.vec3, device=device)
         self.compensated = simulation.compensated
         self.springs = self._springs(model, n)
         self.limits = self._limits(model)
@@ -236,6 +233,13 @@ class DeviceModel:
                                   upload(edges.incidence.offsets, int, device),
                                   upload(edges.incidence.spring, int, device), rules,
                                   EDGE_THICKNESS * settings.separation * contacts.max_radius, edges.longest)
+
+    def forces(self, wind: wp.array) -> ExternalForces:
+        """The external forces as the kernels take them, each particle's wind acceleration in ``wind`` (the
+        state's, which the wind pass rewrites every substep)."""
+        forces = ExternalForces()
+        forces.gravity, forces.world, forces.drag, forces.wind = self._gravity, self.particle_world, self._drag, wind
+        return forces
 
     def no_limits(self) -> StrainLimits:
         """No limited spring: for checks of scenes without strain limits."""

@@ -64,7 +64,7 @@ def world_lanes(world_start: np.ndarray) -> int:
 class BackwardEuler:
     name = "integrate:implicit"
 
-    def __init__(self, model: DeviceModel, settings: ImplicitSolver) -> None:
+    def __init__(self, model: DeviceModel, state: DeviceState, settings: ImplicitSolver) -> None:
         self.settings = settings
         self.h = model.h
         self.n = n = model.particle_count
@@ -76,7 +76,7 @@ class BackwardEuler:
         self.world_start = model.world_start
         self.pins = model.pins
         self.system = fused.SpringSystemArgs()
-        self.system.springs, self.system.forces = model.springs, model.forces
+        self.system.springs, self.system.forces = model.springs, model.forces(state.wind)
         self.system.mass, self.system.inv_mass, self.system.h = model.mass, model.inv_mass, model.h
         vec = lambda: wp.zeros(n, dtype=wp.vec3, device=device)  # noqa: E731
         self.dv, self.r, self.z, self.p, self.ap = vec(), vec(), vec(), vec(), vec()

@@ -27,14 +27,6 @@ def launch(kernel, dim: int, state: DeviceState, inputs=(), outputs=()) -> None:
     wp.launch(kernel, dim=dim, inputs=inputs, outputs=outputs, device=state.device)
 
 
-def explicit_step_args(model: DeviceModel, state: DeviceState) -> fused.ExplicitStepArgs:
-    args = fused.ExplicitStepArgs()
-    args.springs, args.forces, args.inv_mass, args.h = model.springs, model.forces, model.inv_mass, model.h
-    args.semi_implicit = int(model.integrator == "symplectic")
-    args.rounded_away = state.rounded_away
-    return args
-
-
 def contact_start_args(model: DeviceModel, state: DeviceState, bundle: RigidColliders,
                        rebuild_distance: float) -> fused.ContactStartArgs:
     args = fused.ContactStartArgs()
@@ -87,23 +79,9 @@ class GatheringPass:
             state.swap_velocities()
 
 
-def explicit_step(model: DeviceModel, state: DeviceState, threads: int,
-                  start: fused.ContactStartArgs | None) -> GatheringPass:
-    """Spring and external forces and one explicit or symplectic Euler step; where ``start`` is given, the
-    particle collision's contact start too (the colliders, the velocities the contacts start from, the
-    lists' remake check), which saves a pass over the particles."""
-    name = f"integrate:{model.integrator}"
-    if start is None:
-        return GatheringPass(name, fused.explicit_step_kernel(threads), threads, explicit_step_args(model, state),
-                             model.device, new_velocities=True)
-    args = fused.ExplicitStepAndContactStartArgs()
-    args.step, args.start = explicit_step_args(model, state), start
-    return GatheringPass(f"{name}+contact_start", fused.explicit_step_and_contact_start_kernel(threads), threads,
-                         args, model.device, new_velocities=True)
-
-
 class ContactStart:
-    """The contacts' start alone (see ``explicit_step``), where the pass before cannot end with it."""
+    """The contacts' start alone (see ``integrators.ExplicitIntegrator.step``), where the pass before cannot
+    end with it."""
 
     name = "contact_start"
 
@@ -280,8 +258,8 @@ class MoveMeshColliders:
 
 
 class WindForces:
-    """Each particle's acceleration by the wind on its faces, from the positions and velocities the
-    substep starts from: the integration after it reads them as an external force."""
+    """Each particle's acceleration by the wind on its faces (into the state's ``wind``), from the positions
+    and velocities the substep starts from: the integration after it reads them as an external force."""
 
     name = "wind"
 
@@ -294,7 +272,7 @@ class WindForces:
         launch(wind.face_forces, self.shares.shape[0], state,
                inputs=[model.wind, state.clock, model.h, state.x, state.v], outputs=[self.shares])
         launch(wind.wind_accelerations, model.particle_count, state, inputs=[model.wind, self.shares, model.inv_mass],
-               outputs=[model.forces.wind])
+               outputs=[state.wind])
 
 
 class AdvanceClock:

@@ -6,17 +6,18 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from itertools import groupby
+from typing import Protocol, runtime_checkable
 
 from warp_cloth.kernels.colliders import RigidColliders
 
 from .device_model import DeviceModel
-from .implicit import BackwardEuler
+from .implicit import SolveStats
+from .integrators import Integrator
 from .limit_solve import ConvergedProjection
 from .neighbour_lists import LIST_THREADS_BY_SIZE, NeighbourLists
 from .passes import (AdvanceClock, Collide, ContactStart, DrivePins, FollowKeys, FollowTargets, MoveMeshColliders,
                      MoveSpheres, Pass, WindForces, contact_start_args, contact_velocities, edge_separation_pass,
-                     explicit_step, limit_and_separation_pass, limit_pass, separation_pass)
-from .scene import ImplicitSolver
+                     limit_and_separation_pass, limit_pass, separation_pass)
 from .state import DeviceState
 from .wording import counted
 
@@ -33,12 +34,19 @@ def threads_per_particle(particles: int, device, table=THREADS_BY_SIZE) -> int:
     return next((threads for most, threads in table if particles <= most), 1)
 
 
+@runtime_checkable
+class SolvingPass(Pass, Protocol):
+    """A pass that solves (the implicit step), keeping the worst figures of its solves since last read."""
+
+    def read_stats(self) -> SolveStats: ...
+
+
 @dataclass(frozen=True)
 class Plan:
     passes: tuple[Pass, ...]
     h: float  # the substep's length, seconds
     threads: int  # threads per particle of the gathering passes
-    implicit: BackwardEuler | None  # the implicit step, for its solver's figures
+    solve: SolvingPass | None  # the integrator's pass where it solves, for its figures
     lists: NeighbourLists | None  # particle collision's candidate lists
     projection: ConvergedProjection | None  # the converged limit solve, for its figures
 
@@ -60,15 +68,14 @@ class Plan:
         return "\n".join(lines)
 
 
-def build_plan(model: DeviceModel, state: DeviceState, implicit_settings: ImplicitSolver,
-               threads: int | None = None) -> Plan:
-    """The substep, in order: moving spheres and animated mesh colliders to the substep's end (nothing
-    before the colliders reads them); the wind's forces; integration; driven pins (oscillating, on
-    colliders, on keys); then, with particle collision, the contacts' start (in the explicit step where
-    nothing comes between), the candidate lists, the projection passes (where the scene has edge contacts,
-    an edge pass before each separating pass of a converged solve, so that its check follows a projection;
-    with fixed passes, one edge pass before them) and the contact velocities; without it, the strain
-    limit's passes or the colliders alone; the clock last, where something moves with it.
+def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, threads: int | None = None) -> Plan:
+    """The substep, in order: moving spheres and animated mesh colliders to the substep's end (nothing before
+    the colliders reads them); the wind's forces; the integrator's pass; driven pins (oscillating, on
+    colliders, on keys); then, with particle collision, the contacts' start (in the integrator's pass where it
+    can end with it and nothing comes between), the candidate lists, the projection passes (where the scene
+    has edge contacts, an edge pass before each separating pass of a converged solve, so that its check
+    follows a projection; with fixed passes, one edge pass before them) and the contact velocities; without
+    it, the strain limit's passes or the colliders alone; the clock last, where something moves with it.
     ``threads``: per particle on the gathering passes (None: by size)."""
     chosen = threads_per_particle(model.particle_count, model.device) if threads is None else threads
     rigid = model.colliders(state.sphere_center, state.sphere_velocity) if model.has_colliders else None
@@ -80,7 +87,7 @@ def build_plan(model: DeviceModel, state: DeviceState, implicit_settings: Implic
         passes.append(MoveSpheres(model))
     if model.mesh_animation:
         passes.append(MoveMeshColliders(model))
-    lists = start = implicit = projection = None
+    lists = start = projection = None
     if model.contacts is not None:
         list_threads = threads_per_particle(model.particle_count, model.device, LIST_THREADS_BY_SIZE) \
             if threads is None else threads
@@ -88,12 +95,9 @@ def build_plan(model: DeviceModel, state: DeviceState, implicit_settings: Implic
         start = contact_start_args(model, state, rigid or model.no_colliders(), lists.rebuild_distance)
     if model.wind is not None:
         passes.append(WindForces(model))
-    if model.integrator == "implicit":
-        implicit = BackwardEuler(model, implicit_settings)
-        passes.append(implicit)
-    start_in_step = start is not None and implicit is None and not driven_pins
-    if implicit is None:
-        passes.append(explicit_step(model, state, chosen, start if start_in_step else None))
+    start_in_step = start is not None and integrator.ends_with_contact_start and not driven_pins
+    step = integrator.step(model, state, chosen, start if start_in_step else None)
+    passes.append(step)
     if oscillating_pins:
         passes.append(DrivePins(model))
     if model.pin_targets:
@@ -124,7 +128,7 @@ def build_plan(model: DeviceModel, state: DeviceState, implicit_settings: Implic
     if driven_pins or model.sphere_motion is not None or model.mesh_animation or \
             (model.wind is not None and (model.wind.turbulence > 0 or model.wind.key_time.shape[0] > 1)):
         passes.append(AdvanceClock())
-    return Plan(tuple(passes), model.h, chosen, implicit, lists, projection)
+    return Plan(tuple(passes), model.h, chosen, step if isinstance(step, SolvingPass) else None, lists, projection)
 
 
 def projection_pair(model: DeviceModel, state: DeviceState, threads: int, rigid: RigidColliders | None,

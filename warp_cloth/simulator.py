@@ -26,6 +26,7 @@ from .output import RunOutcome
 from .progress import Progress, SlowStepNotice
 from .device_model import DeviceModel
 from .implicit import SolveStats
+from .integrators import Integrator, integrator_for
 from .pin_reach import check_pins_within_reach
 from .plan import Plan, build_plan
 from .scene import Scene
@@ -37,8 +38,7 @@ from .warp_init import init_warp
 # Rough upper bounds per particle, to refuse a scene before allocating: host arrays while building
 # (float64 grids, spring lists, sorting) and device arrays (state, springs and their adjacency).
 HOST_BYTES_PER_PARTICLE = 900
-DEVICE_BYTES_PER_PARTICLE = 320
-IMPLICIT_DEVICE_BYTES_PER_PARTICLE = 100  # CG vectors and the preconditioner's blocks
+DEVICE_BYTES_PER_PARTICLE = 320  # and the integrator's own (``Integrator.device_bytes_per_particle``)
 COLLISION_DEVICE_BYTES_PER_PARTICLE = 320  # neighbour lists, spatial hash buckets, contact state
 # A mesh collider: its triangles' indices and BVH nodes, its vertices' points and velocities, and for an
 # animated one its samples (float64 on the host as read, float32 on the device).
@@ -114,8 +114,7 @@ def check_memory(scene: Scene, device: wp.context.Device) -> None:
     """Refuse a scene that cannot fit, before any large allocation."""
     n = sum(c.particle_count for c in scene.cloths)
     host_free = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-    device_bytes = (DEVICE_BYTES_PER_PARTICLE
-                    + (IMPLICIT_DEVICE_BYTES_PER_PARTICLE if scene.simulation.integrator == "implicit" else 0)
+    device_bytes = (DEVICE_BYTES_PER_PARTICLE + integrator_for(scene.simulation.integrator).device_bytes_per_particle
                     + (COLLISION_DEVICE_BYTES_PER_PARTICLE if scene.collision is not None else 0))
     collider_host, collider_device = collider_bytes(scene)
     what = f"{n} particles" + (" and the mesh colliders" if scene.colliders else "")
@@ -134,8 +133,8 @@ def check_memory(scene: Scene, device: wp.context.Device) -> None:
 
 def check_work(scene: Scene, substeps: int) -> None:
     """Refuse a frame that would take too long to end: substeps x passes a substep (the strain limit's or
-    the collision's iterations, whichever is more; the implicit solve's Newton x CG iterations at most), of a
-    scene as ``resolve_step`` leaves it."""
+    the collision's iterations, or the most the integrator's solve may take, whichever is more), of a scene
+    as ``resolve_step`` leaves it."""
     sim = scene.simulation
     factors = {"simulation.dt" if sim.dt is not None else "simulation.substeps": substeps}
     limited = any(c.limit for c in scene.cloths)
@@ -144,8 +143,7 @@ def check_work(scene: Scene, substeps: int) -> None:
                   "simulation.limit_max_passes": sim.limit_max_passes if converged else 0,
                   "collision.iterations": scene.collision.iterations if scene.collision is not None and not converged
                   else 0}
-    if sim.integrator == "implicit":
-        iterations["implicit.cg_max_iterations"] = scene.implicit.newton_iterations * scene.implicit.cg_max_iterations
+    iterations.update(integrator_for(sim.integrator, scene.implicit).solve_passes())
     passes = 1 + max(iterations.values())
     factors.update(iterations)
     total = substeps * passes
@@ -194,7 +192,8 @@ class Simulator:
     ``threads_per_particle`` sets how many GPU threads gather each particle's springs, limits and contacts
     (None: chosen by the cloth's size; see kernels/gathering.py); a power of two up to 64, 1 on the CPU.
     ``plan`` is the substep's passes in order (``print(sim.plan)`` shows them); ``step_choice`` the step it
-    takes and why (``print(sim)`` says it in one line, with the scene, device and particles).
+    takes and why (``print(sim)`` says it in one line, with the scene, device and particles); ``integrator``
+    the scene's (warp_cloth/integrators.py).
     """
 
     INITIAL_OVERLAP_LIMIT = 0.5  # of the contact distance: closer starting pairs are refused
@@ -217,12 +216,14 @@ class Simulator:
         check_work(self.scene, self.step_choice.substeps)
         if self.step_choice.beyond_bound:
             warnings.warn(UnstableStepWarning(beyond_bound_message(self.step_choice, scene.simulation)), stacklevel=2)
-        self.device_model = DeviceModel(self.model, self.scene, self.scene.simulation.time_step, self.device)
+        self.integrator: Integrator = integrator_for(self.scene.simulation.integrator, self.scene.implicit)
+        self.device_model = DeviceModel(self.model, self.scene, self.scene.simulation.time_step, self.device,
+                                        masses=self.integrator.needs_masses)
         self.clock: ShotClock = shot_clock(self.scene)
         self.frame = self.clock.first  # the shot's frame number; 0 where the scene has no shot
         self.substep_count = self.clock.first * self.substeps_per_frame
         self.state = DeviceState(self.model.positions, self.model.velocities, self.device_model, self.substep_count)
-        self.plan: Plan = build_plan(self.device_model, self.state, self.scene.implicit, threads_per_particle)
+        self.plan: Plan = build_plan(self.device_model, self.state, self.integrator, threads_per_particle)
         self._stats_since_start: SolveStats | None = None
         # An animated mesh collider's BVH refit is a host call on the CPU, which a CPU graph does not record
         # (a CUDA graph records the refit's kernels): there, launch pass by pass.
@@ -356,7 +357,7 @@ class Simulator:
         since the simulator was made (reading them waits for the device): the implicit integrator's CG and
         Newton iterations and residuals, and a converged limit solve's passes and residual; None where the
         scene has neither."""
-        stats = self.plan.implicit.read_stats() if self.plan.implicit is not None else None
+        stats = self.plan.solve.read_stats() if self.plan.solve is not None else None
         if self.plan.projection is not None:
             most, residual, mean, solves = self.plan.projection.read_stats()
             stats = dataclasses.replace(stats or SolveStats(), limit_passes=most, limit_residual=residual,
@@ -452,12 +453,8 @@ class Simulator:
             reason = "positions or velocities are no longer finite"
         else:
             reason = f"a particle moves faster than max_speed = {sim.max_speed:g} m/s"
-        if sim.integrator == "implicit":
-            advice = (f"Try a smaller step than h = {self.dt:.4g} s (--dt or --substeps), or raise "
-                      f"implicit.cg_max_iterations; frames up to {frame - 1} are valid.")
-        else:
-            advice = (f"Try a smaller step than h = {self.dt:.4g} s (--dt or --substeps) or the implicit integrator "
-                      f"(--integrator implicit); frames up to {frame - 1} are valid.")
+        advice = (f"Try a smaller step than h = {self.dt:.4g} s (--dt or --substeps)"
+                  f"{self.integrator.unstable_advice}; frames up to {frame - 1} are valid.")
         return UnstableSimulation(frame, first + 1, reason, advice)
 
     def prepare(self) -> None:

@@ -26,6 +26,8 @@ One mode ``x'' = -w^2 x - c x'`` stepped with h:
 Every enabled spring counts, in whatever regime it acts (a bend spring acts only when compressed, but a
 compressed cloth has them all). Strain limits and collisions are projections: they add no stiffness.
 The implicit integrator (backward Euler) is stable at any step on these linear springs: it has no bound.
+This module finds W, C and rho; each integrator's bound from them is its own (``stable_step`` in
+warp_cloth/integrators.py).
 """
 
 from __future__ import annotations
@@ -37,6 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import SceneError
+from .integrators import integrator_for
 from .model import (FLAG_DAMPING_COMPRESSION, FLAG_DAMPING_TENSION, FLAG_ELASTIC_COMPRESSION,
                     FLAG_ELASTIC_TENSION, Model, build_model)
 from .scene import Scene, Simulation
@@ -56,7 +59,6 @@ SAFETY = 0.8  # the automatic step is this fraction of the bound: the bound is o
 SAFETY_UNDAMPED = 0.4
 AUTOMATIC_MIN_SUBSTEPS = 10  # never coarser than the old default: stability is not accuracy
 AUTOMATIC_MAX_SUBSTEPS = 10000  # past this a scene is refused: the implicit integrator suits it better
-EXPLICIT_RUN_GROWTH = 2.0  # forward Euler with undamped springs: the fastest mode's growth over the run
 
 
 class UnstableStepWarning(UserWarning):
@@ -84,12 +86,13 @@ class StabilityBound:
 
 @dataclass(frozen=True)
 class StepChoice:
-    """The step a run takes and where it comes from. ``bound`` is None for the implicit integrator."""
+    """The step a run takes and where it comes from. ``bound`` is None for an integrator stable at any step."""
 
     substeps: int
     step: float
     automatic: bool
     bound: StabilityBound | None
+    integrator: str
 
     @property
     def beyond_bound(self) -> bool:
@@ -99,8 +102,9 @@ class StepChoice:
         """One line: the step, and why it is what it is."""
         head = f"step {_ms(self.step)} ({counted(self.substeps, 'substep')}/frame)"
         if self.bound is None:
-            return head + (", the implicit integrator's default (no stability bound on its step)" if self.automatic
-                           else ", as set (the implicit integrator has no stability bound on its step)")
+            return head + (f", the {self.integrator} integrator's default (no stability bound on its step)"
+                           if self.automatic else
+                           f", as set (the {self.integrator} integrator has no stability bound on its step)")
         if not self.automatic:
             return head + f", as set; {self.bound.describe()}"
         if self.substeps == AUTOMATIC_MIN_SUBSTEPS and self.step < safety(self.bound) * self.bound.step:
@@ -115,10 +119,13 @@ def _ms(seconds: float) -> str:
 def stable_step(positions: np.ndarray, inv_mass: np.ndarray, pairs: np.ndarray, rest: np.ndarray,
                 stiffness: np.ndarray, damping: np.ndarray, flags: np.ndarray, integrator: str, drag: float = 0.0,
                 duration: float = 10.0) -> StabilityBound:
-    """The largest stable step of ``integrator`` ("explicit" or "symplectic") on springs ``pairs`` between
-    particles at ``positions`` of inverse mass ``inv_mass`` (0: held), springs with the model's regime
-    ``flags``; ``duration`` (s) is the run's length, used only by forward Euler with undamped springs. See
-    the module's docstring for the derivation."""
+    """The largest stable step of ``integrator`` (named as a scene names it: one with a bound, as
+    "explicit" or "symplectic") on springs ``pairs`` between particles at ``positions`` of inverse mass
+    ``inv_mass`` (0: held), springs with the model's regime ``flags``; ``duration`` (s) is the run's length,
+    used only by forward Euler with undamped springs. See the module's docstring for the derivation."""
+    bound = integrator_for(integrator).stable_step
+    if bound is None:
+        raise ValueError(f"no stability bound for integrator {integrator!r}")
     free = inv_mass > 0
     pairs = np.asarray(pairs).reshape(-1, 2)
     elastic = (flags & (FLAG_ELASTIC_TENSION | FLAG_ELASTIC_COMPRESSION)) != 0
@@ -134,23 +141,8 @@ def stable_step(positions: np.ndarray, inv_mass: np.ndarray, pairs: np.ndarray, 
     stiff = elastic & moving
     rho = np.where(both, dashpot, 0.0)[stiff] / axial[stiff] if stiff.any() else np.array([math.inf])
     rho_min = float(rho.min())
-    omega = math.sqrt(w2)
-    if integrator == "symplectic":
-        root = math.sqrt(c * c + 4.0 * w2)
-        step = 4.0 / (c + root) if c + root > 0 else math.inf
-        limited_by = "stiffness" if w2 * step >= 2.0 * c else "damping"
-    elif integrator == "explicit":
-        candidates = {"damping": 2.0 / c if c > 0 else math.inf}
-        if rho_min > 0:
-            candidates["damping time b L0/k"] = rho_min
-        else:
-            candidates[f"undamped springs, {EXPLICIT_RUN_GROWTH:g}x growth over the run"] = \
-                2.0 * math.log(EXPLICIT_RUN_GROWTH) / (duration * w2)
-        limited_by = min(candidates, key=candidates.get)
-        step = candidates[limited_by]
-    else:
-        raise ValueError(f"no stability bound for integrator {integrator!r}")
-    return StabilityBound(integrator, step, omega, c, rho_min, limited_by)
+    step, limited_by = bound(w2, c, rho_min, duration)
+    return StabilityBound(integrator, step, math.sqrt(w2), c, rho_min, limited_by)
 
 
 def _largest_rate(positions: np.ndarray, pairs: np.ndarray, weight: np.ndarray, inv_mass: np.ndarray) -> float:
@@ -179,8 +171,8 @@ def _largest_rate(positions: np.ndarray, pairs: np.ndarray, weight: np.ndarray, 
 
 
 def model_bound(model: Model, sim: Simulation) -> StabilityBound | None:
-    """The stable bound of the simulation's integrator on a model (None for the implicit integrator)."""
-    if sim.integrator == "implicit":
+    """The stable bound of the simulation's integrator on a model (None for one stable at any step)."""
+    if integrator_for(sim.integrator).stable_step is None:
         return None
     springs = model.springs
     if springs is None:
@@ -210,14 +202,14 @@ def choose_step(model: Model, sim: Simulation) -> StepChoice:
     ``AUTOMATIC_MAX_SUBSTEPS`` a frame."""
     bound = model_bound(model, sim)
     if sim.substeps_per_frame is not None:
-        return StepChoice(sim.substeps_per_frame, sim.time_step, False, bound)
+        return StepChoice(sim.substeps_per_frame, sim.time_step, False, bound, sim.integrator)
     substeps = automatic_substeps(sim.fps, bound)
     if substeps > AUTOMATIC_MAX_SUBSTEPS:
         raise SceneError("simulation.substeps", f"a scene whose stable step needs at most {AUTOMATIC_MAX_SUBSTEPS} "
                                                 f"substeps a frame: this one needs {substeps} ({bound.describe()}); "
                                                 "use the implicit integrator, or softer or heavier cloth",
                          has_got=False)
-    return StepChoice(substeps, 1.0 / (sim.fps * substeps), True, bound)
+    return StepChoice(substeps, 1.0 / (sim.fps * substeps), True, bound, sim.integrator)
 
 
 def cap_that_fits(cap: int, substeps: int) -> int:

@@ -1,5 +1,6 @@
 """The simulation state on the device: positions and velocities (double buffered), the clock, where the
-colliders are, and what particle collision carries from one substep to the next."""
+colliders are, what particle collision carries from one substep to the next, and what a pass hands a later
+one within a substep (the wind's accelerations)."""
 
 from __future__ import annotations
 
@@ -100,6 +101,9 @@ class DeviceState:
         self.sphere_velocity = wp.zeros(len(start), dtype=wp.vec3, device=device)
         # what each position's compensated sum has rounded away so far (empty where the moves add plainly)
         self.rounded_away = wp.zeros(len(positions) if model.compensated else 0, dtype=wp.vec3, device=device)
+        # each particle's acceleration by the wind this substep: the wind pass writes it, the integration reads
+        # it (empty without wind)
+        self.wind = wp.zeros(len(positions) if model.wind is not None else 0, dtype=wp.vec3, device=device)
         self.contacts = None if model.contacts is None else self._contact_state(model)
         self.edges = None if model.contacts is None or model.contacts.edges is None else self._edge_state(model)
 
