@@ -7,11 +7,19 @@ from typing import Protocol
 
 import warp as wp
 
-from warp_cloth.kernels import colliders, gathering, motion, passes as fused, wind
+from warp_cloth.kernels import colliders, gathering, motion, wind
 from warp_cloth.kernels.attachments import Attachments
 from warp_cloth.kernels.colliders import RigidColliders
+from warp_cloth.kernels.contact_velocities import ContactVelocitiesArgs, contact_velocities_kernel
 from warp_cloth.kernels.edge_collision import EdgeContacts
+from warp_cloth.kernels.edge_separation import EdgeSeparationPassArgs, edge_separation_pass_kernel
+from warp_cloth.kernels.explicit_step import (ContactStartArgs, ExplicitStepAndContactStartArgs, ExplicitStepArgs,
+                                              contact_start, explicit_step_and_contact_start_kernel,
+                                              explicit_step_kernel)
 from warp_cloth.kernels.particle_collision import Contacts
+from warp_cloth.kernels.projection_passes import (LimitAndSeparationPassArgs, LimitPassArgs, SeparationPassArgs,
+                                                  limit_and_separation_pass_kernel, limit_pass_kernel,
+                                                  separation_pass_kernel)
 
 from .device_model import DeviceModel
 from .state import EDGE_NEIGHBORS, DeviceState
@@ -27,8 +35,8 @@ def launch(kernel, dim: int, state: DeviceState, inputs=(), outputs=()) -> None:
     wp.launch(kernel, dim=dim, inputs=inputs, outputs=outputs, device=state.device)
 
 
-def explicit_step_args(model: DeviceModel, state: DeviceState) -> fused.ExplicitStepArgs:
-    args = fused.ExplicitStepArgs()
+def explicit_step_args(model: DeviceModel, state: DeviceState) -> ExplicitStepArgs:
+    args = ExplicitStepArgs()
     args.springs, args.forces, args.inv_mass, args.h = model.springs, model.forces, model.inv_mass, model.h
     args.semi_implicit = int(model.integrator == "symplectic")
     args.rounded_away = state.rounded_away
@@ -36,8 +44,8 @@ def explicit_step_args(model: DeviceModel, state: DeviceState) -> fused.Explicit
 
 
 def contact_start_args(model: DeviceModel, state: DeviceState, bundle: RigidColliders,
-                       rebuild_distance: float) -> fused.ContactStartArgs:
-    args = fused.ContactStartArgs()
+                       rebuild_distance: float) -> ContactStartArgs:
+    args = ContactStartArgs()
     args.colliders, args.contacts, args.lists = bundle, contacts_args(model, state), state.contacts.lists()
     args.v_start, args.rebuild_distance = state.contacts.v_start, rebuild_distance
     args.inv_mass, args.h = model.inv_mass, model.h
@@ -88,17 +96,17 @@ class GatheringPass:
 
 
 def explicit_step(model: DeviceModel, state: DeviceState, threads: int,
-                  start: fused.ContactStartArgs | None) -> GatheringPass:
+                  start: ContactStartArgs | None) -> GatheringPass:
     """Spring and external forces and one explicit or symplectic Euler step; where ``start`` is given, the
     particle collision's contact start too (the colliders, the velocities the contacts start from, the
     lists' remake check), which saves a pass over the particles."""
     name = f"integrate:{model.integrator}"
     if start is None:
-        return GatheringPass(name, fused.explicit_step_kernel(threads), threads, explicit_step_args(model, state),
+        return GatheringPass(name, explicit_step_kernel(threads), threads, explicit_step_args(model, state),
                              model.device, new_velocities=True)
-    args = fused.ExplicitStepAndContactStartArgs()
+    args = ExplicitStepAndContactStartArgs()
     args.step, args.start = explicit_step_args(model, state), start
-    return GatheringPass(f"{name}+contact_start", fused.explicit_step_and_contact_start_kernel(threads), threads,
+    return GatheringPass(f"{name}+contact_start", explicit_step_and_contact_start_kernel(threads), threads,
                          args, model.device, new_velocities=True)
 
 
@@ -107,11 +115,11 @@ class ContactStart:
 
     name = "contact_start"
 
-    def __init__(self, args: fused.ContactStartArgs) -> None:
+    def __init__(self, args: ContactStartArgs) -> None:
         self.args = args
 
     def run(self, state: DeviceState) -> None:
-        launch(fused.contact_start, state.x.shape[0], state, inputs=[state.x, state.v, self.args])
+        launch(contact_start, state.x.shape[0], state, inputs=[state.x, state.v, self.args])
 
 
 def projection_pass(name: str, kernel: wp.Kernel, args, model: DeviceModel, threads: int,
@@ -126,28 +134,28 @@ def projection_pass(name: str, kernel: wp.Kernel, args, model: DeviceModel, thre
 def limit_pass(model: DeviceModel, threads: int, bundle: RigidColliders | None, resting: wp.array | None,
                read_bit: int) -> GatheringPass:
     """One Jacobi pass of the strain limits; its colliders mark in ``resting`` (None: no marks)."""
-    args = fused.LimitPassArgs()
+    args = LimitPassArgs()
     args.limits, args.attachments = model.limits, attachments_of(model)
     args.resting = resting if resting is not None else model.no_marks
-    return projection_pass(limits_name(model), fused.limit_pass_kernel(threads), args, model, threads, bundle,
+    return projection_pass(limits_name(model), limit_pass_kernel(threads), args, model, threads, bundle,
                            read_bit)
 
 
 def separation_pass(model: DeviceModel, state: DeviceState, threads: int, bundle: RigidColliders | None,
                     read_bit: int) -> GatheringPass:
     """One Jacobi pass pushing overlapping particles apart."""
-    args = fused.SeparationPassArgs()
+    args = SeparationPassArgs()
     args.contacts = contacts_args(model, state)
-    return projection_pass("separation", fused.separation_pass_kernel(threads), args, model, threads, bundle,
+    return projection_pass("separation", separation_pass_kernel(threads), args, model, threads, bundle,
                            read_bit)
 
 
 def limit_and_separation_pass(model: DeviceModel, state: DeviceState, threads: int, bundle: RigidColliders | None,
                               read_bit: int) -> GatheringPass:
-    """The limit's and the separation's Jacobi pass in one (see kernels/passes.py)."""
-    args = fused.LimitAndSeparationPassArgs()
+    """The limit's and the separation's Jacobi pass in one (see kernels/projection_passes.py)."""
+    args = LimitAndSeparationPassArgs()
     args.limits, args.attachments, args.contacts = model.limits, attachments_of(model), contacts_args(model, state)
-    return projection_pass(limits_name(model) + "+separation", fused.limit_and_separation_pass_kernel(threads), args,
+    return projection_pass(limits_name(model) + "+separation", limit_and_separation_pass_kernel(threads), args,
                            model, threads, bundle, read_bit)
 
 
@@ -164,11 +172,11 @@ def edge_separation_pass(model: DeviceModel, state: DeviceState, threads: int,
                          bundle: RigidColliders | None) -> GatheringPass:
     """One Jacobi pass moving contact edges a thickness apart (kernels/edge_collision.py), then the
     colliders in ``bundle`` (None: none)."""
-    args = fused.EdgeSeparationPassArgs()
+    args = EdgeSeparationPassArgs()
     args.edges, args.inv_mass, args.h = edge_contacts_args(model, state), model.inv_mass, model.h
     args.colliders = bundle if bundle is not None else model.no_colliders()
     return GatheringPass("edge_separation" + ("+colliders" if bundle is not None else ""),
-                         fused.edge_separation_pass_kernel(threads), threads, args, model.device)
+                         edge_separation_pass_kernel(threads), threads, args, model.device)
 
 
 CONTACT_SLACK = 1.01  # pairs within 1% of contact count as touching in the velocity pass
@@ -177,11 +185,11 @@ CONTACT_SLACK = 1.01  # pairs within 1% of contact count as touching in the velo
 def contact_velocities(model: DeviceModel, state: DeviceState, threads: int) -> GatheringPass:
     """Inelastic contacts with friction, then the end of the substep's list remake (see
     kernels/particle_collision.py): the last pass that reads the remake's request clears it."""
-    args = fused.ContactVelocitiesArgs()
+    args = ContactVelocitiesArgs()
     args.contacts, args.lists, args.v_start = contacts_args(model, state), state.contacts.lists(), state.contacts.v_start
     args.inv_mass, args.contact_slack = model.inv_mass, CONTACT_SLACK
     args.friction, args.h = model.contacts.settings.friction, model.h
-    return GatheringPass("contact_velocities+end_remake", fused.contact_velocities_kernel(threads), threads, args,
+    return GatheringPass("contact_velocities+end_remake", contact_velocities_kernel(threads), threads, args,
                          model.device, new_positions=False, new_velocities=True)
 
 
