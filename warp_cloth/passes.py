@@ -253,40 +253,6 @@ class FollowKeys:
                    outputs=[state.x, state.v])
 
 
-class MoveSpheres:
-    """Puts moving spheres where their motion has them at the end of the substep, with its velocity."""
-
-    name = "spheres:move"
-
-    def __init__(self, model: DeviceModel) -> None:
-        self.model = model
-
-    def run(self, state: DeviceState) -> None:
-        s = self.model.sphere_motion
-        launch(motion.move_spheres, state.sphere_center.shape[0], state,
-               inputs=[state.clock, self.model.h, s.center, s.key_start, s.key_time, s.key_offset, s.amplitude,
-                       s.frequency, s.phase],
-               outputs=[state.sphere_center, state.sphere_velocity])
-
-
-class MoveMeshColliders:
-    """Puts animated mesh colliders where their keys have them at the end of the substep, with their
-    vertices' velocities, and refits their BVHs."""
-
-    name = "mesh colliders:move"
-
-    def __init__(self, model: DeviceModel) -> None:
-        self.model = model
-
-    def run(self, state: DeviceState) -> None:
-        for animation in self.model.mesh_animation:
-            mesh = animation.mesh
-            launch(motion.place_keyed_points, mesh.points.shape[0], state,
-                   inputs=[state.clock, self.model.h, animation.key_times, animation.keys],
-                   outputs=[mesh.points, mesh.velocities])
-            mesh.refit()
-
-
 class WindForces:
     """Each particle's acceleration by the wind on its faces, from the positions and velocities the
     substep starts from: the integration after it reads them as an external force."""
