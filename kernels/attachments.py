@@ -1,7 +1,7 @@
 """Long-range attachments (Kim, Chentanez and Mueller 2012): each particle of a pinned cloth held within its
 attachment length of its nearest pin, measured around the spheres between them (wrapping.py). A pin does
 not move in a pass, so holding to it needs no averaging: a limit pass applies it after its own correction,
-before the colliders (kernels/passes.py), where the scene's cloths have attachments.
+before the colliders (kernels/projection_passes.py), where the scene's cloths have attachments.
 """
 
 import warp as wp

@@ -8,9 +8,9 @@ taken away (Coulomb), so a cloth sliding on the ground decelerates at mu g.
 
 All of a scene's colliders travel in one ``RigidColliders`` and act through ``collide_particle``, which
 runs each kind of the particle's world (see warp_cloth/model.py's ``Worlds``) in turn on one particle alone, so that the passes that move particles can end with them
-instead of launching another kernel. A new collider kind is its fields here (filled in by
-warp_cloth/device_model.py, or the state where it moves), one ``collide_<kind>`` function of the form
-below, and its line in ``collide_particle``.
+instead of launching another kernel. A new collider kind is its fields here (filled in by its entry in
+warp_cloth/collider_kinds.py), one ``collide_<kind>`` function of the form below, and its line in
+``collide_particle``.
 
 With particle collision, the colliders also mark the particles they hold up (``resting``), which the
 collision passes read. A pass reads one bit of it (``read_bit``, 1 or 2) and its colliders write the

@@ -5,7 +5,7 @@ middles keep every end sqrt(2) L / 2 from the other's: past the contact distance
 diagonals (1.41 cells against the seed's 0.82), so a cloth folded flat onto itself can pass a diagonal
 through another while every particle stays apart. The model lists the triangle edges long enough for this
 (warp_cloth/model.py, ``long_triangle_edges``); each edge's candidates are the listed edges whose segments lie
-within ``reach``, found through a spatial hash of the edges' midpoints (passes.py) whenever the particle
+within ``reach``, found through a spatial hash of the edges' midpoints (neighbour_search.py) whenever the particle
 lists are remade, so that they stay valid as long as those do; a pass then moves each pair's
 closest points apart to ``thickness``, each end by its share (its barycentric weight over the pair's
 inverse mass), every particle by the mean of its edges' moves (Jacobi, as the particle contacts).

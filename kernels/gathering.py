@@ -44,6 +44,15 @@ def thread_layout(block: int, lane: int, per_block: int, threads: int, n: int):
     return i, slot, i >= 0 and slot == 0
 
 
+@wp.func
+def gathers(args: Any, i: int) -> bool:
+    """Whether a thread gathers for particle i: one that exists (i >= 0: not past the last) and is free
+    (a pinned particle's incidences move nothing)."""
+    if i < 0:
+        return False
+    return args.inv_mass[i] != 0.0
+
+
 @functools.cache
 def sum_over_threads(per_block: int, threads: int) -> wp.Function:
     """A function that sums a value (a vector or a count) over each particle's threads and gives every

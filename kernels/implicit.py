@@ -1,9 +1,10 @@
-"""Backward Euler (Baraff & Witkin 1998), matrix free: the end of a step and the Newton loop's bookkeeping.
+"""Backward Euler (Baraff & Witkin 1998), matrix free: the system of a Newton step, the end of a step and
+the Newton loop's bookkeeping.
 
 Unknown: the velocity change dv of a step, from (M - h df/dv - h^2 df/dx) dv = rhs. The right-hand side,
 the products with that matrix and its diagonal blocks are gathers over each particle's springs (the
 Jacobians of kernels/springs.py, rebuilt from positions on the fly: no matrix is ever assembled), with the
-external forces' part (kernels/forces.py); kernels/passes.py assembles them. Pinned particles (inverse
+external forces' part (kernels/forces.py): the system's kernels, last below. Pinned particles (inverse
 mass 0) are held by Baraff & Witkin's filter: their dv is prescribed and their rows are zeroed in every
 residual and search direction, so the solve never moves them.
 
@@ -14,6 +15,9 @@ in ``stats`` = [CG iterations, r.z / r0.z0 at the end of a solve, Newton steps, 
 """
 
 import warp as wp
+
+from .forces import ExternalForces, external_acceleration, external_damping
+from .springs import Springs, add_system_diagonal, add_system_times, spring_forces, stiffness_times_motion
 
 
 @wp.kernel
@@ -69,3 +73,66 @@ def record_newton(partial: wp.array(dtype=float), lanes: int, free_particles: wp
     w = wp.tid()
     wp.atomic_max(stats, 2, float(newton[w, 1]))
     wp.atomic_max(stats, 3, rms(partial, w, lanes, free_particles[w]))
+
+
+# --- the system: the springs' Jacobians with the external forces' part ----------------------------------
+
+@wp.struct
+class SpringSystemArgs:
+    springs: Springs
+    forces: ExternalForces
+    mass: wp.array(dtype=float)
+    inv_mass: wp.array(dtype=float)
+    h: float
+
+
+@wp.kernel(module="unique")  # without fast math, as the rest of the implicit solve
+def newton_rhs(y: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), v0: wp.array(dtype=wp.vec3),
+               args: SpringSystemArgs, linearized_at_start: int, rhs: wp.array(dtype=wp.vec3)):
+    """Right-hand side of one Newton step for v' with M (v' - v0) = h f(x0 + h v', v').
+
+    With forces evaluated at y = x0 + h v, this is h f(y, v) - M (v - v0). Baraff & Witkin's single step
+    linearises at the start of the step instead (y = x0, v = v0), which adds h^2 K v0 for the motion
+    x0 -> x0 + h v0 that y leaves out: ``linearized_at_start`` = 1 selects that."""
+    i = wp.tid()
+    if args.inv_mass[i] == 0.0:
+        rhs[i] = wp.vec3(0.0)
+        return
+    m = args.mass[i]
+    f = spring_forces(args.springs, i, 0, 1, y, v)
+    f = f + m * external_acceleration(args.forces, i, y[i], v[i])
+    out = args.h * f - m * (v[i] - v0[i])
+    if linearized_at_start != 0:
+        out = out - (args.h * args.h) * stiffness_times_motion(args.springs, i, y, v0)
+    rhs[i] = out
+
+
+@wp.func
+def mass_term(args: SpringSystemArgs, i: int) -> float:
+    """The diagonal of M - h (d external force / dv) for particle i."""
+    return args.mass[i] * (1.0 + args.h * external_damping(args.forces))
+
+
+@wp.kernel(module="unique")  # without fast math, as the rest of the implicit solve
+def system_times(y: wp.array(dtype=wp.vec3), p: wp.array(dtype=wp.vec3), active: wp.array(dtype=int),
+                 args: SpringSystemArgs, out: wp.array(dtype=wp.vec3)):
+    """out = A p on free particles, 0 on pinned ones (the filter). Does nothing in a world whose ``active``
+    is 0."""
+    i = wp.tid()
+    if active[args.forces.world[i]] == 0:
+        return
+    if args.inv_mass[i] == 0.0:
+        out[i] = wp.vec3(0.0)
+        return
+    out[i] = add_system_times(args.springs, i, y, p, args.h, mass_term(args, i) * p[i])
+
+
+@wp.kernel(module="unique")  # without fast math, as the rest of the implicit solve
+def block_jacobi_inverse(y: wp.array(dtype=wp.vec3), args: SpringSystemArgs, inverse: wp.array(dtype=wp.mat33)):
+    """The inverse of each particle's 3x3 diagonal block of A: the preconditioner (0 on pinned)."""
+    i = wp.tid()
+    if args.inv_mass[i] == 0.0:
+        inverse[i] = wp.mat33(0.0)
+        return
+    block = add_system_diagonal(args.springs, i, y, args.h, mass_term(args, i) * wp.identity(n=3, dtype=float))
+    inverse[i] = wp.inverse(block)

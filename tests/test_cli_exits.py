@@ -6,6 +6,7 @@ import os
 import signal
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 import warp as wp
@@ -142,7 +143,7 @@ def test_an_out_folder_name_too_long_for_the_file_system_is_one_line(tmp_path):
     assert len(err.strip().splitlines()) == 1 and list(tmp_path.iterdir()) == []
 
 
-def _checkpoint_of_three_frames(folder) -> "Path":
+def _checkpoint_of_three_frames(folder) -> Path:
     sim = wc.Simulator(wc.load_scene("hanging"), device="cpu")
     sim.run(3)
     path = folder / "hanging.checkpoint.npz"

@@ -17,7 +17,7 @@ from warp_cloth.cloth_mesh import rest_adjacent_pairs
 from warp_cloth.checkpoint import Checkpoint, scene_fingerprint
 from warp_cloth.model import collision_radii, long_triangle_edges, needs_adjacent_exclusion
 from warp_cloth.device_model import no_colliders
-from warp_cloth.kernels import passes as fused
+from warp_cloth.kernels import projection_passes
 from warp_cloth.kernels.gathering import launch_gathering
 from warp_cloth.kernels.limits import StrainLimits
 from warp_cloth import state
@@ -436,13 +436,13 @@ def test_a_joint_pass_moves_by_both_means_but_no_limit_pulls_into_a_contact(pin_
     contacts.radius, contacts.separation, contacts.max_neighbors = wp.full(3, 0.5, dtype=float), 1.0, 2
     contacts.neighbors, contacts.counts = wp.array([2, -1, -1, -1, 0, -1], dtype=int), wp.array([1, 0, 1], dtype=int)
     contacts.resting, contacts.pushed = wp.zeros(0, dtype=int), wp.zeros(3, dtype=float)
-    args = fused.LimitAndSeparationPassArgs()
+    args = projection_passes.LimitAndSeparationPassArgs()
     args.limits, args.contacts, args.inv_mass, args.h, args.read_bit = limits, contacts, inv_mass, h, 1
     args.attachments = attachments.Attachments()
     args.attachments.pin, args.attachments.length = wp.zeros(0, dtype=int), wp.zeros(0, dtype=float)
     args.colliders = no_colliders("cpu")
     x_out, v = wp.zeros(3, dtype=wp.vec3), wp.zeros(3, dtype=wp.vec3)
-    launch_gathering(fused.limit_and_separation_pass_kernel(1), 1, 3, x, v, x_out, v, args)
+    launch_gathering(projection_passes.limit_and_separation_pass_kernel(1), 1, 3, x, v, x_out, v, args)
     pushed = contacts.pushed
     np.testing.assert_allclose(x_out.numpy()[0], expected, atol=1e-6)
     np.testing.assert_allclose(v.numpy()[0], np.array(expected) / h, rtol=1e-5, atol=1e-4)

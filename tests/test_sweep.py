@@ -459,8 +459,8 @@ def test_a_cluster_address_where_a_web_server_answers_is_refused_in_seconds(tmp_
         server.shutdown()
         server.server_close()
     assert result.returncode == 2 and len(result.stderr.strip().splitlines()) == 1, result.stderr
-    assert (f"--cluster: expected the address of a running Ray cluster, HOST:PORT, or local (an HTTP server "
-            f"answered: HTTP/1.0 501") in result.stderr
+    assert ("--cluster: expected the address of a running Ray cluster, HOST:PORT, or local (an HTTP server "
+            "answered: HTTP/1.0 501") in result.stderr
     assert f"got '{address}'" in result.stderr
     assert elapsed < 30  # seconds of Python's and Warp's imports; the probe itself takes a moment
     assert not (tmp_path / "s").exists()

@@ -11,7 +11,7 @@ gathering pass of the cloth's substep (threads chosen by size, the state after t
 a GPU) launched on its own with ``launch_gathering`` in a graph of 100 launches, from the same positions
 and velocities to scratch arrays, the product's kernel (fast math) against the same kernel built without
 fast math (``gathering_kernel(..., options={"fast_math": False})`` from its gather and finish functions in
-kernels/passes.py); microseconds per launch by pass, and their sums over the substep's gathering passes.
+its kernels/ module); microseconds per launch by pass, and their sums over the substep's gathering passes.
 The kernels that are not gathering kernels (the list remake, the hash insert, the contacts' start alone,
 the colliders alone) have no precise form here. A whole frame without fast math cannot be built through
 the simulator's public interface, so ``precise`` has no ms per frame and no strain.
@@ -35,7 +35,7 @@ import warp as wp
 
 from lanes_probe import per_launch_us
 from warp_cloth.lab.bench import MATRIX_VARIANTS, SPRINGS_ONLY, Case, environment, matrix_frames, matrix_scene, time_case
-from warp_cloth.kernels import passes as fused
+from warp_cloth.kernels import contact_velocities, explicit_step, projection_passes
 from warp_cloth.kernels.gathering import gathering_kernel, launch_gathering, load_gathering
 from warp_cloth.passes import GatheringPass
 from warp_cloth.simulator import Simulator
@@ -44,15 +44,21 @@ wp.config.log_level = wp.LOG_ERROR
 
 # The product's gathering-kernel factories, and what each builds its kernel from: args struct, gather, finish.
 GATHERING = {
-    fused.explicit_step_kernel: (fused.ExplicitStepArgs, fused.gather_spring_forces, fused.finish_explicit_step),
-    fused.explicit_step_and_contact_start_kernel: (fused.ExplicitStepAndContactStartArgs, fused.gather_step_of,
-                                                   fused.finish_explicit_step_and_contact_start),
-    fused.limit_pass_kernel: (fused.LimitPassArgs, fused.gather_limits, fused.finish_limit_pass),
-    fused.separation_pass_kernel: (fused.SeparationPassArgs, fused.gather_pushes, fused.finish_separation_pass),
-    fused.limit_and_separation_pass_kernel: (fused.LimitAndSeparationPassArgs, fused.gather_limits_and_pushes,
-                                             fused.finish_limit_and_separation_pass),
-    fused.contact_velocities_kernel: (fused.ContactVelocitiesArgs, fused.gather_velocity_changes,
-                                      fused.finish_contact_velocities),
+    explicit_step.explicit_step_kernel: (explicit_step.ExplicitStepArgs, explicit_step.gather_spring_forces,
+                                         explicit_step.finish_explicit_step),
+    explicit_step.explicit_step_and_contact_start_kernel: (explicit_step.ExplicitStepAndContactStartArgs,
+                                                           explicit_step.gather_step_of,
+                                                           explicit_step.finish_explicit_step_and_contact_start),
+    projection_passes.limit_pass_kernel: (projection_passes.LimitPassArgs, projection_passes.gather_limits,
+                                          projection_passes.finish_limit_pass),
+    projection_passes.separation_pass_kernel: (projection_passes.SeparationPassArgs, projection_passes.gather_pushes,
+                                               projection_passes.finish_separation_pass),
+    projection_passes.limit_and_separation_pass_kernel: (projection_passes.LimitAndSeparationPassArgs,
+                                                         projection_passes.gather_limits_and_pushes,
+                                                         projection_passes.finish_limit_and_separation_pass),
+    contact_velocities.contact_velocities_kernel: (contact_velocities.ContactVelocitiesArgs,
+                                                   contact_velocities.gather_velocity_changes,
+                                                   contact_velocities.finish_contact_velocities),
 }
 
 
@@ -67,7 +73,7 @@ def precise_kernel(factory, threads: int) -> wp.Kernel:
 def precise_twin(step: GatheringPass) -> wp.Kernel:
     factory = next((f for f in GATHERING if f(step.threads) is step.kernel), None)
     if factory is None:
-        raise LookupError(f"pass {step.name!r}: its kernel is none of kernels/passes.py's factories listed here")
+        raise LookupError(f"pass {step.name!r}: its kernel is none of the kernels/ factories listed here")
     return precise_kernel(factory, step.threads)
 
 

@@ -1,5 +1,5 @@
 """Probe: the explicit step's kernel (spring forces, gravity and drag, one symplectic Euler step: the
-``explicit_step_kernel`` of kernels/passes.py) by threads per particle. Each form is a gathering kernel
+``explicit_step_kernel`` of kernels/explicit_step.py) by threads per particle. Each form is a gathering kernel
 (kernels/gathering.py) of K threads per particle, ``BLOCK / K`` particles to a block of ``BLOCK`` = 128
 threads, launched with ``launch_gathering`` on the arguments the simulator's own explicit step takes
 (``warp_cloth.integrators.ExplicitIntegrator.step_args``) on the hanging matrix cloth after 2 frames:
@@ -29,7 +29,7 @@ import time
 import warp as wp
 
 from warp_cloth.lab.bench import matrix_scene
-from warp_cloth.kernels import passes as fused
+from warp_cloth.kernels import explicit_step
 from warp_cloth.kernels.gathering import BLOCK, gathering_kernel, launch_gathering, load_gathering
 from warp_cloth.simulator import Simulator
 
@@ -58,8 +58,9 @@ def per_launch_us(launch, device) -> float:
 @functools.cache
 def precise_explicit_step(threads: int) -> wp.Kernel:
     """The product's explicit step kernel for ``threads`` threads per particle, without fast math."""
-    return gathering_kernel("explicit_step_precise", fused.ExplicitStepArgs, fused.gather_spring_forces,
-                            fused.finish_explicit_step, threads, options={"fast_math": False})
+    return gathering_kernel("explicit_step_precise", explicit_step.ExplicitStepArgs,
+                            explicit_step.gather_spring_forces, explicit_step.finish_explicit_step, threads,
+                            options={"fast_math": False})
 
 
 def main() -> None:
@@ -82,10 +83,10 @@ def main() -> None:
 
         row = {"loop": time_kernel(precise_explicit_step(1), 1)}
         reference = x_out.numpy().copy()
-        forms = [("loop_fast_math", fused.explicit_step_kernel(1), 1)]
+        forms = [("loop_fast_math", explicit_step.explicit_step_kernel(1), 1)]
         for K in threads_tried:
             forms += [(f"K{K}_B{BLOCK}", precise_explicit_step(K), K),
-                      (f"K{K}_B{BLOCK}_fast_math", fused.explicit_step_kernel(K), K)]
+                      (f"K{K}_B{BLOCK}_fast_math", explicit_step.explicit_step_kernel(K), K)]
         for name, kernel, threads in forms:
             row[name] = time_kernel(kernel, threads)
             row[f"{name}_max_diff"] = float(abs(x_out.numpy() - reference).max())

@@ -5,13 +5,14 @@ accelerations) is the state's (warp_cloth/state.py)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import warp as wp
 
 from warp_cloth.kernels import motion, particle_collision
 from warp_cloth.kernels.attachments import Attachments
-from warp_cloth.kernels.colliders import RigidColliders, depth_in_mesh
+from warp_cloth.kernels.colliders import RigidColliders
 from warp_cloth.kernels.edge_collision import EdgeRules
 from warp_cloth.kernels.forces import ExternalForces
 from warp_cloth.kernels.limits import StrainLimits
@@ -19,20 +20,16 @@ from warp_cloth.kernels.particle_collision import Contacts, PairRules
 from warp_cloth.kernels.springs import Springs
 from warp_cloth.kernels.wind import Wind
 
+from .collider_kinds import KINDS, Meshes
 from .model import Model, Worlds
 from .scene import Collision, Scene, WindKey
+
+if TYPE_CHECKING:
+    from .state import DeviceState
 
 
 def upload(values: np.ndarray, dtype, device) -> wp.array:
     return wp.array(values, dtype=dtype, device=device)
-
-
-@dataclass(frozen=True)
-class MeshAnimation:
-    """An animated mesh collider: its BVH (whose points and velocities the keys set each substep) and keys."""
-    mesh: wp.Mesh
-    key_times: wp.array  # (k,) seconds
-    keys: wp.array  # (k, v) vec3
 
 
 @dataclass(frozen=True)
@@ -63,18 +60,6 @@ class PinMotion:
     frequency: wp.array
     phase: wp.array
     moving: bool
-
-
-@dataclass(frozen=True)
-class SphereMotion:
-    """The centre each sphere moves about, its keys (see ``model.Spheres``) and its oscillation."""
-    center: wp.array
-    key_start: wp.array
-    key_time: wp.array
-    key_offset: wp.array
-    amplitude: wp.array
-    frequency: wp.array
-    phase: wp.array
 
 
 @dataclass(frozen=True)
@@ -141,25 +126,10 @@ class DeviceModel:
         self.pin_targets: tuple[PinTarget, ...] = ()
         self.keyed_pins = tuple(KeyedPins(upload(a.index, int, device), upload(a.key_times, float, device),
                                           upload(a.key_points, wp.vec3, device)) for a in model.pin_animations)
-        spheres = model.spheres
-        self.sphere_count = 0 if spheres is None else len(spheres.center)
-        self.sphere_start = None if spheres is None else spheres.initial_center  # host: the state starts there
-        self.sphere_motion = None if spheres is None or not spheres.moving else SphereMotion(
-            upload(spheres.center, wp.vec3, device), upload(spheres.key_start, int, device),
-            upload(spheres.key_time, float, device), upload(spheres.key_offset, wp.vec3, device),
-            upload(spheres.amplitude, wp.vec3, device),
-            upload(spheres.frequency, float, device), upload(spheres.phase, float, device))
-        self._ground = (upload(worlds.ground, int, device), upload(worlds.ground_height, float, device),
-                        upload(worlds.ground_friction, float, device))
-        self._collider_starts = (upload(worlds.sphere_start, int, device), upload(worlds.mesh_start, int, device))
-        self._sphere_radius = upload(spheres.radius if spheres is not None else np.zeros(0), float, device)
-        self._sphere_friction = upload(spheres.friction if spheres is not None else np.zeros(0), float, device)
-        self._sphere_spin = upload(spheres.angular_velocity if spheres is not None else np.zeros((0, 3)), wp.vec3,
-                                   device)
-        self.mesh_animation: tuple[MeshAnimation, ...] = ()
-        self._meshes, self._mesh_ids, self._mesh_thickness, self._mesh_friction = self._mesh_colliders(model)
-        self._mesh_reach = float(model.edge_rest.max()) if len(model.edge_rest) else 0.0
-        self.has_colliders = bool(worlds.ground.any()) or spheres is not None or model.mesh_colliders is not None
+        # the rigid colliders, by kind (collider_kinds.KINDS), and the passes that move them
+        self.collider_kinds = {kind: kind(model, scene, worlds, device, h) for kind in KINDS}
+        self.has_colliders = any(kind.present for kind in self.collider_kinds.values())
+        self.collider_motion = tuple(kind.motion for kind in self.collider_kinds.values() if kind.motion is not None)
         if model.pins is not None and (model.pins.target >= 0).any():
             self.pin_targets = self._pin_targets(model)
         self.contacts = None if model.contacts is None else self._contacts(model, scene.collision)
@@ -280,18 +250,6 @@ class DeviceModel:
         wind.offsets, wind.incident = upload(faces.offsets, int, device), upload(faces.incident, int, device)
         return wind
 
-    def depths_in_mesh_colliders(self, positions: np.ndarray, reach: float) -> list[np.ndarray]:
-        """How far each particle at ``positions`` is inside each mesh collider as it starts (see
-        ``kernels/colliders.depth_in_mesh``)."""
-        x = upload(positions, wp.vec3, self.device)
-        depths = []
-        for mesh, thickness in zip(self._meshes, self._mesh_thickness.numpy().tolist()):
-            depth = wp.zeros(len(positions), dtype=float, device=self.device)
-            wp.launch(depth_in_mesh, dim=len(positions), inputs=[mesh.id, thickness, reach, x], outputs=[depth],
-                      device=self.device)
-            depths.append(depth.numpy().astype(np.float64))
-        return depths
-
     def _pin_targets(self, model: Model) -> tuple[PinTarget, ...]:
         """Each targeted collider's pinned particles, attached to its nearest faces where they start."""
         positions, device = upload(model.positions, wp.vec3, self.device), self.device
@@ -299,7 +257,7 @@ class DeviceModel:
         for k in np.unique(model.pins.target[model.pins.target >= 0]).tolist():
             index = upload(model.pins.index[model.pins.target == k], int, device)
             count = index.shape[0]
-            target = PinTarget(self._meshes[k], index, wp.zeros(count, dtype=int, device=device),
+            target = PinTarget(self.collider_kinds[Meshes].meshes[k], index, wp.zeros(count, dtype=int, device=device),
                                wp.zeros(count, dtype=wp.vec2, device=device),
                                wp.zeros(count, dtype=wp.vec3, device=device))
             wp.launch(motion.attach_to_mesh, dim=count, inputs=[target.mesh.id, index, positions],
@@ -307,33 +265,12 @@ class DeviceModel:
             targets.append(target)
         return tuple(targets)
 
-    def _mesh_colliders(self, model: Model):
-        """The mesh colliders' BVHs (kept here: the kernels hold only their ids), ids, thicknesses, frictions."""
-        colliders, device = model.mesh_colliders, self.device
-        if colliders is None:
-            return (), wp.zeros(0, dtype=wp.uint64, device=device), wp.zeros(0, dtype=float, device=device), \
-                wp.zeros(0, dtype=float, device=device)
-        meshes = tuple(wp.Mesh(points=upload(points, wp.vec3, device), indices=upload(triangles.ravel(), int, device),
-                               velocities=wp.zeros(len(points), dtype=wp.vec3, device=device))
-                       for points, triangles in zip(colliders.points, colliders.triangles))
-        self.mesh_animation = tuple(
-            MeshAnimation(mesh, upload(times, float, device), upload(keys, wp.vec3, device))
-            for mesh, times, keys in zip(meshes, colliders.key_times, colliders.key_points) if keys is not None)
-        ids = wp.array(np.array([m.id for m in meshes], dtype=np.uint64), dtype=wp.uint64, device=device)
-        return meshes, ids, upload(colliders.thickness, float, device), upload(colliders.friction, float, device)
-
-    def colliders(self, center: wp.array, velocity: wp.array) -> RigidColliders:
-        """The scene's rigid colliders as the kernels take them, spheres where ``center`` and ``velocity``
-        (the state's) have them."""
+    def colliders(self, state: DeviceState) -> RigidColliders:
+        """The scene's rigid colliders as the kernels take them, moving ones where the state has them."""
         colliders = RigidColliders()
         colliders.world = self.particle_world
-        colliders.ground, colliders.ground_height, colliders.ground_friction = self._ground
-        colliders.sphere_start, colliders.mesh_start = self._collider_starts
-        colliders.center, colliders.velocity = center, velocity
-        colliders.radius, colliders.friction = self._sphere_radius, self._sphere_friction
-        colliders.angular_velocity = self._sphere_spin
-        colliders.meshes, colliders.mesh_thickness = self._mesh_ids, self._mesh_thickness
-        colliders.mesh_friction, colliders.mesh_reach = self._mesh_friction, self._mesh_reach
+        for kind in self.collider_kinds.values():
+            kind.fill(colliders, state)
         return colliders
 
     def no_colliders(self) -> RigidColliders:
@@ -343,13 +280,7 @@ class DeviceModel:
 def no_colliders(device) -> RigidColliders:
     """No collider: for the passes that do not end with them."""
     colliders = RigidColliders()
-    colliders.world = colliders.ground = colliders.sphere_start = colliders.mesh_start = wp.zeros(0, dtype=int,
-                                                                                                   device=device)
-    colliders.ground_height = colliders.ground_friction = wp.zeros(0, dtype=float, device=device)
-    colliders.center = colliders.velocity = colliders.angular_velocity = wp.zeros(0, dtype=wp.vec3, device=device)
-    colliders.radius = colliders.friction = wp.zeros(0, dtype=float, device=device)
-    colliders.meshes = wp.zeros(0, dtype=wp.uint64, device=device)
-    colliders.mesh_thickness = colliders.mesh_friction = wp.zeros(0, dtype=float, device=device)
-    colliders.mesh_reach = 0.0
+    colliders.world = wp.zeros(0, dtype=int, device=device)
+    for kind in KINDS:
+        kind.fill_none(colliders, device)
     return colliders
-

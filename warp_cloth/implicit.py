@@ -1,8 +1,8 @@
 """The backward Euler pass: Newton steps, each solved by a block-Jacobi preconditioned conjugate gradient
 whose loop runs on the device, so a captured frame never waits for the host: a conditional loop
 (``wp.capture_while``), or a fixed number of iterations that do nothing once converged. The kernels are in
-``kernels/passes.py`` (the cloth's system), ``kernels/implicit.py`` (the step's end, Newton's bookkeeping)
-and ``kernels/cg.py`` (the solver).
+``kernels/implicit.py`` (the cloth's system, the step's end, Newton's bookkeeping) and ``kernels/cg.py``
+(the solver).
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
-from warp_cloth.kernels import cg, implicit, motion, passes as fused
+from warp_cloth.kernels import cg, implicit, motion
 
 from .device_model import DeviceModel
 from .scene import ImplicitSolver
@@ -75,7 +75,7 @@ class BackwardEuler:
         self.world = model.particle_world
         self.world_start = model.world_start
         self.pins = model.pins
-        self.system = fused.SpringSystemArgs()
+        self.system = implicit.SpringSystemArgs()
         self.system.springs, self.system.forces = model.springs, model.forces(state.wind)
         self.system.mass, self.system.inv_mass, self.system.h = model.mass, model.inv_mass, model.h
         vec = lambda: wp.zeros(n, dtype=wp.vec3, device=device)  # noqa: E731
@@ -102,7 +102,7 @@ class BackwardEuler:
         launch = self._launch
         launch(implicit.start_newton, self.worlds, outputs=[self.newton])
         # Baraff & Witkin's step, linearised at the start of the step.
-        launch(fused.newton_rhs, self.n, inputs=[x0, v0, v0, self.system, 1], outputs=[self.r])
+        launch(implicit.newton_rhs, self.n, inputs=[x0, v0, v0, self.system, 1], outputs=[self.r])
         self._solve(x0, v0, state.clock)
         finish = [self.h, self.world, self.newton]
         launch(implicit.finish_step, self.n, inputs=[x0, v0, self.dv, *finish], outputs=[x1, v1])
@@ -145,9 +145,9 @@ class BackwardEuler:
             p = self.pins
             launch(motion.pinned_velocity_change, p.index.shape[0],
                    inputs=[p.index, p.amplitude, p.frequency, p.phase, clock, self.h, v], outputs=[self.dv])
-        launch(fused.system_times, self.n, inputs=[y, self.dv, self.always, self.system], outputs=[self.ap])
+        launch(implicit.system_times, self.n, inputs=[y, self.dv, self.always, self.system], outputs=[self.ap])
         launch(cg.subtract, self.n, inputs=[self.r, self.ap], outputs=[self.r])
-        launch(fused.block_jacobi_inverse, self.n, inputs=[y, self.system], outputs=[self.inverse])
+        launch(implicit.block_jacobi_inverse, self.n, inputs=[y, self.system], outputs=[self.inverse])
         launch(cg.precondition, self.n, inputs=[self.inverse, self.r, self.world, self.always], outputs=[self.z])
         wp.copy(self.p, self.z)
         self._dot(self.r, self.z, self.always)
@@ -159,7 +159,7 @@ class BackwardEuler:
         active, world, lanes, worlds = self.cg_active, self.world, self.lanes, self.worlds
 
         def iteration() -> None:
-            launch(fused.system_times, self.n, inputs=[y, self.p, active, self.system], outputs=[self.ap])
+            launch(implicit.system_times, self.n, inputs=[y, self.p, active, self.system], outputs=[self.ap])
             self._dot(self.p, self.ap, active)
             launch(cg.step_length, worlds, inputs=[self.partial_2, lanes, active],
                    outputs=[self.scalars, self.cg_iterating])
@@ -175,7 +175,7 @@ class BackwardEuler:
 
     def _newton_residual(self, y: wp.array, v: wp.array, v0: wp.array) -> None:
         """r = h f(y, v) - M (v - v0), and (in the partial sums) the square of its size per unit mass."""
-        self._launch(fused.newton_rhs, self.n, inputs=[y, v, v0, self.system, 0], outputs=[self.r])
+        self._launch(implicit.newton_rhs, self.n, inputs=[y, v, v0, self.system, 0], outputs=[self.r])
         self._launch(implicit.per_unit_mass, self.n, inputs=[self.r, self.inv_mass], outputs=[self.z])
         self._dot(self.z, self.z, self.always)
 

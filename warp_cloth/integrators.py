@@ -9,7 +9,7 @@ import math
 from dataclasses import dataclass
 from typing import Callable, Protocol
 
-from warp_cloth.kernels import passes as fused
+from warp_cloth.kernels import explicit_step
 
 from .device_model import DeviceModel
 from .implicit import BackwardEuler
@@ -36,7 +36,7 @@ class Integrator(Protocol):
         ...
 
     def step(self, model: DeviceModel, state: DeviceState, threads: int,
-             start: fused.ContactStartArgs | None) -> Pass:
+             start: explicit_step.ContactStartArgs | None) -> Pass:
         """Its pass of the substep; where ``start`` is given (only if ``ends_with_contact_start``), the
         contacts' start too."""
         ...
@@ -77,21 +77,21 @@ class ExplicitIntegrator:
         return {}
 
     def step(self, model: DeviceModel, state: DeviceState, threads: int,
-             start: fused.ContactStartArgs | None) -> GatheringPass:
+             start: explicit_step.ContactStartArgs | None) -> GatheringPass:
         """Spring and external forces and one Euler step; where ``start`` is given, the particle collision's
         contact start too (the colliders, the velocities the contacts start from, the lists' remake check),
         which saves a pass over the particles."""
         name = f"integrate:{self.name}"
         if start is None:
-            return GatheringPass(name, fused.explicit_step_kernel(threads), threads, self.step_args(model, state),
-                                 model.device, new_velocities=True)
-        args = fused.ExplicitStepAndContactStartArgs()
+            return GatheringPass(name, explicit_step.explicit_step_kernel(threads), threads,
+                                 self.step_args(model, state), model.device, new_velocities=True)
+        args = explicit_step.ExplicitStepAndContactStartArgs()
         args.step, args.start = self.step_args(model, state), start
-        return GatheringPass(f"{name}+contact_start", fused.explicit_step_and_contact_start_kernel(threads), threads,
-                             args, model.device, new_velocities=True)
+        return GatheringPass(f"{name}+contact_start", explicit_step.explicit_step_and_contact_start_kernel(threads),
+                             threads, args, model.device, new_velocities=True)
 
-    def step_args(self, model: DeviceModel, state: DeviceState) -> fused.ExplicitStepArgs:
-        args = fused.ExplicitStepArgs()
+    def step_args(self, model: DeviceModel, state: DeviceState) -> explicit_step.ExplicitStepArgs:
+        args = explicit_step.ExplicitStepArgs()
         args.springs, args.forces = model.springs, model.forces(state.wind)
         args.inv_mass, args.h = model.inv_mass, model.h
         args.semi_implicit = int(self.symplectic)
@@ -117,7 +117,7 @@ class ImplicitIntegrator:
         return {"implicit.cg_max_iterations": self.settings.newton_iterations * self.settings.cg_max_iterations}
 
     def step(self, model: DeviceModel, state: DeviceState, threads: int,
-             start: fused.ContactStartArgs | None) -> BackwardEuler:
+             start: explicit_step.ContactStartArgs | None) -> BackwardEuler:
         return BackwardEuler(model, state, self.settings)
 
 

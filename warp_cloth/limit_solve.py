@@ -9,8 +9,7 @@ from __future__ import annotations
 
 import warp as wp
 
-from warp_cloth.kernels import passes as fused
-from warp_cloth.kernels import solve_loop
+from warp_cloth.kernels import converged_projection, solve_loop
 from warp_cloth.kernels.colliders import RigidColliders
 
 from .device_model import DeviceModel
@@ -32,7 +31,7 @@ class ConvergedProjection:
         self.max_passes = model.limit_max_passes
         self.h = model.h
         device = model.device
-        args = fused.ResidualArgs()
+        args = converged_projection.ResidualArgs()
         args.check_limits = int(model.limits is not None)
         args.limits = model.limits if model.limits is not None else model.no_limits()
         args.attachments = attachments_of(model)
@@ -67,10 +66,10 @@ class ConvergedProjection:
             for step in self.body:
                 step.run(state)
             if self.rho is not None:
-                wp.launch(fused.chebyshev_step_and_colliders, dim=state.x.shape[0],
+                wp.launch(converged_projection.chebyshev_step_and_colliders, dim=state.x.shape[0],
                           inputs=[state.x, state.v, self.args.inv_mass, self.omega, self.h, self.colliders,
                                   *self.iterates], device=device)
-            wp.launch(fused.projection_residual, dim=state.x.shape[0], inputs=[state.x, self.args],
+            wp.launch(converged_projection.projection_residual, dim=state.x.shape[0], inputs=[state.x, self.args],
                       outputs=[self.residual], device=device)
             bookkeeping = [self.active, self.counts, self.residual, self.stats]
             if self.rho is not None:

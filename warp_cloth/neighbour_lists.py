@@ -10,8 +10,8 @@ import warp as wp
 from warp_cloth.kernels import edge_collision, particle_collision, spatial_hash
 from warp_cloth.kernels.gathering import load_gathering
 from warp_cloth.kernels.particle_collision import ListState
-from warp_cloth.kernels.passes import (HashGrid, gather_edge_candidates, gather_neighbors_kernel,
-                                       launch_gather_neighbors)
+from warp_cloth.kernels.neighbour_search import (HashGrid, gather_edge_candidates, gather_neighbors_kernel,
+                                                 launch_gather_neighbors)
 
 from .device_model import DeviceModel
 from .passes import contacts_args, edge_contacts_args

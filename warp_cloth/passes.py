@@ -7,11 +7,17 @@ from typing import Protocol
 
 import warp as wp
 
-from warp_cloth.kernels import colliders, gathering, motion, passes as fused, wind
+from warp_cloth.kernels import colliders, gathering, motion, wind
 from warp_cloth.kernels.attachments import Attachments
 from warp_cloth.kernels.colliders import RigidColliders
+from warp_cloth.kernels.contact_velocities import ContactVelocitiesArgs, contact_velocities_kernel
 from warp_cloth.kernels.edge_collision import EdgeContacts
+from warp_cloth.kernels.edge_separation import EdgeSeparationPassArgs, edge_separation_pass_kernel
+from warp_cloth.kernels.explicit_step import ContactStartArgs, contact_start
 from warp_cloth.kernels.particle_collision import Contacts
+from warp_cloth.kernels.projection_passes import (LimitAndSeparationPassArgs, LimitPassArgs, SeparationPassArgs,
+                                                  limit_and_separation_pass_kernel, limit_pass_kernel,
+                                                  separation_pass_kernel)
 
 from .device_model import DeviceModel
 from .state import EDGE_NEIGHBORS, DeviceState
@@ -28,8 +34,8 @@ def launch(kernel, dim: int, state: DeviceState, inputs=(), outputs=()) -> None:
 
 
 def contact_start_args(model: DeviceModel, state: DeviceState, bundle: RigidColliders,
-                       rebuild_distance: float) -> fused.ContactStartArgs:
-    args = fused.ContactStartArgs()
+                       rebuild_distance: float) -> ContactStartArgs:
+    args = ContactStartArgs()
     args.colliders, args.contacts, args.lists = bundle, contacts_args(model, state), state.contacts.lists()
     args.v_start, args.rebuild_distance = state.contacts.v_start, rebuild_distance
     args.inv_mass, args.h = model.inv_mass, model.h
@@ -85,11 +91,11 @@ class ContactStart:
 
     name = "contact_start"
 
-    def __init__(self, args: fused.ContactStartArgs) -> None:
+    def __init__(self, args: ContactStartArgs) -> None:
         self.args = args
 
     def run(self, state: DeviceState) -> None:
-        launch(fused.contact_start, state.x.shape[0], state, inputs=[state.x, state.v, self.args])
+        launch(contact_start, state.x.shape[0], state, inputs=[state.x, state.v, self.args])
 
 
 def projection_pass(name: str, kernel: wp.Kernel, args, model: DeviceModel, threads: int,
@@ -104,28 +110,28 @@ def projection_pass(name: str, kernel: wp.Kernel, args, model: DeviceModel, thre
 def limit_pass(model: DeviceModel, threads: int, bundle: RigidColliders | None, resting: wp.array | None,
                read_bit: int) -> GatheringPass:
     """One Jacobi pass of the strain limits; its colliders mark in ``resting`` (None: no marks)."""
-    args = fused.LimitPassArgs()
+    args = LimitPassArgs()
     args.limits, args.attachments = model.limits, attachments_of(model)
     args.resting = resting if resting is not None else model.no_marks
-    return projection_pass(limits_name(model), fused.limit_pass_kernel(threads), args, model, threads, bundle,
+    return projection_pass(limits_name(model), limit_pass_kernel(threads), args, model, threads, bundle,
                            read_bit)
 
 
 def separation_pass(model: DeviceModel, state: DeviceState, threads: int, bundle: RigidColliders | None,
                     read_bit: int) -> GatheringPass:
     """One Jacobi pass pushing overlapping particles apart."""
-    args = fused.SeparationPassArgs()
+    args = SeparationPassArgs()
     args.contacts = contacts_args(model, state)
-    return projection_pass("separation", fused.separation_pass_kernel(threads), args, model, threads, bundle,
+    return projection_pass("separation", separation_pass_kernel(threads), args, model, threads, bundle,
                            read_bit)
 
 
 def limit_and_separation_pass(model: DeviceModel, state: DeviceState, threads: int, bundle: RigidColliders | None,
                               read_bit: int) -> GatheringPass:
-    """The limit's and the separation's Jacobi pass in one (see kernels/passes.py)."""
-    args = fused.LimitAndSeparationPassArgs()
+    """The limit's and the separation's Jacobi pass in one (see kernels/projection_passes.py)."""
+    args = LimitAndSeparationPassArgs()
     args.limits, args.attachments, args.contacts = model.limits, attachments_of(model), contacts_args(model, state)
-    return projection_pass(limits_name(model) + "+separation", fused.limit_and_separation_pass_kernel(threads), args,
+    return projection_pass(limits_name(model) + "+separation", limit_and_separation_pass_kernel(threads), args,
                            model, threads, bundle, read_bit)
 
 
@@ -142,11 +148,11 @@ def edge_separation_pass(model: DeviceModel, state: DeviceState, threads: int,
                          bundle: RigidColliders | None) -> GatheringPass:
     """One Jacobi pass moving contact edges a thickness apart (kernels/edge_collision.py), then the
     colliders in ``bundle`` (None: none)."""
-    args = fused.EdgeSeparationPassArgs()
+    args = EdgeSeparationPassArgs()
     args.edges, args.inv_mass, args.h = edge_contacts_args(model, state), model.inv_mass, model.h
     args.colliders = bundle if bundle is not None else model.no_colliders()
     return GatheringPass("edge_separation" + ("+colliders" if bundle is not None else ""),
-                         fused.edge_separation_pass_kernel(threads), threads, args, model.device)
+                         edge_separation_pass_kernel(threads), threads, args, model.device)
 
 
 CONTACT_SLACK = 1.01  # pairs within 1% of contact count as touching in the velocity pass
@@ -155,11 +161,11 @@ CONTACT_SLACK = 1.01  # pairs within 1% of contact count as touching in the velo
 def contact_velocities(model: DeviceModel, state: DeviceState, threads: int) -> GatheringPass:
     """Inelastic contacts with friction, then the end of the substep's list remake (see
     kernels/particle_collision.py): the last pass that reads the remake's request clears it."""
-    args = fused.ContactVelocitiesArgs()
+    args = ContactVelocitiesArgs()
     args.contacts, args.lists, args.v_start = contacts_args(model, state), state.contacts.lists(), state.contacts.v_start
     args.inv_mass, args.contact_slack = model.inv_mass, CONTACT_SLACK
     args.friction, args.h = model.contacts.settings.friction, model.h
-    return GatheringPass("contact_velocities+end_remake", fused.contact_velocities_kernel(threads), threads, args,
+    return GatheringPass("contact_velocities+end_remake", contact_velocities_kernel(threads), threads, args,
                          model.device, new_positions=False, new_velocities=True)
 
 
@@ -221,40 +227,6 @@ class FollowKeys:
             launch(motion.place_keyed_particles, pins.index.shape[0], state,
                    inputs=[state.clock, self.model.h, pins.key_times, pins.keys, pins.index],
                    outputs=[state.x, state.v])
-
-
-class MoveSpheres:
-    """Puts moving spheres where their motion has them at the end of the substep, with its velocity."""
-
-    name = "spheres:move"
-
-    def __init__(self, model: DeviceModel) -> None:
-        self.model = model
-
-    def run(self, state: DeviceState) -> None:
-        s = self.model.sphere_motion
-        launch(motion.move_spheres, state.sphere_center.shape[0], state,
-               inputs=[state.clock, self.model.h, s.center, s.key_start, s.key_time, s.key_offset, s.amplitude,
-                       s.frequency, s.phase],
-               outputs=[state.sphere_center, state.sphere_velocity])
-
-
-class MoveMeshColliders:
-    """Puts animated mesh colliders where their keys have them at the end of the substep, with their
-    vertices' velocities, and refits their BVHs."""
-
-    name = "mesh colliders:move"
-
-    def __init__(self, model: DeviceModel) -> None:
-        self.model = model
-
-    def run(self, state: DeviceState) -> None:
-        for animation in self.model.mesh_animation:
-            mesh = animation.mesh
-            launch(motion.place_keyed_points, mesh.points.shape[0], state,
-                   inputs=[state.clock, self.model.h, animation.key_times, animation.keys],
-                   outputs=[mesh.points, mesh.velocities])
-            mesh.refit()
 
 
 class WindForces:

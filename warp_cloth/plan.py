@@ -15,9 +15,9 @@ from .implicit import SolveStats
 from .integrators import Integrator
 from .limit_solve import ConvergedProjection
 from .neighbour_lists import LIST_THREADS_BY_SIZE, NeighbourLists
-from .passes import (AdvanceClock, Collide, ContactStart, DrivePins, FollowKeys, FollowTargets, MoveMeshColliders,
-                     MoveSpheres, Pass, WindForces, contact_start_args, contact_velocities, edge_separation_pass,
-                     limit_and_separation_pass, limit_pass, separation_pass)
+from .passes import (AdvanceClock, Collide, ContactStart, DrivePins, FollowKeys, FollowTargets, Pass, WindForces,
+                     contact_start_args, contact_velocities, edge_separation_pass, limit_and_separation_pass,
+                     limit_pass, separation_pass)
 from .state import DeviceState
 from .wording import counted
 
@@ -78,15 +78,12 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, t
     it, the strain limit's passes or the colliders alone; the clock last, where something moves with it.
     ``threads``: per particle on the gathering passes (None: by size)."""
     chosen = threads_per_particle(model.particle_count, model.device) if threads is None else threads
-    rigid = model.colliders(state.sphere_center, state.sphere_velocity) if model.has_colliders else None
+    rigid = model.colliders(state) if model.has_colliders else None
     oscillating_pins = model.pins is not None and model.pins.moving
     driven_pins = oscillating_pins or bool(model.pin_targets) or bool(model.keyed_pins)
     converged = model.limit_solve == "converged"
     passes: list[Pass] = []
-    if model.sphere_motion is not None:
-        passes.append(MoveSpheres(model))
-    if model.mesh_animation:
-        passes.append(MoveMeshColliders(model))
+    passes.extend(model.collider_motion)
     lists = start = projection = None
     if model.contacts is not None:
         list_threads = threads_per_particle(model.particle_count, model.device, LIST_THREADS_BY_SIZE) \
@@ -125,7 +122,7 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, t
                       for k in range(model.limit_iterations))
     elif rigid is not None:
         passes.append(Collide(model, rigid))
-    if driven_pins or model.sphere_motion is not None or model.mesh_animation or \
+    if driven_pins or model.collider_motion or \
             (model.wind is not None and (model.wind.turbulence > 0 or model.wind.key_time.shape[0] > 1)):
         passes.append(AdvanceClock())
     return Plan(tuple(passes), model.h, chosen, step if isinstance(step, SolvingPass) else None, lists, projection)

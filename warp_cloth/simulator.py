@@ -19,6 +19,7 @@ import warp as wp
 from warp_cloth.kernels import guard
 
 from .checkpoint import Checkpoint, load_checkpoint, restore, save_checkpoint
+from .collider_kinds import Meshes
 from .errors import SceneError, UnstableSimulation
 from .geometry_checks import validate
 from .model import Model, Worlds, build_model
@@ -227,7 +228,7 @@ class Simulator:
         self._stats_since_start: SolveStats | None = None
         # An animated mesh collider's BVH refit is a host call on the CPU, which a CPU graph does not record
         # (a CUDA graph records the refit's kernels): there, launch pass by pass.
-        self.use_graph = graph and not (self.device.is_cpu and self.device_model.mesh_animation)
+        self.use_graph = graph and not (self.device.is_cpu and self.device_model.collider_kinds[Meshes].motion)
         self._graphs: dict[tuple[int, int], tuple[wp.Graph, int]] = {}
         self._launches_recorded = False  # without graphs: prepare() has recorded a frame (its modules are loaded)
         # One flag per substep of a frame, set by the blow-up guard (see kernels/guard.py), in two slots
@@ -263,30 +264,9 @@ class Simulator:
         scene = self.scene
         cells = np.array([c.shortest_edge() for c in scene.cloths])
         allowed = self.INITIAL_COLLIDER_DEPTH_LIMIT * cells[self.model.cloth_id]
-        worlds = self.model.worlds if self.model.worlds is not None else Worlds.of_scene(scene)
-        world = self.model.particle_world
-        world_start = self.model.world_start  # a collider is checked against its own world's particles only
-        depths = []  # (the first particle, the depths from it on, collider)
-        if worlds.ground.any():
-            depths.append((0, np.where(worlds.ground[world] != 0, worlds.ground_height[world] - x[:, 1], -np.inf),
-                           "the ground"))
-        sphere_world = np.repeat(np.arange(worlds.count), np.diff(worlds.sphere_start))
-        if self.model.spheres is not None:
-            spheres = self.model.spheres
-            for s, sphere in enumerate(scene.spheres):
-                if sphere.motion is not None and sphere.motion.amplitude > 0 and sphere.motion.frequency > 0:
-                    continue
-                first, end = world_start[sphere_world[s]], world_start[sphere_world[s] + 1]
-                distance = np.linalg.norm(x[first:end] - spheres.initial_center[s], axis=1)
-                depths.append((first, float(spheres.radius[s]) - distance, f"sphere[{s}] '{sphere.name}'"))
-        if scene.colliders:
-            mesh_world = np.repeat(np.arange(worlds.count), np.diff(worlds.mesh_start))
-            reach = float(np.ptp(x, axis=0).max()) + float(allowed.max())
-            free = self.model.inv_mass > 0  # pins on a target start where they are attached, on its surface
-            for k, (depth, collider) in enumerate(zip(self.device_model.depths_in_mesh_colliders(x, reach),
-                                                      scene.colliders)):
-                depths.append((0, np.where(free & (world == mesh_world[k]), depth, 0.0),
-                               f"collider[{k}] '{collider.name}'"))
+        depths = []  # (the first particle, the depths from it on, collider): each its own world's particles
+        for kind in self.device_model.collider_kinds.values():
+            depths += kind.start_depths(x, self.model, allowed)
         for first, depth, collider in depths:
             deep = np.nonzero(depth > allowed[first:first + len(depth)])[0]
             if len(deep) == 0:

@@ -11,6 +11,7 @@ import warp as wp
 
 from warp_cloth.kernels.particle_collision import ListState
 
+from .collider_kinds import Spheres
 from .device_model import DeviceModel
 
 
@@ -96,7 +97,8 @@ class DeviceState:
         self._v = (v, wp.empty_like(v))
         self.clock = wp.array([clock], dtype=int, device=device)  # substeps since time 0 (see shot_clock)
         self.parity = 0
-        start = model.sphere_start if model.sphere_start is not None else np.zeros((0, 3), dtype=np.float32)
+        start = model.collider_kinds[Spheres].initial_center
+        start = start if start is not None else np.zeros((0, 3), dtype=np.float32)
         self.sphere_center = wp.array(start, dtype=wp.vec3, device=device)
         self.sphere_velocity = wp.zeros(len(start), dtype=wp.vec3, device=device)
         # what each position's compensated sum has rounded away so far (empty where the moves add plainly)

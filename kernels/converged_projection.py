@@ -1,0 +1,65 @@
+"""A converged projection's kernels besides its passes: Chebyshev's acceleration of an iteration, ending with
+the rigid colliders, and the check of how far limits and contacts are from holding. solve_loop.py keeps
+the loop's bookkeeping; warp_cloth/limit_solve.py runs them.
+"""
+
+import warp as wp
+
+from .attachments import Attachments, attachment_violation
+from .colliders import RigidColliders, collide_particle
+from .gathering import FAST_MATH
+from .limits import StrainLimits, limit_violation
+from .particle_collision import Contacts, deepest_overlap
+from .solve_loop import chebyshev_extrapolation
+
+wp.set_module_options(FAST_MATH)
+
+
+@wp.kernel
+def chebyshev_step_and_colliders(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3),
+                                 inv_mass: wp.array(dtype=float), omega: wp.array(dtype=float), h: float,
+                                 colliders: RigidColliders, x_start: wp.array(dtype=wp.vec3),
+                                 x_before: wp.array(dtype=wp.vec3)):
+    """The extrapolated position (solve_loop.chebyshev_extrapolation), put out of the rigid colliders as
+    every pass's move is; the velocity changed by both moves over h (extrapolating the velocities
+    themselves blew the matrix's sphere cloth up)."""
+    i = wp.tid()
+    if inv_mass[i] == 0.0:
+        return
+    xi = x[i]
+    xn = chebyshev_extrapolation(i, x, omega, x_start, x_before)
+    p, vel, hit = collide_particle(i, xn, v[i] + (xn - xi) / h, colliders, h)
+    x[i] = p
+    v[i] = vel
+
+
+@wp.struct
+class ResidualArgs:
+    limits: StrainLimits
+    attachments: Attachments
+    check_limits: int  # 0: the scene limits no strain (the limits' arrays are empty)
+    limit_tolerance: float  # of an allowed length
+    contacts: Contacts
+    check_contacts: int  # 0: no particle collision
+    contact_tolerance: float  # of a contact distance
+    inv_mass: wp.array(dtype=float)
+    colliders: RigidColliders  # the spheres that attachments run around
+
+
+@wp.kernel
+def projection_residual(x: wp.array(dtype=wp.vec3), args: ResidualArgs, residual: wp.array(dtype=float)):
+    """residual[0] becomes the worst of each free particle's limit violation and contact overlap, each in
+    its own tolerances (1: at the tolerance), where some exceed theirs (where none does it is left as is)."""
+    i = wp.tid()
+    if args.inv_mass[i] == 0.0:
+        return
+    worst = float(0.0)
+    if args.check_limits != 0:
+        worst = limit_violation(args.limits, i, x)
+        if args.attachments.pin.shape[0] > 0:
+            worst = wp.max(worst, attachment_violation(args.attachments, args.colliders, i, x))
+        worst = worst / args.limit_tolerance
+    if args.check_contacts != 0:
+        worst = wp.max(worst, deepest_overlap(args.contacts, i, x) / args.contact_tolerance)
+    if worst > 1.0:
+        wp.atomic_max(residual, 0, worst)
