@@ -111,9 +111,13 @@ def continue_chebyshev_solve(tolerance: float, passes: int, active: wp.array(dty
     residual more than RESTART_GROWTH times the one before (a collider's projection undoing the
     extrapolation), the acceleration starts over: the next iteration is a plain one. Without it the
     matrix's sphere cloth never converged (30 to 50 tolerances at 300 passes); at every growth the hanging
-    cloth took 2 to 8 times as many passes (docs/notebook/strain-solve.md). Where the solver estimates the radius,
-    a growth also doubles its distance from 1 (0.95, 0.9, 0.8, 0.6, 0.2, then plain passes). A first
-    iteration that left more than FAR tolerances has the second accelerated. One kernel
+    cloth took 2 to 8 times as many passes (docs/notebook/strain-solve.md). Where the solver estimates the
+    radius, any growth is the evidence that the extrapolation outruns the passes (Chebyshev's method holds
+    only while the radius is at least the iteration's own): it starts over with the radius's distance from
+    1 doubled (0.95, 0.9, 0.8, 0.6, 0.2, then plain passes). Growths under 1.5 times let the pile's
+    accelerated solves wander 10 to 40 tolerances out for their 1000 passes (docs/notebook/strain-solve.md).
+    So does the loop's switch to its other body (``switched``): the iterates before it are another
+    iteration's. A first iteration that left more than FAR tolerances has the second accelerated. One kernel
     for all of it, as the loop's launches are what a small cloth's iteration costs."""
     if residual[0] > RESTART_GROWTH * omega[3]:
         omega[2] = 0.0
@@ -122,5 +126,8 @@ def continue_chebyshev_solve(tolerance: float, passes: int, active: wp.array(dty
     elif omega[2] < 0.5 and residual[0] > FAR:
         omega[2] = 1.0  # far out after the first iteration: accelerate from the second
     omega[3] = residual[0]
+    was_switched = switched[0]
     continue_or_stop(tolerance, passes, active, counts, residual, stats, switched)
+    if switched[0] != was_switched:
+        omega[2] = 0.0
     next_chebyshev_weight(omega)
