@@ -22,11 +22,17 @@ def chebyshev_step_and_colliders(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=w
                                  x_before: wp.array(dtype=wp.vec3)):
     """The extrapolated position (solve_loop.chebyshev_extrapolation), put out of the rigid colliders as
     every pass's move is; the velocity changed by both moves over h (extrapolating the velocities
-    themselves blew the matrix's sphere cloth up)."""
+    themselves blew the matrix's sphere cloth up). A solve's first iteration (and its second where it began
+    close; see solve_loop.start_chebyshev), and the first after a restart, are plain ones: the iterates
+    only shift, and the positions stay as the pass left them."""
     i = wp.tid()
     if inv_mass[i] == 0.0:
         return
     xi = x[i]
+    if omega[2] < 1.5:
+        x_before[i] = x_start[i]
+        x_start[i] = xi
+        return
     xn = chebyshev_extrapolation(i, x, omega, x_start, x_before)
     p, vel, hit = collide_particle(i, xn, v[i] + (xn - xi) / h, colliders, h)
     x[i] = p

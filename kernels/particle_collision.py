@@ -95,14 +95,29 @@ def is_candidate(contacts: Contacts, rules: PairRules, i: int, j: int, x: wp.arr
 @wp.func
 def add_candidate(contacts: Contacts, rules: PairRules, lists: ListState, i: int, j: int, x: wp.array(dtype=wp.vec3),
                   count: int) -> int:
-    """Appends j to i's list if it is a candidate; returns the list's new length (a full list counts an
-    overflow instead)."""
+    """Appends j to i's list if it is a candidate; returns the list's new length. A full list counts an
+    overflow and keeps the nearer of j and its farthest entry: what it leaves out is then farther than all
+    it holds, so a pair in contact is not left out for farther candidates listed first (in the pile with
+    the lists' reach at 3 contact distances, lists filled in index order left out touching pairs, which no
+    pass then separated and every solve ran to its cap)."""
     if not is_candidate(contacts, rules, i, j, x):
         return count
+    start = i * contacts.max_neighbors
     if count < contacts.max_neighbors:
-        contacts.neighbors[i * contacts.max_neighbors + count] = j
+        contacts.neighbors[start + count] = j
         return count + 1
     wp.atomic_add(lists.overflow, 0, 1)
+    farthest = int(-1)
+    farthest_sq = wp.length_sq(x[j] - x[i])
+    for k in range(count):
+        held = contacts.neighbors[start + k]
+        if held == j:
+            return count
+        d_sq = wp.length_sq(x[held] - x[i])
+        if d_sq > farthest_sq:
+            farthest, farthest_sq = k, d_sq
+    if farthest >= 0:
+        contacts.neighbors[start + farthest] = j
     return count
 
 

@@ -4,6 +4,7 @@ the device until every limited spring is within tolerance, capped, and reported.
 import dataclasses
 import re
 
+import numpy as np
 import pytest
 
 import warp_cloth as wc
@@ -51,6 +52,48 @@ def test_chebyshev_takes_fewer_passes_to_the_same_tolerance():
         assert stats.limit_residual <= 1.0
         passes[rho] = stats.limit_passes
     assert passes[0.99] * 4 < passes[0.0]  # measured 40 against 480
+
+
+def test_a_scene_that_sets_no_radius_or_cap_is_accelerated_by_the_solver_within_the_default_cap():
+    # One implicit step a frame: plain passes took 480 at most (past the old default cap of 200, 3.1
+    # tolerances out, +11.7%); the radius the solver adjusts takes 140, as the 0.95 the scene file set did.
+    scene = wc.load_scene("hanging")
+    scene = dataclasses.replace(scene, simulation=dataclasses.replace(scene.simulation, integrator="implicit",
+                                                                      dt=0.04165, substeps=None))
+    assert scene.simulation.limit_chebyshev_rho is None and scene.simulation.limit_max_passes is None
+    report, stats, _ = worst_over_run(scene, 24)
+    assert stats.limit_residual <= 1.0 and stats.limit_passes <= 200
+    assert report.stretch <= WITHIN and report.compression <= WITHIN
+
+
+def chebyshev_after_growth(estimated: bool) -> tuple[float, float]:
+    """The radius after a solve whose second iteration left twice the first's residual, and at the next
+    solve's start, starting from 0.95 (the solver's estimate, or the scene's fixed radius)."""
+    import warp as wp
+
+    from warp_cloth.kernels import solve_loop
+
+    omega = np.zeros(solve_loop.CHEBYSHEV_SLOTS, dtype=np.float32)
+    omega[1], omega[4], omega[5] = 0.95 ** 2, 0.95, float(estimated)
+    omega = wp.array(omega, dtype=float, device="cpu")
+    active, counts, residual, switched = (wp.zeros(n, dtype=int, device="cpu") for n in (1, 3, 1, 1))
+    residual = wp.zeros(1, dtype=float, device="cpu")
+    stats = wp.zeros(4, dtype=float, device="cpu")
+    wp.launch(solve_loop.start_solve, dim=1, inputs=[1000, 1001], outputs=[active, counts, residual, switched])
+    wp.launch(solve_loop.start_chebyshev, dim=1, outputs=[omega])
+    for left in (10.0, 20.0):
+        residual.fill_(left)
+        wp.launch(solve_loop.continue_chebyshev_solve, dim=1, inputs=[1.0, 2],
+                  outputs=[active, counts, residual, stats, switched, omega])
+    after = float(omega.numpy()[4])
+    wp.launch(solve_loop.start_chebyshev, dim=1, outputs=[omega])
+    return after, float(omega.numpy()[4])
+
+
+def test_where_the_residual_grows_the_estimated_radius_falls_and_the_next_solve_starts_halfway_back():
+    after, next_start = chebyshev_after_growth(estimated=True)
+    assert after == pytest.approx(0.9) and next_start == pytest.approx(0.95)
+    assert chebyshev_after_growth(estimated=False) == pytest.approx((0.95, 0.95))  # the scene's radius is kept
 
 
 def test_the_cap_stops_the_solve_and_the_figures_say_it_missed():

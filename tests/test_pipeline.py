@@ -12,6 +12,7 @@ import warp as wp
 import warp_cloth as wc
 from conftest import with_simulation
 from warp_cloth import neighbour_lists
+from warp_cloth import plan as plan_module
 from warp_cloth.kernels import particle_collision
 from warp_cloth.neighbour_lists import LIST_THREADS_BY_SIZE
 from warp_cloth.passes import ContactStart
@@ -146,10 +147,31 @@ def test_sequential_projection_runs_the_limit_and_then_the_separation_in_each_pa
                               "contact_velocities_and_end_remake": 1}
 
 
+def test_a_converged_solve_with_contacts_projects_jointly_then_sequentially_unless_the_scene_sets_an_order(
+        launches, monkeypatch):
+    # Cloths stretched 20% past their rest and a tolerance nothing meets run the solve to its cap of 10
+    # passes: 2 joint pairs (the switch moved to 4 passes from 200), then sequential pairs, each counting its
+    # limit and separation passes.
+    monkeypatch.setattr(plan_module, "JOINT_PASSES", 4)
+    scene = with_simulation(wc.load_scene("pile"), limit_tolerance=1e-9, limit_max_passes=10)
+    assert scene.collision.projection is None
+    for projection, expected in ((None, {"limit_and_separation_pass": 4, "limit_pass": 4, "separation_pass": 4}),
+                                 ("joint", {"limit_and_separation_pass": 10}),
+                                 ("sequential", {"limit_pass": 6, "separation_pass": 6})):
+        chosen = dataclasses.replace(scene, collision=dataclasses.replace(scene.collision, projection=projection))
+        sim = wc.Simulator(chosen, device="cpu", graph=False)
+        sim.state.x.assign(sim.state.x.numpy() * 1.2)
+        launches.clear()
+        sim.substep()
+        names = ("limit_and_separation_pass", "limit_pass", "separation_pass")
+        assert {k: launches[k] for k in names if launches[k]} == expected, projection
+
+
 def test_the_converged_solve_repeats_its_pair_of_passes_and_check_until_within_tolerance(launches):
     # The step, then pairs of limit passes (colliders in each), each pair followed by the check of the
     # residual and the loop's bookkeeping, as many pairs as the substep needs.
-    sim = wc.Simulator(with_simulation(wc.load_scene("sphere_push"), limit_solve="converged"), device="cpu")
+    sim = wc.Simulator(with_simulation(wc.load_scene("sphere_push"), limit_solve="converged", limit_chebyshev_rho=0.0),
+                       device="cpu")
     assert sim.plan.pass_names == ["spheres:move", "integrate:explicit",
                                    "until within tolerance, 2 at a time: limits+colliders, limits+colliders", "clock"]
     for _ in range(20):

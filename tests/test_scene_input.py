@@ -343,13 +343,22 @@ def test_absurd_amounts_of_work_are_refused_before_running(tmp_path, change, key
 
 
 def test_an_unset_limit_cap_is_chosen_within_the_frame_bound():
-    # 1000 substeps a frame: the default 200 passes a substep would be 201,000 passes a frame; unset, the cap
-    # becomes what fits (49), where a cap the scene sets is refused (above).
+    # 1000 substeps a frame: the default 1000 passes a substep would be 1,001,000 passes a frame; unset, the
+    # cap becomes what fits (49), where a cap the scene sets is refused (above).
     limited = VALID.replace("size = [1.0, 1.0]", "size = [1.0, 1.0]\nlimit = {}")
-    for substeps, cap in ((1000, 49), (2, 200)):
+    for substeps, cap in ((1000, 49), (2, 1000)):
         scene = wc.scene_from_dict(tomllib.loads(limited.replace("substeps = 2", f"substeps = {substeps}")))
         assert scene.simulation.limit_max_passes is None
         assert wc.Simulator(scene, device="cpu").scene.simulation.limit_max_passes == cap
+
+
+def test_no_built_in_scene_sets_a_solver_constant():
+    # What a scene needs, the solver finds itself (issue 32): the Chebyshev radius, the cap, the projection order.
+    for name in wc.builtin_scene_names():
+        scene = wc.load_scene(name)
+        assert scene.simulation.limit_chebyshev_rho is None, name
+        assert scene.simulation.limit_max_passes is None, name
+        assert scene.collision is None or scene.collision.projection is None, name
 
 
 def test_work_bounds_leave_every_built_in_scene_and_benchmark_valid():

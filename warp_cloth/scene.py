@@ -585,7 +585,9 @@ class Collision:
     one Jacobi kernel where ``projection`` is ``joint`` (each particle moves by its limits' mean correction
     and its pushes' mean, no limit correction pulling into a contact): a launch less a pass, contacts held
     closer, strain a little less so; ``sequential`` runs the limit, then the separation on what it left
-    (docs/accuracy.md). Each particle's candidate pairs are listed within 1.5 contact distances and the
+    (docs/accuracy.md). Unset, the fixed passes are joint and a converged solve is joint for its first 200
+    passes, then sequential (a chain of springs pulled taut over a contact converges only so;
+    docs/notebook/strain-solve.md). Each particle's candidate pairs are listed within 1.5 contact distances and the
     lists remade once some particle has moved half the margin that leaves, so that no pair left out can
     touch before. With ``simulation.limit_solve = "converged"`` the passes go on
     (``iterations`` is not used) until no candidate pair is more than ``tolerance`` of its contact distance
@@ -603,7 +605,7 @@ class Collision:
     iterations: int = 2
     friction: float = 0.0
     max_neighbors: int = 32
-    projection: Literal["joint", "sequential"] = "joint"
+    projection: Literal["joint", "sequential"] | None = None
     tolerance: float = 0.05
     edges: bool = False
 
@@ -660,9 +662,10 @@ class Simulation:
     pairs until no limited spring is more than ``limit_tolerance`` of its
     allowed length outside it (and no pair of particles more than ``collision.tolerance`` of their
     contact distance inside it), at most ``limit_max_passes`` a substep (``Simulator.solver_stats()``
-    says how many it took; unset: 200, or as many as keep a frame within the simulator's bound on a frame's
-    passes at its substeps); ``limit_chebyshev_rho`` > 0 accelerates each pair of passes by Chebyshev's
-    semi-iterative method with that spectral radius. ``"fixed"``, a fast mode to be
+    says how many it took; unset: 1000, or as many as keep a frame within the simulator's bound on a frame's
+    passes at its substeps). Each pair of passes is accelerated by Chebyshev's semi-iterative method with a
+    spectral radius the solver adjusts (lowered where a pair leaves the residual growing, back up from solve
+    to solve); ``limit_chebyshev_rho`` fixes that radius instead, 0 for plain passes. ``"fixed"``, a fast mode to be
     chosen explicitly, runs ``limit_iterations`` passes a substep, however far that leaves the cloth from its
     limits (the run's summary says how far).
 
@@ -692,7 +695,7 @@ class Simulation:
     limit_solve: Literal["fixed", "converged"] = "converged"
     limit_tolerance: float = 0.005
     limit_max_passes: int | None = None
-    limit_chebyshev_rho: float = 0.0
+    limit_chebyshev_rho: float | None = None
     max_speed: float = 1000.0
     compensated: bool = False
 
@@ -723,8 +726,9 @@ class Simulation:
                  self.limit_tolerance)
         if self.limit_max_passes is not None:
             _whole_in(self.limit_max_passes, 2, MAX_ITERATIONS, "limit_max_passes")
-        _require(0.0 <= self.limit_chebyshev_rho < 1.0, "limit_chebyshev_rho",
-                 "0 (no acceleration) or a spectral radius in (0, 1)", self.limit_chebyshev_rho)
+        if self.limit_chebyshev_rho is not None:
+            _require(0.0 <= self.limit_chebyshev_rho < 1.0, "limit_chebyshev_rho",
+                     "0 (no acceleration) or a spectral radius in (0, 1)", self.limit_chebyshev_rho)
         _require(not self.compensated or self.integrator != "implicit", "compensated",
                  "false with the implicit integrator (it sums the explicit and symplectic steps' moves)",
                  self.compensated)
