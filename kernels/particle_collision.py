@@ -27,7 +27,8 @@ SEARCH_SCALE = 1.5
 class Contacts:
     radius: wp.array(dtype=float)  # (n,) each particle's sphere
     separation: float  # contact distance in mean radii
-    neighbors: wp.array(dtype=int)  # (n * max_neighbors,) each particle's candidates, in index order
+    neighbors: wp.array(dtype=int)  # (n * max_neighbors,) each particle's candidates (the nearest where more
+    # are within reach than fit), sorted by index
     counts: wp.array(dtype=int)  # (n,) the length of each list
     max_neighbors: int
     resting: wp.array(dtype=int)  # (n,) or empty without rigid colliders: see colliders.py

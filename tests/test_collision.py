@@ -144,12 +144,9 @@ def test_seed_radius_rule_and_when_grid_neighbours_need_exclusion():
 SCENE_FRAMES = {"fold": 120, "oscillating_pins": 240, "pile": 48, "seed_default": 48}
 
 
-@pytest.mark.parametrize("projection", [None, "sequential"], ids=["solver_chosen", "sequential"])
 @pytest.mark.parametrize("name", sorted(SCENE_FRAMES))
-def test_collision_scene_keeps_particles_apart_and_triangles_uncrossed(name, projection):
-    # None: joint for a solve's first 200 passes, then sequential (the same as "joint" where a solve ends
-    # within them, as every one of these does over these frames but seed_default's)
-    check_scene_every_frame(name, SCENE_FRAMES[name], "cpu", projection=projection)
+def test_collision_scene_keeps_particles_apart_and_triangles_uncrossed(name):
+    check_scene_every_frame(name, SCENE_FRAMES[name], "cpu")
 
 
 @pytest.mark.slow
@@ -171,12 +168,9 @@ def test_collision_scene_over_its_whole_length_on_cuda(name, threads):
 # (seed-default-crossings-sequential-h200.jsonl).
 
 
-def check_scene_every_frame(name: str, frames: int, device: str, threads: int | None = None,
-                            projection: str | None = None) -> None:
-    """The scene over ``frames`` frames, with the solver's projection order or ``projection``."""
+def check_scene_every_frame(name: str, frames: int, device: str, threads: int | None = None) -> None:
+    """The scene over ``frames`` frames."""
     scene = with_simulation(wc.load_scene(name), frames=frames)
-    if projection is not None:
-        scene = dataclasses.replace(scene, collision=dataclasses.replace(scene.collision, projection=projection))
     sim = wc.Simulator(scene, device=device, threads_per_particle=threads)
     crossings, gaps = TriangleIntersections(sim), ContactGaps(sim)
     worst_gap, worst_crossings = np.inf, 0
@@ -185,7 +179,7 @@ def check_scene_every_frame(name: str, frames: int, device: str, threads: int | 
         worst_gap = min(worst_gap, gaps(sim))
         worst_crossings = max(worst_crossings, crossings(sim))
         assert np.isfinite(sim.positions()).all()
-    print(f"{name} on {device}, {scene.collision.projection}, {frames} frames: closest contact {worst_gap:.3f}, "
+    print(f"{name} on {device}, {frames} frames: closest contact {worst_gap:.3f}, "
           f"most intersecting pairs {worst_crossings}")
     assert worst_gap >= CLOSEST_CONTACT
     assert worst_crossings == 0

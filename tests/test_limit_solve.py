@@ -9,6 +9,7 @@ import pytest
 
 import warp_cloth as wc
 from conftest import run_cli_in_process
+from warp_cloth.limit_solve import lab_hooks
 from warp_cloth.strain import StrainMonitor
 
 TOLERANCE = 0.005
@@ -16,17 +17,19 @@ WITHIN = 1.1 * (1.0 + TOLERANCE) - 1.0 + 1e-5  # a 10% limit held to the toleran
 
 
 def hanging(**simulation) -> wc.Scene:
-    """The seed's hanging cloth under the plain converged solve (the scene file's own acceleration off),
-    with these simulation settings."""
+    """The seed's hanging cloth under the converged solve, with these simulation settings."""
     scene = wc.load_scene("hanging")
     step = {"dt": simulation.pop("dt"), "substeps": None} if "dt" in simulation else {}
-    simulation.setdefault("limit_chebyshev_rho", 0.0)
     return dataclasses.replace(scene, simulation=dataclasses.replace(
         scene.simulation, limit_solve="converged", limit_tolerance=TOLERANCE, **step, **simulation))
 
 
-def worst_over_run(scene: wc.Scene, frames: int) -> tuple[wc.StrainReport, object, wc.Simulator]:
-    sim = wc.Simulator(scene, device="cpu")
+def worst_over_run(scene: wc.Scene, frames: int, rho: float | None = 0.0) -> tuple[wc.StrainReport, object,
+                                                                                   wc.Simulator]:
+    """The worst strain, the solve's figures and the simulator after ``frames`` frames, its passes
+    accelerated with the radius ``rho`` (0: plain passes; None: the solver's estimate)."""
+    with lab_hooks(chebyshev_rho=rho):
+        sim = wc.Simulator(scene, device="cpu")
     monitor = StrainMonitor()
     sim.run(frames, writers=[monitor])
     return monitor.report(), sim.solver_stats(), sim
@@ -34,8 +37,8 @@ def worst_over_run(scene: wc.Scene, frames: int) -> tuple[wc.StrainReport, objec
 
 @pytest.mark.parametrize("rho", [0.0, 0.99])
 def test_one_implicit_step_a_frame_holds_the_limit_where_fixed_passes_stretch_55_percent(rho):
-    report, stats, sim = worst_over_run(hanging(integrator="implicit", dt=0.04165, limit_max_passes=1000,
-                                                limit_chebyshev_rho=rho), 24)
+    report, stats, sim = worst_over_run(hanging(integrator="implicit", dt=0.04165, limit_max_passes=1000), 24,
+                                        rho)
     assert report.stretch <= WITHIN and report.compression <= WITHIN
     assert stats.limit_residual <= 1.0 and 2 <= stats.limit_passes <= 1000
     assert stats.cg_iterations is not None  # the implicit solve's figures come with it
@@ -47,28 +50,27 @@ def test_one_implicit_step_a_frame_holds_the_limit_where_fixed_passes_stretch_55
 def test_chebyshev_takes_fewer_passes_to_the_same_tolerance():
     passes = {}
     for rho in (0.0, 0.99):
-        _, stats, _ = worst_over_run(hanging(integrator="implicit", dt=0.04165, limit_max_passes=1000,
-                                             limit_chebyshev_rho=rho), 24)
+        _, stats, _ = worst_over_run(hanging(integrator="implicit", dt=0.04165, limit_max_passes=1000), 24, rho)
         assert stats.limit_residual <= 1.0
         passes[rho] = stats.limit_passes
     assert passes[0.99] * 4 < passes[0.0]  # measured 40 against 480
 
 
-def test_a_scene_that_sets_no_radius_or_cap_is_accelerated_by_the_solver_within_the_default_cap():
+def test_a_scene_that_sets_no_cap_is_accelerated_by_the_solver_within_the_default_cap():
     # One implicit step a frame: plain passes took 480 at most (past the old default cap of 200, 3.1
     # tolerances out, +11.7%); the radius the solver adjusts takes 140, as the 0.95 the scene file set did.
     scene = wc.load_scene("hanging")
     scene = dataclasses.replace(scene, simulation=dataclasses.replace(scene.simulation, integrator="implicit",
                                                                       dt=0.04165, substeps=None))
-    assert scene.simulation.limit_chebyshev_rho is None and scene.simulation.limit_max_passes is None
-    report, stats, _ = worst_over_run(scene, 24)
+    assert scene.simulation.limit_max_passes is None
+    report, stats, _ = worst_over_run(scene, 24, rho=None)
     assert stats.limit_residual <= 1.0 and stats.limit_passes <= 200
     assert report.stretch <= WITHIN and report.compression <= WITHIN
 
 
 def chebyshev_after_growth(estimated: bool) -> tuple[float, float]:
     """The radius after a solve whose second iteration left twice the first's residual, and at the next
-    solve's start, starting from 0.95 (the solver's estimate, or the scene's fixed radius)."""
+    solve's start, starting from 0.95 (the solver's estimate, or the lab's fixed radius)."""
     import warp as wp
 
     from warp_cloth.kernels import solve_loop
@@ -93,7 +95,7 @@ def chebyshev_after_growth(estimated: bool) -> tuple[float, float]:
 def test_where_the_residual_grows_the_estimated_radius_falls_and_the_next_solve_starts_halfway_back():
     after, next_start = chebyshev_after_growth(estimated=True)
     assert after == pytest.approx(0.9) and next_start == pytest.approx(0.95)
-    assert chebyshev_after_growth(estimated=False) == pytest.approx((0.95, 0.95))  # the scene's radius is kept
+    assert chebyshev_after_growth(estimated=False) == pytest.approx((0.95, 0.95))  # a fixed radius is kept
 
 
 def test_the_cap_stops_the_solve_and_the_figures_say_it_missed():
@@ -106,8 +108,8 @@ def test_converged_solve_with_contacts_keeps_particles_apart_and_strain_within()
     scene = wc.load_scene("pile")
     scene = dataclasses.replace(scene, simulation=dataclasses.replace(scene.simulation, limit_solve="converged",
                                                                       limit_max_passes=400))
-    report, stats, sim = worst_over_run(scene, 24)
-    assert "until within tolerance" in sim.plan.pass_names[2]
+    report, stats, sim = worst_over_run(scene, 24, rho=None)
+    assert sim.plan.pass_names[2] == "converged solve"
     assert report.stretch <= WITHIN and report.compression <= WITHIN
     assert stats.limit_residual <= 1.0
     assert sim.closest_contact() >= 1.0 - scene.collision.tolerance - 1e-4
@@ -144,7 +146,7 @@ def test_chebyshev_restarts_where_a_collider_undoes_it_and_converges():
     from warp_cloth.lab.bench import matrix_scene
     scene = matrix_scene("sphere", 32, "symplectic")
     scene = dataclasses.replace(scene, simulation=dataclasses.replace(
-        scene.simulation, limit_solve="converged", limit_chebyshev_rho=0.99, limit_max_passes=300))
-    report, stats, _ = worst_over_run(scene, 48)  # the swing onto the sphere
+        scene.simulation, limit_solve="converged", limit_max_passes=300))
+    report, stats, _ = worst_over_run(scene, 48, rho=0.99)  # the swing onto the sphere
     assert stats.limit_residual <= 1.0 and stats.limit_passes < 300
     assert report.stretch <= WITHIN

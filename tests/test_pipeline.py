@@ -12,7 +12,7 @@ import warp as wp
 import warp_cloth as wc
 from conftest import with_simulation
 from warp_cloth import neighbour_lists
-from warp_cloth import plan as plan_module
+from warp_cloth.limit_solve import lab_hooks
 from warp_cloth.kernels import particle_collision
 from warp_cloth.neighbour_lists import LIST_THREADS_BY_SIZE
 from warp_cloth.passes import ContactStart
@@ -137,9 +137,8 @@ def test_lists_remade_every_substep_where_a_test_asks(launches, monkeypatch):
 
 
 def test_sequential_projection_runs_the_limit_and_then_the_separation_in_each_pass_that_has_both(launches):
-    scene = fixed(wc.load_scene("pile"))
-    scene = dataclasses.replace(scene, collision=dataclasses.replace(scene.collision, projection="sequential"))
-    sim = wc.Simulator(scene, device="cpu", graph=False)
+    with lab_hooks(joint_passes=0):  # the fixed passes sequential from the first
+        sim = wc.Simulator(fixed(wc.load_scene("pile")), device="cpu", graph=False)
     launches.clear()
     sim.substep()
     assert dict(launches) == {"explicit_step_and_contact_start": 1, "insert_points": 1, "gather_neighbors": 1,
@@ -147,33 +146,29 @@ def test_sequential_projection_runs_the_limit_and_then_the_separation_in_each_pa
                               "contact_velocities_and_end_remake": 1}
 
 
-def test_a_converged_solve_with_contacts_projects_jointly_then_sequentially_unless_the_scene_sets_an_order(
-        launches, monkeypatch):
+def test_a_converged_solve_with_contacts_projects_jointly_then_sequentially(launches):
     # Cloths stretched 20% past their rest and a tolerance nothing meets run the solve to its cap of 10
     # passes: 2 joint pairs (the switch moved to 4 passes from 200), then sequential pairs, each counting its
-    # limit and separation passes.
-    monkeypatch.setattr(plan_module, "JOINT_PASSES", 4)
+    # limit and separation passes; joint throughout where the switch is past the cap, sequential where it is 0.
     scene = with_simulation(wc.load_scene("pile"), limit_tolerance=1e-9, limit_max_passes=10)
-    assert scene.collision.projection is None
-    for projection, expected in ((None, {"limit_and_separation_pass": 4, "limit_pass": 4, "separation_pass": 4}),
-                                 ("joint", {"limit_and_separation_pass": 10}),
-                                 ("sequential", {"limit_pass": 6, "separation_pass": 6})):
-        chosen = dataclasses.replace(scene, collision=dataclasses.replace(scene.collision, projection=projection))
-        sim = wc.Simulator(chosen, device="cpu", graph=False)
+    for joint_passes, expected in ((4, {"limit_and_separation_pass": 4, "limit_pass": 4, "separation_pass": 4}),
+                                   (10, {"limit_and_separation_pass": 10}),
+                                   (0, {"limit_pass": 6, "separation_pass": 6})):
+        with lab_hooks(joint_passes=joint_passes):
+            sim = wc.Simulator(scene, device="cpu", graph=False)
         sim.state.x.assign(sim.state.x.numpy() * 1.2)
         launches.clear()
         sim.substep()
         names = ("limit_and_separation_pass", "limit_pass", "separation_pass")
-        assert {k: launches[k] for k in names if launches[k]} == expected, projection
+        assert {k: launches[k] for k in names if launches[k]} == expected, joint_passes
 
 
 def test_the_converged_solve_repeats_its_pair_of_passes_and_check_until_within_tolerance(launches):
     # The step, then pairs of limit passes (colliders in each), each pair followed by the check of the
     # residual and the loop's bookkeeping, as many pairs as the substep needs.
-    sim = wc.Simulator(with_simulation(wc.load_scene("sphere_push"), limit_solve="converged", limit_chebyshev_rho=0.0),
-                       device="cpu")
-    assert sim.plan.pass_names == ["spheres:move", "integrate:explicit",
-                                   "until within tolerance, 2 at a time: limits+colliders, limits+colliders", "clock"]
+    with lab_hooks(chebyshev_rho=0.0):  # plain passes
+        sim = wc.Simulator(wc.load_scene("sphere_push"), device="cpu")
+    assert sim.plan.pass_names == ["spheres:move", "integrate:explicit", "converged solve", "clock"]
     for _ in range(20):
         launches.clear()
         sim.substep()
@@ -187,8 +182,8 @@ def test_the_converged_solve_repeats_its_pair_of_passes_and_check_until_within_t
 def test_an_accelerated_solve_adds_its_extrapolation_and_no_other_launch_a_pair(launches):
     # Chebyshev's weight, its restart test and the loop's bookkeeping are one kernel: a small cloth's
     # iteration costs its launches.
-    scene = with_simulation(wc.load_scene("sphere_push"), limit_solve="converged", limit_chebyshev_rho=0.95)
-    sim = wc.Simulator(scene, device="cpu")
+    with lab_hooks(chebyshev_rho=0.95):
+        sim = wc.Simulator(wc.load_scene("sphere_push"), device="cpu")
     for _ in range(20):
         launches.clear()
         sim.substep()
@@ -197,6 +192,33 @@ def test_an_accelerated_solve_adds_its_extrapolation_and_no_other_launch_a_pair(
                                   "limit_pass": 2 * pairs, "chebyshev_step_and_colliders": pairs,
                                   "projection_residual": pairs, "continue_chebyshev_solve": pairs, "advance_clock": 1}
     assert sim.solver_stats().limit_residual <= 1.0
+
+
+def test_the_printed_plan_names_every_launch_of_the_solve_and_says_the_simulator_runs_the_guard(launches):
+    # Each kernel of the solve's loop that a substep launches is printed under the loop, by the kernel's
+    # name; its passes by theirs (limit_pass: "limits+colliders").
+    sim = wc.Simulator(wc.load_scene("sphere_push"), device="cpu")
+    launches.clear()
+    sim.substep()
+    printed = str(sim.plan)
+    assert printed.splitlines()[1:] == [
+        "   1. spheres:move",
+        "   2. integrate:explicit",
+        "   3. converged solve, until within tolerance or at 1000 passes:",
+        "          start_solve, start_chebyshev, a copy of the positions",
+        "        each iteration:",
+        "          limits+colliders",
+        "          limits+colliders",
+        "          chebyshev_step_and_colliders",
+        "          projection_residual",
+        "          continue_chebyshev_solve (the loop's bookkeeping)",
+        "   4. clock",
+        "not in the plan: after each substep of a frame (Simulator.step and run, not Simulator.substep)",
+        "the simulator checks the state for a blow-up (check_state)"]
+    passes = {"move_spheres", "explicit_step", "limit_pass", "advance_clock"}
+    assert all(kernel in printed for kernel in set(launches) - passes)
+    pile = str(wc.Simulator(wc.load_scene("pile"), device="cpu").plan)
+    assert "        after 200 passes, each iteration instead:\n          limits\n          separation+colliders\n" in pile
 
 
 def test_bare_cloth_launches_one_kernel_and_holds_no_effect_arrays(launches):

@@ -53,7 +53,6 @@ OUT_OF_RANGE: dict[tuple[str, str], list[Any]] = {
     ("Simulation", "limit_iterations"): [0, 10**9],
     ("Simulation", "limit_tolerance"): [0.0, -0.01, 0.5],
     ("Simulation", "limit_max_passes"): [1, 10**6],
-    ("Simulation", "limit_chebyshev_rho"): [-0.5, 1.0, 2.0],
     ("Simulation", "max_speed"): [0.0, -1.0],
     ("Simulation", "drag"): [-1.0],
     ("Cloth", "name"): BAD_NAMES,

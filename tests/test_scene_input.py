@@ -115,7 +115,10 @@ RETIRED = [
     (VALID + "\n[collision]\nlists = \"every_substep\"\n", "collision.lists", "moved far enough"),
     (VALID + "\n[collision]\nsearch_scale = 2.0\n", "collision.search_scale", "1.5 contact distances"),
     (VALID.replace("size = [1.0, 1.0]", "size = [1.0, 1.0]\nlimit = { long_range = true }"),
-     "cloth[0].limit.long_range", "limit_chebyshev_rho"),
+     "cloth[0].limit.long_range", "Chebyshev acceleration"),
+    (VALID.replace("substeps = 2", "substeps = 2\nlimit_chebyshev_rho = 0.95"), "simulation.limit_chebyshev_rho",
+     "estimates its Chebyshev radius itself"),
+    (VALID + "\n[collision]\nprojection = \"sequential\"\n", "collision.projection", "jointly for a substep's first 200"),
 ]
 
 
@@ -353,12 +356,10 @@ def test_an_unset_limit_cap_is_chosen_within_the_frame_bound():
 
 
 def test_no_built_in_scene_sets_a_solver_constant():
-    # What a scene needs, the solver finds itself (issue 32): the Chebyshev radius, the cap, the projection order.
+    # What a scene needs, the solver finds itself (issue 32): the cap (the Chebyshev radius and the projection
+    # order are no scene keys any more).
     for name in wc.builtin_scene_names():
-        scene = wc.load_scene(name)
-        assert scene.simulation.limit_chebyshev_rho is None, name
-        assert scene.simulation.limit_max_passes is None, name
-        assert scene.collision is None or scene.collision.projection is None, name
+        assert wc.load_scene(name).simulation.limit_max_passes is None, name
 
 
 def test_work_bounds_leave_every_built_in_scene_and_benchmark_valid():

@@ -25,6 +25,7 @@ from conftest import run_cli_in_process, spring_strains, with_simulation
 from warp_cloth.diagnostics import ContactGaps, TriangleIntersections
 from warp_cloth.errors import UnstableSimulation
 from warp_cloth.kernels import guard
+from warp_cloth.kernels.springs import ELASTIC_COMPRESSION, ELASTIC_TENSION
 
 OFF = wc.SpringKind(enabled=False)
 
@@ -38,6 +39,29 @@ BOUNDS = {
     "pile": (25.0, 0.15, 0.9),                # measured 19.6 m/s, strain 0.105, contact 0.974
 }
 CASES = {name: getattr(hard_cases, name) for name in BOUNDS}
+# Cases with no energy input (no moving pin or collider, no wind): their total energy, kinetic + gravity's
+# potential + the springs' elastic energy, may never exceed what they start with. No slack: every spring
+# has damping, the contacts and colliders are inelastic, and the drift of symplectic Euler's energy
+# (O(h) wobble around a conserved modified energy) is below what the damping takes in a frame.
+PASSIVE = {"stiff_implicit", "twisted", "heavy_and_light", "pile"}
+
+
+def total_energy(sim: wc.Simulator, x: np.ndarray, v: np.ndarray) -> float:
+    """Kinetic + gravitational potential energy of the free particles + the springs' elastic energy, the
+    potential of kernels/springs.spring_force's -k (l/L - 1) n: k (l - L)^2 / (2 L), where the spring's
+    elastic part acts (tension above its rest length, compression at or below it, as its flags say)."""
+    model = sim.model
+    free = model.inv_mass != 0
+    mass, x, v = model.masses[free].astype(np.float64), x.astype(np.float64), v.astype(np.float64)
+    gravity = np.asarray(sim.scene.simulation.gravity, dtype=np.float64)
+    energy = 0.5 * float((mass * (v[free] ** 2).sum(axis=1)).sum()) - float((mass * (x[free] @ gravity)).sum())
+    springs = model.springs
+    if springs is None:
+        return energy
+    length = np.linalg.norm(x[springs.pairs[:, 0]] - x[springs.pairs[:, 1]], axis=1)
+    rest = springs.rest.astype(np.float64)
+    acts = np.where(length > rest, springs.flags & int(ELASTIC_TENSION), springs.flags & int(ELASTIC_COMPRESSION))
+    return energy + float((0.5 * springs.stiffness / rest * (length - rest) ** 2)[acts != 0].sum())
 
 
 def check_hard_case(scene: wc.Scene, device: str) -> None:
@@ -47,11 +71,17 @@ def check_hard_case(scene: wc.Scene, device: str) -> None:
     gaps = ContactGaps(sim) if scene.collision is not None else None
     limited = np.isfinite(sim.model.springs.limit_max)
     mass = sim.model.masses
-    worst = {"speed": 0.0, "strain": 0.0, "contact": np.inf, "crossings": 0, "inside": np.inf}
+    worst = {"speed": 0.0, "strain": 0.0, "contact": np.inf, "crossings": 0, "inside": np.inf,
+             "energy_gain": -np.inf}
+    passive = scene.name in PASSIVE
+    still = all(s.motion is None and not s.keys and not any(s.spin) for s in scene.spheres) and not scene.colliders
+    assert not passive or (scene.wind is None and still and (sim.model.pins is None or not sim.model.pins.moving))
+    initial_energy = total_energy(sim, sim.positions(), sim.velocities())
     for frame in range(1, scene.simulation.frames + 1):
         sim.step()
         x, v = sim.positions(), sim.velocities()
         assert np.isfinite(x).all() and np.isfinite(v).all()
+        worst["energy_gain"] = max(worst["energy_gain"], total_energy(sim, x, v) - initial_energy)
         worst["speed"] = max(worst["speed"], float(np.linalg.norm(v, axis=1).max()))
         if frame > 12:
             worst["strain"] = max(worst["strain"], float(np.abs(spring_strains(sim, x)[limited]).max()))
@@ -69,9 +99,21 @@ def check_hard_case(scene: wc.Scene, device: str) -> None:
     if gaps is not None:
         assert worst["contact"] >= min_contact
         assert worst["crossings"] == 0
+    if passive:
+        assert worst["energy_gain"] <= 0.0, f"gained {worst['energy_gain']:.3g} J of {initial_energy:.3g} J"
 
 
-@pytest.mark.parametrize("name", sorted(CASES))
+# twisted starts 15.6% past its strain limit (the twist stretches it): the converged solve projects that
+# within its first substep and the passes turn the move into velocity (x' - x) / h, 62 J with plain
+# passes, 79 J accelerated, against 21 J in the cloth at the start; at frame 1 it still has 7.3 J more
+# (34%), from frame 4 less. A bug of the solver, not of the bound: open (the fixed passes, 4 a substep,
+# move it over many substeps and gain nothing).
+INFEASIBLE_START = pytest.mark.xfail(strict=True, reason="the converged solve turns an initial violation of the "
+                                                         "strain limit into kinetic energy")
+
+
+@pytest.mark.parametrize("name", [pytest.param(n, marks=INFEASIBLE_START) if n == "twisted" else n
+                                  for n in sorted(CASES)])
 def test_hard_case_stays_stable(name):
     check_hard_case(CASES[name](), "cpu")
 

@@ -11,6 +11,7 @@ import pytest
 
 import warp_cloth as wc
 import warp_cloth.lab.study as study_module
+from warp_cloth.limit_solve import lab_hooks
 from warp_cloth.lab.study import (StudyRun, Trajectory, converged_frames, main, pareto_front, run_study,
                               with_resolution)
 
@@ -93,10 +94,11 @@ def test_unstable_runs_are_reported_not_raised(tmp_path, capsys):
     # 1000 keep some run from blowing up within 24 frames: plain passes capped at 200 here.)
     out = tmp_path / "study"
     text = wc_scene_file_text("hanging")
-    assert "\nlimit_solve = " in text and "limit_chebyshev_rho" not in text
+    assert "\nlimit_solve = " in text
     scene = tmp_path / "hanging.toml"
-    scene.write_text(text.replace("\nlimit_solve = ", "\nlimit_chebyshev_rho = 0.0\nlimit_max_passes = 200\nlimit_solve = ", 1))
-    code = main([str(scene), "--dt", "0.0208", "0.0104", "--frames", "24", "--device", "cpu", "--out", str(out)])
+    scene.write_text(text.replace("\nlimit_solve = ", "\nlimit_max_passes = 200\nlimit_solve = ", 1))
+    with lab_hooks(chebyshev_rho=0.0):  # plain passes
+        code = main([str(scene), "--dt", "0.0208", "0.0104", "--frames", "24", "--device", "cpu", "--out", str(out)])
     assert code == 0
     with open(out / "study.csv") as handle:
         rows = list(csv.DictReader(handle))

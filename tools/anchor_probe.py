@@ -19,6 +19,7 @@ import numpy as np
 
 import warp_cloth as wc
 from warp_cloth.lab.bench import matrix_scene
+from warp_cloth.limit_solve import lab_hooks
 from warp_cloth.spring_paths import nearest_along_edges
 
 TOLERANCE = 0.005
@@ -103,7 +104,7 @@ class Cloth:
 
     def chebyshev(self, x: np.ndarray, rho: float) -> int:
         """Passes to within tolerance of Jacobi pairs accelerated as the converged solve does with
-        ``limit_chebyshev_rho = rho`` (restarted where a pair leaves 1.5 times the residual before)."""
+        the radius ``rho`` (restarted where a pair leaves 1.5 times the residual before)."""
         start, before, omega, k, last = x.copy(), x.copy(), 1.0, 0, np.inf
         for passes in range(2, CAP + 1, 2):
             k += 1
@@ -137,8 +138,9 @@ def converged_sphere_cloth(n: int, device: str = "cpu", rho: float = 0.0) -> wc.
     """The speed matrix's sphere cloth at n^2 with the converged limit solve, at most CAP passes, accelerated
     by Chebyshev at ``rho`` (0: plain Jacobi)."""
     scene = matrix_scene("sphere", n, "symplectic")
-    return wc.Simulator(dataclasses.replace(scene, simulation=dataclasses.replace(
-        scene.simulation, limit_solve="converged", limit_max_passes=CAP, limit_chebyshev_rho=rho)), device=device)
+    with lab_hooks(chebyshev_rho=rho):
+        return wc.Simulator(dataclasses.replace(scene, simulation=dataclasses.replace(
+            scene.simulation, limit_solve="converged", limit_max_passes=CAP)), device=device)
 
 
 def states(sim: wc.Simulator, frames: int = 120, every: int = 5):

@@ -5,7 +5,7 @@
         semi_implicit vbd] [--target 0.11]   each engine from 10 substeps, doubling until it holds the target
 
 variant is hanging, sphere or self; engine is ours (the matrix's fixed 2 limit passes), ours_sequential
-(the self rows' collision passes with ``projection = "sequential"``), ours_METHOD for a method of
+(the self rows' collision passes projected sequentially, ``lab_hooks(joint_passes=0)``), ours_METHOD for a method of
 tools/strain_solve_probe.py (``ours_chebyshev``: the limit solved, Chebyshev 0.95, at most 400 passes a
 substep), semi_implicit, xpbd or vbd; substeps (default 10) sets the step,
 the springs stiffening with 1/dt^2 in both engines (``matrix_scene``, newton_compare), and worlds (default
@@ -17,7 +17,6 @@ docs/benchmarks.md's strain and equal-quality tables.
 """
 
 import argparse
-import dataclasses
 import json
 import time
 
@@ -25,6 +24,7 @@ import warp as wp
 
 from warp_cloth.lab.bench import Case, environment, matrix_scene, time_case
 from warp_cloth.lab.newton_compare import time_newton
+from warp_cloth.limit_solve import lab_hooks
 from strain_solve_probe import configured
 
 REPEATS = 3
@@ -36,11 +36,12 @@ def time_ours(variant: str, n: int, device: str, frames: int, engine: str, subst
     """``bench.time_case`` of the matrix scene so configured (as ``worlds`` copies in one batch)."""
     scene = matrix_scene(variant, n, "symplectic", substeps)
     method = engine.partition("_")[2] or "fixed"
-    if method == "sequential":
-        scene = dataclasses.replace(scene, collision=dataclasses.replace(scene.collision, projection="sequential"))
-    else:
-        scene = configured(scene, method, MAX_PASSES, RHO)
-    result = time_case(Case(engine, scene, frames, fresh=False, worlds=worlds), device, REPEATS)
+    hooks = dict(joint_passes=0)  # the fixed passes, sequential
+    if method != "sequential":
+        scene, rho = configured(scene, method, MAX_PASSES, RHO)
+        hooks = dict(chebyshev_rho=rho)
+    with lab_hooks(**hooks):
+        result = time_case(Case(engine, scene, frames, fresh=False, worlds=worlds), device, REPEATS)
     if not result.stable:
         return {"solver": engine, "variant": variant, "n": n, "worlds": worlds, "substeps": substeps,
                 "error": "blew up"}

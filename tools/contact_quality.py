@@ -6,7 +6,8 @@ frame; and the wall time. Used to compare a change to particle collision's passe
 
     python tools/contact_quality.py OUT.jsonl [--projection sequential] [SCENE ...]   (SCENE: name[:frames])
 
-(--projection: the collision passes' ``projection``, as the scenes have it by default: joint.)
+(--projection joint or sequential: the converged solve's passes so throughout, ``lab_hooks``; without it
+the solver's order, joint for 200 passes, then sequential.)
 
 Writes one JSON line per scene after a line with the environment (docs/results/contact-quality-*.jsonl).
 """
@@ -27,6 +28,7 @@ import hard_cases  # noqa: E402
 import warp_cloth as wc  # noqa: E402
 from warp_cloth.lab.bench import environment, matrix_scene  # noqa: E402
 from warp_cloth.diagnostics import ContactGaps, TriangleIntersections  # noqa: E402
+from warp_cloth.limit_solve import JOINT_PASSES, lab_hooks  # noqa: E402
 
 SCENES = {
     "fold": lambda: wc.load_scene("fold"),
@@ -53,9 +55,9 @@ def measure(name: str, frames: int | None, device: str, projection: str | None) 
     scene = SCENES[name]()
     if frames is not None:
         scene = dataclasses.replace(scene, simulation=dataclasses.replace(scene.simulation, frames=frames))
-    if projection is not None:
-        scene = dataclasses.replace(scene, collision=dataclasses.replace(scene.collision, projection=projection))
-    sim = wc.Simulator(scene, device=device)
+    joint_passes = {"joint": 10**9, "sequential": 0}.get(projection, JOINT_PASSES)  # None: the solver's
+    with lab_hooks(joint_passes=joint_passes):
+        sim = wc.Simulator(scene, device=device)
     crossings, gaps = TriangleIntersections(sim), ContactGaps(sim)
     worst = {"closest_contact": np.inf, "most_crossings": 0, "stretch": -np.inf, "compression": np.inf}
     stepping = 0.0
@@ -71,7 +73,7 @@ def measure(name: str, frames: int | None, device: str, projection: str | None) 
         stretch, compression = limited_strain(sim)
         worst["stretch"] = max(worst["stretch"], stretch)
         worst["compression"] = min(worst["compression"], compression)
-    return {"scene": name, "projection": scene.collision.projection, "frames": scene.simulation.frames,
+    return {"scene": name, "projection": projection, "frames": scene.simulation.frames,
             "step_seconds": stepping, **worst}
 
 

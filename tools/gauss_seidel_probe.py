@@ -11,7 +11,7 @@ numpy copy of the limit pass until no limit is 0.5% past (checked every two pass
   their attachments and put out of the sphere;
 - ``gauss-seidel, sor W``: the same, each move scaled by W (successive over-relaxation);
 - ``chebyshev R``: Jacobi pairs of passes accelerated as warp-cloth's converged solve does with
-  ``limit_chebyshev_rho = R`` (the extrapolation put out of the sphere, restarted where a pair leaves more
+  the fixed radius R (the extrapolation put out of the sphere, restarted where a pair leaves more
   than 1.5 times the residual before), for comparison.
 A Gauss-Seidel pass would cost one launch a colour on a GPU, over a quarter of the particles each.
 

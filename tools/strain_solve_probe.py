@@ -29,15 +29,18 @@ import warp as wp
 import warp_cloth as wc
 from warp_cloth.lab.bench import environment, matrix_scene, seconds_of_runs
 from warp_cloth.diagnostics import CheckReport
+from warp_cloth.limit_solve import lab_hooks
 
 METHODS = {"fixed": ("fixed", 0.0), "jacobi": ("converged", 0.0), "chebyshev": ("converged", 0.99)}
 
 
-def configured(scene: wc.Scene, method: str, max_passes: int, rho: float | None = None) -> wc.Scene:
+def configured(scene: wc.Scene, method: str, max_passes: int, rho: float | None = None) -> tuple[wc.Scene, float]:
+    """The scene with the method's solve and cap, and the Chebyshev radius to build its simulator with
+    (``limit_solve.lab_hooks``)."""
     solve, default_rho = METHODS[method]
     rho = default_rho if rho is None or not default_rho else rho  # plain Jacobi stays plain
     return dataclasses.replace(scene, simulation=dataclasses.replace(
-        scene.simulation, limit_solve=solve, limit_chebyshev_rho=rho, limit_max_passes=max_passes))
+        scene.simulation, limit_solve=solve, limit_max_passes=max_passes)), rho
 
 
 def hanging(n: int) -> wc.Scene:
@@ -119,9 +122,10 @@ def main() -> None:
         for n in args.matrix:
             for variant in ("sphere", "self"):
                 for method in args.methods or list(METHODS):
-                    scene = configured(matrix_scene(variant, n, args.integrator), method, args.cap, args.rho)
-                    row = {"scene": scene.name, "method": method, "rho": scene.simulation.limit_chebyshev_rho,
-                           "cap": args.cap, **timed(scene, 48, args.device, 3 if n <= 256 else 1)}
+                    scene, rho = configured(matrix_scene(variant, n, args.integrator), method, args.cap, args.rho)
+                    with lab_hooks(chebyshev_rho=rho):
+                        row = {"scene": scene.name, "method": method, "rho": rho,
+                               "cap": args.cap, **timed(scene, 48, args.device, 3 if n <= 256 else 1)}
                     rows.append(row)
                     print(row, flush=True)
                     json.dump({"environment": environment(args.device), "rows": rows}, open(args.out, "w"), indent=1)
@@ -132,9 +136,10 @@ def main() -> None:
             chosen = [(m, None) for m in args.methods] if args.methods else [("fixed", None),
                                                                               ("chebyshev", 0.95)]
             for method, rho in chosen:
-                scene = configured(wc.load_scene(name), method, 400, rho)
-                row = {"scene": name, "frames": 72, "method": method, "rho": rho,
-                       **contacts(scene, 72, args.device)}
+                scene, radius = configured(wc.load_scene(name), method, 400, rho)
+                with lab_hooks(chebyshev_rho=radius):
+                    row = {"scene": name, "frames": 72, "method": method, "rho": rho,
+                           **contacts(scene, 72, args.device)}
                 rows.append(row)
                 print(row, flush=True)
         json.dump({"environment": environment(args.device), "rows": rows}, open(args.out, "w"), indent=1)
@@ -149,9 +154,10 @@ def main() -> None:
         cases += [(matrix_scene(v, 64, "symplectic"), 60, m, None, 1000) for v in ("sphere", "self") for m in METHODS]
     rows = []
     for scene, frames, method, rho, cap in cases:
-        row = {"scene": scene.name, "frames": frames, "method": method,
-               "rho": METHODS[method][1] if rho is None else rho,
-               **measure(configured(scene, method, cap, rho), frames, args.device)}
+        scene, radius = configured(scene, method, cap, rho)
+        with lab_hooks(chebyshev_rho=radius):
+            row = {"scene": scene.name, "frames": frames, "method": method,
+                   "rho": METHODS[method][1] if rho is None else rho, **measure(scene, frames, args.device)}
         rows.append(row)
         print(row, flush=True)
     json.dump({"environment": environment(args.device), "rows": rows}, open(args.out, "w"), indent=1)

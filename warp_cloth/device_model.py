@@ -114,11 +114,6 @@ class DeviceModel:
         self.springs = self._springs(model, n)
         self.limits = self._limits(model)
         self.attachments = self._attachments(model)  # None: no cloth has attachments to its pins
-        self.limit_iterations = simulation.limit_iterations
-        self.limit_solve = simulation.limit_solve
-        self.limit_tolerance = simulation.limit_tolerance
-        self.limit_max_passes = simulation.limit_max_passes
-        self.limit_chebyshev_rho = simulation.limit_chebyshev_rho
         self.pins = None if model.pins is None else PinMotion(
             upload(model.pins.index, int, device), upload(model.pins.anchor, wp.vec3, device),
             upload(model.pins.amplitude, wp.vec3, device), upload(model.pins.frequency, float, device),

@@ -1,11 +1,16 @@
-"""The converged projection: Jacobi passes of the strain limits (with particle collision, limits and
-separation together), every pass ending with the rigid colliders, run in pairs inside a device-side loop
-(with an edge contacts' pass before each where the scene has them, which the cap does not count) until
-the limits and contacts hold to their tolerances or the cap on passes is reached; each pair optionally
-accelerated by Chebyshev's semi-iterative method (``limit_chebyshev_rho``, the pair's spectral radius as
-estimated for it; docs/notebook/strain-solve.md measures both)."""
+"""The strain limit's solve: its settings (``LimitSolveSettings``, from the scene's ``[simulation]``) and the
+converged projection, Jacobi passes of the strain limits (with particle collision, limits and separation
+together), every pass ending with the rigid colliders, run in pairs inside a device-side loop (with an
+edge contacts' pass before each where the scene has them, which the cap does not count) until the limits
+and contacts hold to their tolerances or the cap on passes is reached; each pair accelerated by
+Chebyshev's semi-iterative method with a spectral radius the solver estimates
+(docs/notebook/strain-solve.md measures it against plain passes and fixed radii)."""
 
 from __future__ import annotations
+
+from contextlib import contextmanager
+from dataclasses import dataclass
+from typing import Iterator
 
 import numpy as np
 import warp as wp
@@ -15,19 +20,65 @@ from warp_cloth.kernels.colliders import RigidColliders
 
 from .device_model import DeviceModel
 from .passes import Pass, attachments_of, contacts_args
+from .scene import Simulation
 from .state import DeviceState
+
+# The lab's hooks, not scene keys (the solver chooses both; tools/strain_solve_probe.py and the tests set
+# them before building a simulator to measure against the choice):
+# a fixed spectral radius for the Chebyshev acceleration, 0 for plain passes (None: the solver estimates it);
+CHEBYSHEV_RHO: float | None = None
+# with strain limits and particle collision, the passes projected jointly before the rest are projected
+# sequentially (0: sequential throughout; at least the cap: joint throughout). 200 was the cap's default
+# before issue 32, within which every built-in scene but seed_default converged: the joint pass takes from
+# each limit correction the part that pulls into a contact, so a chain of springs pulled taut over a
+# contact cannot shorten, and seed_default's solves stalled at the cap there 2 to 4 tolerances out, where
+# the sequential ones converge (docs/notebook/strain-solve.md).
+JOINT_PASSES = 200
+
+
+@contextmanager
+def lab_hooks(chebyshev_rho: float | None = None, joint_passes: int = JOINT_PASSES) -> Iterator[None]:
+    """Simulators built inside take these hooks' values (the lab's and tests', never a scene's)."""
+    global CHEBYSHEV_RHO, JOINT_PASSES
+    before = CHEBYSHEV_RHO, JOINT_PASSES
+    CHEBYSHEV_RHO, JOINT_PASSES = chebyshev_rho, joint_passes
+    try:
+        yield
+    finally:
+        CHEBYSHEV_RHO, JOINT_PASSES = before
+
+
+@dataclass(frozen=True)
+class LimitSolveSettings:
+    """How the plan solves the strain limits (and, with particle collision, the contacts with them):
+    ``converged`` repeats its passes until within ``tolerance`` (a fraction of an allowed length), at most
+    ``max_passes`` a substep; else ``iterations`` fixed passes a substep. ``chebyshev_rho`` and
+    ``joint_passes``: the lab's hooks above, as they were when the settings were made."""
+    converged: bool
+    iterations: int
+    tolerance: float
+    max_passes: int
+    chebyshev_rho: float | None
+    joint_passes: int
+
+    @classmethod
+    def of(cls, simulation: Simulation) -> LimitSolveSettings:
+        """The settings of a scene's ``[simulation]`` as the simulator resolved it (its cap chosen)."""
+        return cls(simulation.limit_solve == "converged", simulation.limit_iterations, simulation.limit_tolerance,
+                   simulation.limit_max_passes, CHEBYSHEV_RHO, JOINT_PASSES)
 
 
 class ConvergedProjection:
     """Runs ``body`` (passes that leave the positions' buffer parity as they found it) until the check after
-    it finds every limit and contact within tolerance, or ``limit_max_passes`` passes have run. Where ``later_body`` is given, a solve that
-    has run ``switch_at`` counted passes runs that body instead for the rest of it.
+    it finds every limit and contact within tolerance, or ``settings.max_passes`` passes have run. Where
+    ``later_body`` is given, a solve that has run ``switch_at`` counted passes runs that body instead for the
+    rest of it.
 
-    Each iteration is accelerated by Chebyshev's method (``kernels/solve_loop.py``) with the scene's
-    ``limit_chebyshev_rho``, or where it sets none with a spectral radius the solver adjusts from solve to
-    solve (lowered where the residual grows, raised where an accelerated solve converges); 0: plain."""
+    Each iteration is accelerated by Chebyshev's method (``kernels/solve_loop.py``) with a spectral radius
+    the solver adjusts from solve to solve (lowered where the residual grows, raised where an accelerated
+    solve converges), or the settings' fixed ``chebyshev_rho`` (0: plain)."""
 
-    def __init__(self, model: DeviceModel, state: DeviceState, body: list[Pass],
+    def __init__(self, model: DeviceModel, state: DeviceState, settings: LimitSolveSettings, body: list[Pass],
                  colliders: RigidColliders | None, counted: int | None = None,
                  later_body: list[Pass] | None = None, later_counted: int | None = None,
                  switch_at: int | None = None) -> None:
@@ -36,20 +87,17 @@ class ConvergedProjection:
         self.body, self.later_body = body, later_body
         self.counted = len(body) if counted is None else counted  # the body's passes that count to the cap
         self.later_counted = later_counted
-        self.name = f"until within tolerance, {len(body)} at a time: " + ", ".join(p.name for p in body)
-        if later_body is not None:
-            self.name += (f"; after {switch_at} passes, {len(later_body)} at a time: "
-                          + ", ".join(p.name for p in later_body))
+        self.name = "converged solve"
         self.colliders = colliders if colliders is not None else model.no_colliders()
-        self.max_passes = model.limit_max_passes
-        self.switch_at = switch_at if later_body is not None else model.limit_max_passes + 1
+        self.max_passes = settings.max_passes
+        self.switch_at = switch_at if later_body is not None else settings.max_passes + 1
         self.h = model.h
         device = model.device
         args = converged_projection.ResidualArgs()
         args.check_limits = int(model.limits is not None)
         args.limits = model.limits if model.limits is not None else model.no_limits()
         args.attachments = attachments_of(model)
-        args.limit_tolerance = model.limit_tolerance
+        args.limit_tolerance = settings.tolerance
         args.check_contacts = int(model.contacts is not None)
         args.contacts = contacts_args(model, state) if model.contacts is not None else model.no_contacts()
         args.contact_tolerance = model.contacts.settings.tolerance if model.contacts is not None else 1.0
@@ -61,7 +109,7 @@ class ConvergedProjection:
         self.counts = wp.zeros(3, dtype=int, device=device)
         self.residual = wp.zeros(1, dtype=float, device=device)
         self.stats = wp.zeros(4, dtype=float, device=device)  # see kernels/solve_loop.py
-        rho = model.limit_chebyshev_rho
+        rho = settings.chebyshev_rho
         self.accelerated = rho != 0.0
         if self.accelerated:
             estimated = rho is None
@@ -71,31 +119,49 @@ class ConvergedProjection:
             self.omega = wp.array(omega, dtype=float, device=device)  # see solve_loop.start_chebyshev
             self.iterates = [wp.zeros(model.particle_count, dtype=wp.vec3, device=device)
                              for _ in range(2)]  # start, before
+        # the loop's own launches, which ``run`` makes and ``describe`` names
+        self.start_kernels = [solve_loop.start_solve] + ([solve_loop.start_chebyshev] if self.accelerated else [])
+        self.step_kernels = [converged_projection.chebyshev_step_and_colliders] if self.accelerated else []
+        self.continue_kernel = solve_loop.continue_chebyshev_solve if self.accelerated else solve_loop.continue_solve
+
+    def describe(self) -> list[str]:
+        """The solve's launches in order, one a line, those of an iteration indented under the loop."""
+        lines = [f"{self.name}, until within tolerance or at {self.max_passes} passes:",
+                 "    " + ", ".join([k.key for k in self.start_kernels]
+                                    + (["a copy of the positions"] if self.accelerated else [])),
+                 "  each iteration:"]
+
+        def iteration(body: list[Pass]) -> list[str]:
+            return ([f"    {p.name}" for p in body] + [f"    {k.key}" for k in self.step_kernels]
+                    + [f"    {converged_projection.projection_residual.key}",
+                       f"    {self.continue_kernel.key} (the loop's bookkeeping)"])
+
+        lines += iteration(self.body)
+        if self.later_body is not None:
+            lines += [f"  after {self.switch_at} passes, each iteration instead:"] + iteration(self.later_body)
+        return lines
 
     def run(self, state: DeviceState) -> None:
         device = state.device
-        wp.launch(solve_loop.start_solve, dim=1, inputs=[self.max_passes, self.switch_at],
+        wp.launch(self.start_kernels[0], dim=1, inputs=[self.max_passes, self.switch_at],
                   outputs=[self.active, self.counts, self.residual, self.switched], device=device)
         if self.accelerated:
-            wp.launch(solve_loop.start_chebyshev, dim=1, outputs=[self.omega], device=device)
+            wp.launch(self.start_kernels[1], dim=1, outputs=[self.omega], device=device)
             wp.copy(self.iterates[0], state.x)
+        omega = [self.omega] if self.accelerated else []
 
         def iteration(body: list[Pass], counted: int) -> None:
             for step in body:
                 step.run(state)
-            if self.accelerated:
-                wp.launch(converged_projection.chebyshev_step_and_colliders, dim=state.x.shape[0],
-                          inputs=[state.x, state.v, self.args.inv_mass, self.omega, self.h, self.colliders,
-                                  *self.iterates], device=device)
+            for kernel in self.step_kernels:
+                wp.launch(kernel, dim=state.x.shape[0], inputs=[state.x, state.v, self.args.inv_mass, self.omega,
+                                                                self.h, self.colliders, *self.iterates],
+                          device=device)
             wp.launch(converged_projection.projection_residual, dim=state.x.shape[0],
                       inputs=[state.x, self.args], outputs=[self.residual], device=device)
-            bookkeeping = [self.active, self.counts, self.residual, self.stats, self.switched]
-            if self.accelerated:
-                wp.launch(solve_loop.continue_chebyshev_solve, dim=1, inputs=[1.0, counted],
-                          outputs=[*bookkeeping, self.omega], device=device)
-            else:
-                wp.launch(solve_loop.continue_solve, dim=1, inputs=[1.0, counted], outputs=bookkeeping,
-                          device=device)
+            wp.launch(self.continue_kernel, dim=1, inputs=[1.0, counted],
+                      outputs=[self.active, self.counts, self.residual, self.stats, self.switched, *omega],
+                      device=device)
 
         if self.later_body is None:
             wp.capture_while(self.active, lambda: iteration(self.body, self.counted))

@@ -13,7 +13,7 @@ from warp_cloth.kernels.colliders import RigidColliders
 from .device_model import DeviceModel
 from .implicit import SolveStats
 from .integrators import Integrator
-from .limit_solve import ConvergedProjection
+from .limit_solve import ConvergedProjection, LimitSolveSettings
 from .neighbour_lists import LIST_THREADS_BY_SIZE, NeighbourLists
 from .passes import (AdvanceClock, Collide, ContactStart, DrivePins, FollowKeys, FollowTargets, Pass, WindForces,
                      contact_start_args, contact_velocities, edge_separation_pass, limit_and_separation_pass,
@@ -61,14 +61,18 @@ class Plan:
     def __str__(self) -> str:
         threads = f"{counted(self.threads, 'thread')} a particle"
         lines = [f"substep of {self.h * 1000:.4g} ms, {threads} on the gathering passes:"]
-        for number, (name, group) in enumerate(groupby(self.pass_names), start=1):
-            repeats = len(list(group))
-            lines.append(f"  {number:>2}. {name}" + (f" x{repeats}" if repeats > 1 else ""))
-        lines.append("then the blow-up guard (check_state) after each substep")
+        for number, (_, group) in enumerate(groupby(self.passes, key=lambda p: p.name), start=1):
+            group = list(group)
+            described = group[0].describe() if hasattr(group[0], "describe") else [group[0].name]
+            repeats = f" x{len(group)}" if len(group) > 1 else ""
+            lines += [f"  {number:>2}. {described[0]}{repeats}"] + [f"      {line}" for line in described[1:]]
+        lines += ["not in the plan: after each substep of a frame (Simulator.step and run, not Simulator.substep)",
+                  "the simulator checks the state for a blow-up (check_state)"]
         return "\n".join(lines)
 
 
-def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, threads: int | None = None) -> Plan:
+def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, solve: LimitSolveSettings,
+               threads: int | None = None) -> Plan:
     """The substep, in order: moving spheres and animated mesh colliders to the substep's end (nothing before
     the colliders reads them); the wind's forces; the integrator's pass; driven pins (oscillating, on
     colliders, on keys); then, with particle collision, the contacts' start (in the integrator's pass where it
@@ -76,12 +80,13 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, t
     has edge contacts, an edge pass before each separating pass of a converged solve, so that its check
     follows a projection; with fixed passes, one edge pass before them) and the contact velocities; without
     it, the strain limit's passes or the colliders alone; the clock last, where something moves with it.
-    ``threads``: per particle on the gathering passes (None: by size)."""
+    ``solve``: how the limits and contacts are solved; ``threads``: per particle on the gathering passes
+    (None: by size)."""
     chosen = threads_per_particle(model.particle_count, model.device) if threads is None else threads
     rigid = model.colliders(state) if model.has_colliders else None
     oscillating_pins = model.pins is not None and model.pins.moving
     driven_pins = oscillating_pins or bool(model.pin_targets) or bool(model.keyed_pins)
-    converged = model.limit_solve == "converged"
+    converged = solve.converged
     passes: list[Pass] = []
     passes.extend(model.collider_motion)
     lists = start = projection = None
@@ -107,18 +112,18 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, t
         passes.append(lists)
         edge_passes = [edge_separation_pass(model, state, chosen, rigid)] if state.edges is not None else []
         if converged:
-            projection = converged_projection(model, state, chosen, rigid, edge_passes)
+            projection = converged_projection(model, state, solve, chosen, rigid, edge_passes)
             passes.append(projection)
         else:
-            passes.extend(edge_passes + projection_passes(model, state, chosen, rigid))
+            passes.extend(edge_passes + projection_passes(model, state, solve, chosen, rigid))
         passes.append(contact_velocities(model, state, chosen))
     elif model.limits is not None and converged:
-        projection = ConvergedProjection(model, state, [limit_pass(model, chosen, rigid, None, 1)] * 2, rigid)
+        projection = ConvergedProjection(model, state, solve, [limit_pass(model, chosen, rigid, None, 1)] * 2, rigid)
         passes.append(projection)
     elif model.limits is not None:
-        last = model.limit_iterations - 1
+        last = solve.iterations - 1
         passes.extend(limit_pass(model, chosen, rigid if k == last else None, None, 1)
-                      for k in range(model.limit_iterations))
+                      for k in range(solve.iterations))
     elif rigid is not None:
         passes.append(Collide(model, rigid))
     if driven_pins or model.collider_motion or \
@@ -127,27 +132,18 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, t
     return Plan(tuple(passes), model.h, chosen, step if isinstance(step, SolvingPass) else None, lists, projection)
 
 
-# A converged solve with strain limits and particle collision projects them jointly for this many counted
-# passes (the cap's default before issue 32: every built-in scene but seed_default converged within it),
-# then sequentially: the joint pass takes from each limit correction the part that pulls into a contact,
-# so a chain of springs pulled taut over a contact cannot shorten, and seed_default's solves stalled at
-# the cap there 2 to 4 tolerances out, where the sequential ones converge (docs/notebook/strain-solve.md).
-JOINT_PASSES = 200
-
-
-def converged_projection(model: DeviceModel, state: DeviceState, threads: int, rigid: RigidColliders | None,
-                         edge_passes: list[Pass]) -> ConvergedProjection:
-    """The converged solve of particle collision (with the strain limits where the scene has them): its
-    projection order the scene's ``projection``, or where it sets none joint for ``JOINT_PASSES`` passes,
-    then sequential."""
-    order = model.contacts.settings.projection if model.limits is not None else "joint"
-    first = projection_pair(model, state, threads, rigid, edge_passes, order or "joint")
+def converged_projection(model: DeviceModel, state: DeviceState, solve: LimitSolveSettings, threads: int,
+                         rigid: RigidColliders | None, edge_passes: list[Pass]) -> ConvergedProjection:
+    """The converged solve of particle collision (with the strain limits where the scene has them: projected
+    jointly for ``solve.joint_passes`` passes, then sequentially; see limit_solve.JOINT_PASSES)."""
+    joint_first = model.limits is None or solve.joint_passes > 0
+    first = projection_pair(model, state, threads, rigid, edge_passes, "joint" if joint_first else "sequential")
     counted = lambda body: sum(p not in edge_passes for p in body)  # noqa: E731
-    if order is not None:
-        return ConvergedProjection(model, state, first, rigid, counted=counted(first))
+    if model.limits is None or not joint_first:
+        return ConvergedProjection(model, state, solve, first, rigid, counted=counted(first))
     later = projection_pair(model, state, threads, rigid, edge_passes, "sequential")
-    return ConvergedProjection(model, state, first, rigid, counted=counted(first), later_body=later,
-                               later_counted=counted(later), switch_at=JOINT_PASSES)
+    return ConvergedProjection(model, state, solve, first, rigid, counted=counted(first), later_body=later,
+                               later_counted=counted(later), switch_at=solve.joint_passes)
 
 
 def projection_pair(model: DeviceModel, state: DeviceState, threads: int, rigid: RigidColliders | None,
@@ -166,24 +162,24 @@ def projection_pair(model: DeviceModel, state: DeviceState, threads: int, rigid:
             + [separation_pass(model, state, threads, rigid, bit)]]
 
 
-def projection_passes(model: DeviceModel, state: DeviceState, threads: int,
+def projection_passes(model: DeviceModel, state: DeviceState, solve: LimitSolveSettings, threads: int,
                       rigid: RigidColliders | None) -> list[Pass]:
     """Collisions, strain limits and rigid colliders fight over the same particles (a layer pressed onto a
     sphere by the layers above can only give way sideways), so with particle collision they are projected
     together: the larger of the limit's and the collision's iteration counts of passes, every one ending
     with the colliders; the limit and the separation each run in the last of the passes as many times as
     their own count says, so that the last pass runs all of them. A pass that runs both runs them as one
-    Jacobi pass (``projection = "joint"``, or unset), or the limit's pass and then the
-    separation's (``"sequential"``). The particles the colliders hold up (``resting``, marked at the contacts' start
+    Jacobi pass among the first ``solve.joint_passes``, else the limit's pass and then the separation's
+    (as the converged solve does). The particles the colliders hold up (``resting``, marked at the contacts' start
     and by each pass) do not give way to others in the passes that follow; passes alternate the bit they
     read and the one they write (see kernels/colliders.py)."""
     settings = model.contacts.settings
-    limit_iterations = model.limit_iterations if model.limits is not None else 0
+    limit_iterations = solve.iterations if model.limits is not None else 0
     total = max(settings.iterations, limit_iterations)
     resting = state.contacts.resting
-    joint = settings.projection != "sequential"
     passes: list[Pass] = []
     for remaining in range(total, 0, -1):
+        joint = total - remaining < solve.joint_passes
         read_bit = 1 if (total - remaining) % 2 == 0 else 2
         separates = remaining <= settings.iterations
         limits_too = remaining <= limit_iterations

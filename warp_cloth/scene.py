@@ -581,15 +581,13 @@ class Collision:
     ``iterations`` Jacobi passes push overlapping pairs apart, then the approaching part of their
     relative velocity is removed, and ``friction`` takes tangential relative speed in proportion.
     Scenes of at most 512 particles find the pairs by checking all of them, where that is faster than
-    building the grid. A pass that also limits strain (see ``Simulation.limit_iterations``) does both in
-    one Jacobi kernel where ``projection`` is ``joint`` (each particle moves by its limits' mean correction
-    and its pushes' mean, no limit correction pulling into a contact): a launch less a pass, contacts held
-    closer, strain a little less so; ``sequential`` runs the limit, then the separation on what it left
-    (docs/accuracy.md). Unset, the fixed passes are joint and a converged solve is joint for its first 200
-    passes, then sequential (a chain of springs pulled taut over a contact converges only so;
-    docs/notebook/strain-solve.md). Each particle's candidate pairs are listed within 1.5 contact distances and the
-    lists remade once some particle has moved half the margin that leaves, so that no pair left out can
-    touch before. With ``simulation.limit_solve = "converged"`` the passes go on
+    building the grid. The strain limits (see ``Simulation.limit_solve``) are projected with the contacts:
+    for a substep's first 200 passes jointly, one Jacobi kernel doing both (each particle moves by its
+    limits' mean correction and its pushes' mean, no limit correction pulling into a contact: a launch less
+    a pass, contacts held closer), then sequentially, the limit and then the separation on what it left (a
+    chain of springs pulled taut over a contact converges only so; docs/notebook/strain-solve.md). Each
+    particle's candidate pairs are listed within 1.5 contact distances and the lists remade once some
+    particle has moved half the margin that leaves, so that no pair left out can touch before. With ``simulation.limit_solve = "converged"`` the passes go on
     (``iterations`` is not used) until no candidate pair is more than ``tolerance`` of its contact distance
     inside it, and the strain limits hold to theirs. ``edges`` adds edge contacts: triangle edges too long
     for the particles' spheres to keep from passing through each other (a grid's diagonals, where a cloth
@@ -605,7 +603,6 @@ class Collision:
     iterations: int = 2
     friction: float = 0.0
     max_neighbors: int = 32
-    projection: Literal["joint", "sequential"] | None = None
     tolerance: float = 0.05
     edges: bool = False
 
@@ -665,7 +662,7 @@ class Simulation:
     says how many it took; unset: 1000, or as many as keep a frame within the simulator's bound on a frame's
     passes at its substeps). Each pair of passes is accelerated by Chebyshev's semi-iterative method with a
     spectral radius the solver adjusts (lowered where a pair leaves the residual growing, back up from solve
-    to solve); ``limit_chebyshev_rho`` fixes that radius instead, 0 for plain passes. ``"fixed"``, a fast mode to be
+    to solve). ``"fixed"``, a fast mode to be
     chosen explicitly, runs ``limit_iterations`` passes a substep, however far that leaves the cloth from its
     limits (the run's summary says how far).
 
@@ -695,7 +692,6 @@ class Simulation:
     limit_solve: Literal["fixed", "converged"] = "converged"
     limit_tolerance: float = 0.005
     limit_max_passes: int | None = None
-    limit_chebyshev_rho: float | None = None
     max_speed: float = 1000.0
     compensated: bool = False
 
@@ -726,9 +722,6 @@ class Simulation:
                  self.limit_tolerance)
         if self.limit_max_passes is not None:
             _whole_in(self.limit_max_passes, 2, MAX_ITERATIONS, "limit_max_passes")
-        if self.limit_chebyshev_rho is not None:
-            _require(0.0 <= self.limit_chebyshev_rho < 1.0, "limit_chebyshev_rho",
-                     "0 (no acceleration) or a spectral radius in (0, 1)", self.limit_chebyshev_rho)
         _require(not self.compensated or self.integrator != "implicit", "compensated",
                  "false with the implicit integrator (it sums the explicit and symplectic steps' moves)",
                  self.compensated)

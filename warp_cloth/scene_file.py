@@ -26,13 +26,18 @@ _BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")  # a key printed as it is; any other i
 # Keys that older scene files may still set, by table, with what the program does instead: their options
 # lost their experiments (docs/notebook/strain-solve.md, docs/notebook/benchmarks.md).
 RETIRED_KEYS = {
-    ("Simulation", "limit_multilevel"): "the converged solve is the default, and limit_chebyshev_rho "
+    ("Simulation", "limit_multilevel"): "the converged solve is the default, and Chebyshev's method "
                                         "accelerates it",
+    ("Simulation", "limit_chebyshev_rho"): "the converged solve estimates its Chebyshev radius itself, solve "
+                                           "by solve",
     ("ImplicitSolver", "cg_loop"): "the CG iterations always run in a conditional loop on the device",
     ("Collision", "broad_phase"): "the hash grid finds the pairs (checking all of them up to 512 particles)",
     ("Collision", "lists"): "the lists are remade once a particle has moved far enough",
     ("Collision", "search_scale"): "candidates are listed within 1.5 contact distances",
-    ("Limit", "long_range"): "limit_chebyshev_rho or more substeps hold a fine cloth's limit",
+    ("Collision", "projection"): "the limits and contacts are projected jointly for a substep's first 200 "
+                                 "passes, then sequentially",
+    ("Limit", "long_range"): "the converged solve's Chebyshev acceleration or more substeps hold a fine "
+                             "cloth's limit",
 }
 
 

@@ -29,6 +29,7 @@ from .device_model import DeviceModel
 from .implicit import SolveStats
 from .integrators import Integrator, integrator_for
 from .pin_reach import check_pins_within_reach
+from .limit_solve import LimitSolveSettings
 from .plan import Plan, build_plan
 from .scene import Scene
 from .shot_clock import ShotClock, shot_clock
@@ -194,7 +195,8 @@ class Simulator:
     (None: chosen by the cloth's size; see kernels/gathering.py); a power of two up to 64, 1 on the CPU.
     ``plan`` is the substep's passes in order (``print(sim.plan)`` shows them); ``step_choice`` the step it
     takes and why (``print(sim)`` says it in one line, with the scene, device and particles); ``integrator``
-    the scene's (warp_cloth/integrators.py).
+    the scene's (warp_cloth/integrators.py); ``limit_solve`` how the plan solves the strain limits and
+    contacts (warp_cloth/limit_solve.py).
     """
 
     INITIAL_OVERLAP_LIMIT = 0.5  # of the contact distance: closer starting pairs are refused
@@ -224,7 +226,9 @@ class Simulator:
         self.frame = self.clock.first  # the shot's frame number; 0 where the scene has no shot
         self.substep_count = self.clock.first * self.substeps_per_frame
         self.state = DeviceState(self.model.positions, self.model.velocities, self.device_model, self.substep_count)
-        self.plan: Plan = build_plan(self.device_model, self.state, self.integrator, threads_per_particle)
+        self.limit_solve = LimitSolveSettings.of(self.scene.simulation)
+        self.plan: Plan = build_plan(self.device_model, self.state, self.integrator, self.limit_solve,
+                                     threads_per_particle)
         self._stats_since_start: SolveStats | None = None
         # An animated mesh collider's BVH refit is a host call on the CPU, which a CPU graph does not record
         # (a CUDA graph records the refit's kernels): there, launch pass by pass.
