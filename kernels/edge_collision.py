@@ -5,10 +5,11 @@ middles keep every end sqrt(2) L / 2 from the other's: past the contact distance
 diagonals (1.41 cells against the seed's 0.82), so a cloth folded flat onto itself can pass a diagonal
 through another while every particle stays apart. The model lists the triangle edges long enough for this
 (warp_cloth/model.py, ``long_triangle_edges``); each edge's candidates are the listed edges whose segments lie
-within ``reach``, found through a spatial hash of the edges' midpoints (neighbour_search.py) whenever the particle
-lists are remade, so that they stay valid as long as those do; a pass then moves each pair's
-closest points apart to ``thickness``, each end by its share (its barycentric weight over the pair's
-inverse mass), every particle by the mean of its edges' moves (Jacobi, as the particle contacts).
+within ``reach``, found through a spatial hash of the edges' midpoints (neighbour_search.py), its cells as
+wide as the longest edge then plus the reach, whenever the particle lists are remade, so that they stay valid
+as long as those do; a pass then moves each pair's closest points apart to ``thickness``, each end by its
+share (its barycentric weight over the pair's inverse mass), every particle by the mean of its edges' moves
+(Jacobi, as the particle contacts).
 """
 
 import warp as wp
@@ -101,17 +102,37 @@ def pair_gap(ends: wp.array(dtype=wp.vec2i), x: wp.array(dtype=wp.vec3), e: int,
 
 
 @wp.kernel
+def start_edge_cells(rebuild: wp.array(dtype=int), least_inv_width: float, inv_width: wp.array(dtype=float)):
+    """The edge hash's cells at their least width (one thread), where ``rebuild`` is set: as wide as the
+    longest an edge may get plus the reach, before ``widen_edge_cells``."""
+    if rebuild[0] != 0:
+        inv_width[0] = least_inv_width
+
+
+@wp.kernel
+def widen_edge_cells(x: wp.array(dtype=wp.vec3), ends: wp.array(dtype=wp.vec2i), rebuild: wp.array(dtype=int),
+                     longest: float, reach: float, inv_width: wp.array(dtype=float)):
+    """Where ``rebuild`` is set, the edge hash's cells widened to the longest edge longer than ``longest``
+    plus ``reach`` (its inverse width the least over those edges), so that the 27 cells around any edge's
+    midpoint hold every edge within reach of it: two edges' midpoints lie up to half their lengths plus
+    the reach apart."""
+    if rebuild[0] == 0:
+        return
+    ends_e = ends[wp.tid()]
+    length = wp.length(x[ends_e[1]] - x[ends_e[0]])
+    if length > longest:
+        wp.atomic_min(inv_width, 0, 1.0 / (length + reach))
+
+
+@wp.kernel
 def edge_midpoints(x: wp.array(dtype=wp.vec3), ends: wp.array(dtype=wp.vec2i), rebuild: wp.array(dtype=int),
-                   longest: float, midpoint: wp.array(dtype=wp.vec3), overflow: wp.array(dtype=int)):
-    """Each edge's midpoint, for the hash, where ``rebuild`` is set; an edge longer than
-    ``longest``, which the hash's cells are sized for, counts as an overflow (its pairs may go unlisted)."""
+                   midpoint: wp.array(dtype=wp.vec3)):
+    """Each edge's midpoint, for the hash, where ``rebuild`` is set."""
     if rebuild[0] == 0:
         return
     e = wp.tid()
     ends_e = ends[e]
     midpoint[e] = 0.5 * (x[ends_e[0]] + x[ends_e[1]])
-    if wp.length(x[ends_e[1]] - x[ends_e[0]]) > longest:
-        wp.atomic_add(overflow, 0, 1)
 
 
 @wp.func

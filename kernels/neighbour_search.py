@@ -118,16 +118,16 @@ def launch_gather_neighbors(threads: int, x: wp.array, inputs: list) -> None:
 @wp.kernel
 def gather_edge_candidates(x: wp.array(dtype=wp.vec3), midpoint: wp.array(dtype=wp.vec3),
                            edge_world: wp.array(dtype=int), edges: EdgeContacts, rules: EdgeRules, lists: ListState,
-                           reach: float, inv_cell: float, mask: int, capacity: int,
+                           reach: float, inv_cell: wp.array(dtype=float), mask: int, capacity: int,
                            bucket_size: wp.array(dtype=int), bucket_items: wp.array(dtype=int)):
-    """Each edge's candidates from the hash of its midpoint's 27 cells (each bucket once), where ``rebuild``
-    is set: edges that may touch it whose segments lie within ``reach`` (``pair_gap``: each lists the other),
-    in index order."""
+    """Each edge's candidates from the hash of its midpoint's 27 cells (each bucket once; ``inv_cell[0]``
+    the cells' inverse width this remake), where ``rebuild`` is set: edges that may touch it whose segments
+    lie within ``reach`` (``pair_gap``: each lists the other), in index order."""
     if lists.rebuild[0] == 0:
         return
     e = wp.tid()
     ends_e = edges.ends[e]
-    center = cell_of(midpoint[e], inv_cell)
+    center = cell_of(midpoint[e], inv_cell[0])
     world = edge_world[e]
     stamp = stamp_of(lists.epoch[0])
     start = e * edges.max_neighbors

@@ -1,5 +1,6 @@
 """A spatial hash of points (particles, or contact edges' midpoints), built from kernels alone so that it can
-be remade inside a captured graph: cells of a given width are hashed (Teschner et al. 2003) into a
+be remade inside a captured graph: cells of a given width (or, for the edges' hash, one a kernel chose at
+the remake: ``insert_points_at_chosen_width``) are hashed (Teschner et al. 2003) into a
 power-of-two table of buckets of fixed capacity, and each point is appended to its cell's bucket. Cells are hashed in
 blocks of 2 x 2 x 2 to runs of 8 buckets, so that the 27 cells around a point lie in at most 8 runs of the
 table, not 27 scattered places (a table of 4M particles' buckets outgrows a GPU's L2 cache). A query visits
@@ -83,6 +84,17 @@ def claim_slot(bucket_size: wp.array(dtype=int), bucket: int, stamp: int, capaci
     return -1  # not reached; the generated C++ function still needs a return after its loop
 
 
+@wp.func
+def insert_point(i: int, p: wp.vec3, world: int, inv_width: float, mask: int, capacity: int, stamp: int,
+                 bucket_size: wp.array(dtype=int), bucket_items: wp.array(dtype=int), overflow: wp.array(dtype=int)):
+    bucket = bucket_of(cell_of(p, inv_width), world, mask)
+    slot = claim_slot(bucket_size, bucket, stamp, capacity)
+    if slot >= 0:
+        bucket_items[bucket * capacity + slot] = i
+    else:
+        wp.atomic_add(overflow, 0, 1)
+
+
 @wp.kernel
 def insert_points(x: wp.array(dtype=wp.vec3), world: wp.array(dtype=int), inv_width: float, mask: int, capacity: int,
                   epoch: wp.array(dtype=int), rebuild: wp.array(dtype=int), bucket_size: wp.array(dtype=int),
@@ -91,9 +103,20 @@ def insert_points(x: wp.array(dtype=wp.vec3), world: wp.array(dtype=int), inv_wi
     if rebuild[0] == 0:
         return
     i = wp.tid()
-    bucket = bucket_of(cell_of(x[i], inv_width), world[i], mask)
-    slot = claim_slot(bucket_size, bucket, stamp_of(epoch[0]), capacity)
-    if slot >= 0:
-        bucket_items[bucket * capacity + slot] = i
-    else:
-        wp.atomic_add(overflow, 0, 1)
+    insert_point(i, x[i], world[i], inv_width, mask, capacity, stamp_of(epoch[0]), bucket_size, bucket_items,
+                 overflow)
+
+
+@wp.kernel
+def insert_points_at_chosen_width(x: wp.array(dtype=wp.vec3), world: wp.array(dtype=int),
+                                  inv_width: wp.array(dtype=float), mask: int, capacity: int,
+                                  epoch: wp.array(dtype=int), rebuild: wp.array(dtype=int),
+                                  bucket_size: wp.array(dtype=int), bucket_items: wp.array(dtype=int),
+                                  overflow: wp.array(dtype=int)):
+    """As ``insert_points``, the cells' inverse width read from ``inv_width[0]``, which a kernel before
+    chose for this table."""
+    if rebuild[0] == 0:
+        return
+    i = wp.tid()
+    insert_point(i, x[i], world[i], inv_width[0], mask, capacity, stamp_of(epoch[0]), bucket_size, bucket_items,
+                 overflow)

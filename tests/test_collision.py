@@ -249,6 +249,30 @@ def test_an_edge_pass_moves_two_crossing_diagonals_apart_to_the_thickness(height
     assert np.dot(moved[ends[0, 0]], moved[ends[1, 0]]) < 0.0
 
 
+def test_edge_lists_hold_a_pair_within_reach_however_long_an_edge_is_stretched():
+    """The diagonal of one quad stretched to six times the cells the edge hash needs without over-long
+    edges, the other's crossing it near one end, a contact's thickness above: its midpoint lies more than
+    two such cells from the long one's, out of their 27 cells, yet the pair is listed (the cells widen to
+    the longest edge at the remake) and nothing overflows."""
+    quads = tuple(wc.Cloth(name=name, resolution=(1, 1), size=(1.0, 1.0), orientation="horizontal",
+                           origin=(-0.5, y, 0.5), limit=wc.Limit()) for name, y in (("a", 0.0), ("b", 2.0)))
+    scene = wc.Scene(name="stretched", cloths=quads, collision=wc.Collision(edges=True, self_collision=False))
+    sim = wc.Simulator(scene, device="cpu", graph=False)
+    edge_lists = sim.plan.lists.edges
+    width = sim.device_model.contacts.edges.longest + edge_lists.reach
+    thickness = sim.device_model.contacts.edges.thickness
+    ends = sim.device_model.contacts.edges.ends.numpy()
+    x = sim.model.positions.copy()
+    x[ends[0]] = [(0.0, 0.0, 0.0), (6.0 * width, 0.0, 0.0)]
+    x[ends[1]] = [(5.8 * width, thickness, -0.5), (5.8 * width, thickness, 0.5)]
+    sim.state.x.assign(x)
+    sim.plan.lists.remake_now(sim.state.x)
+    counts = sim.state.edges.counts.numpy()
+    listed = sim.state.edges.neighbors.numpy().reshape(len(counts), -1)
+    assert [list(listed[e, :counts[e]]) for e in (0, 1)] == [[1], [0]]
+    assert sim.plan.lists.overflow == 0
+
+
 @wp.kernel
 def closest_points_of(p: wp.array(dtype=wp.vec3), st: wp.array(dtype=wp.vec2)):
     st[0] = edge_collision.closest_points(p[0], p[1], p[2], p[3])

@@ -71,7 +71,7 @@ class DeviceContactEdges:
     incident: wp.array
     rules: EdgeRules
     thickness: float  # how far apart edges are held
-    longest: float  # the longest an edge may get (model.ContactEdges)
+    longest: float  # the longest an edge may get (model.ContactEdges): a longer one widens the hash's cells
 
 
 EDGE_THICKNESS = 0.25  # contact distances: below the midpoints' gap across the tightest fold the particles allow

@@ -161,7 +161,7 @@ class ContactEdges:
 
     ends: np.ndarray  # (m, 2) int32, particles
     incidence: Adjacency  # each particle's edges (its ``spring`` entries are edge numbers)
-    longest: float  # the longest an edge may get: at its cloth's stretch limit, with a margin
+    longest: float  # the longest an edge may get: at its cloth's stretch limit, with a margin (the hash's least cells)
 
 
 @dataclass(frozen=True)
@@ -520,7 +520,7 @@ def long_triangle_edges(cloth: Cloth, mesh: ClothMesh, radii: np.ndarray,
     return pairs[long], length[long]
 
 
-EDGE_OVERSHOOT = 1.1  # the hash's cells allow edges this much past their stretch limit (a solve's tolerance)
+EDGE_OVERSHOOT = 1.1  # the hash's least cells allow edges this much past their stretch limit (a solve's tolerance)
 
 
 def _contact_edges(scene: Scene, meshes, radii, offsets: np.ndarray) -> ContactEdges | None:

@@ -116,11 +116,11 @@ class NeighbourLists:
 
 class EdgeLists:
     """Each contact edge's candidates (kernels/edge_collision.py), remade with the particle lists: from a
-    spatial hash of the edges' midpoints, whose cells are as wide as the longest an edge may get plus the
-    reach, so that the 27 around an edge's midpoint hold every edge within reach (a longer edge counts as
-    an overflow). An edge's list holds the edges within the pass's thickness plus twice
-    ``rebuild_distance``: until a particle has moved that far and the lists are remade, no edge left out
-    can come within it."""
+    spatial hash of the edges' midpoints, whose cells are as wide as the longest edge at the remake plus the
+    reach (never narrower than the longest an edge may get, ``longest``, plus the reach: the cells of a
+    remake without over-long edges), so that the 27 around an edge's midpoint hold every edge within reach.
+    An edge's list holds the edges within the pass's thickness plus twice ``rebuild_distance``: until a
+    particle has moved that far and the lists are remade, no edge left out can come within it."""
 
     def __init__(self, model: DeviceModel, state: DeviceState, rebuild_distance: float) -> None:
         constants = model.contacts.edges
@@ -130,19 +130,23 @@ class EdgeLists:
         self.state = state.edges
         self.m = constants.ends.shape[0]
         self.longest = constants.longest
-        self.inv_cell = 1.0 / (constants.longest + self.reach)
+        self.least_inv_cell = 1.0 / (constants.longest + self.reach)
         self.mask = edge_hash_table_size(self.m) - 1
         self.world = constants.world
 
     def remake_if_asked(self, x: wp.array, lists: ListState) -> None:
         edges, state, device = self.edges, self.state, x.device
-        wp.launch(edge_collision.edge_midpoints, dim=self.m,
-                  inputs=[x, edges.ends, lists.rebuild, self.longest], outputs=[state.midpoint, lists.overflow],
+        wp.launch(edge_collision.start_edge_cells, dim=1, inputs=[lists.rebuild, self.least_inv_cell],
+                  outputs=[state.inv_cell], device=device)
+        wp.launch(edge_collision.widen_edge_cells, dim=self.m,
+                  inputs=[x, edges.ends, lists.rebuild, self.longest, self.reach], outputs=[state.inv_cell],
                   device=device)
-        wp.launch(spatial_hash.insert_points, dim=self.m,
-                  inputs=[state.midpoint, self.world, self.inv_cell, self.mask, EDGE_BUCKET_CAPACITY, lists.epoch,
+        wp.launch(edge_collision.edge_midpoints, dim=self.m, inputs=[x, edges.ends, lists.rebuild],
+                  outputs=[state.midpoint], device=device)
+        wp.launch(spatial_hash.insert_points_at_chosen_width, dim=self.m,
+                  inputs=[state.midpoint, self.world, state.inv_cell, self.mask, EDGE_BUCKET_CAPACITY, lists.epoch,
                           lists.rebuild],
                   outputs=[state.bucket_size, state.bucket_items, lists.overflow], device=device)
         wp.launch(gather_edge_candidates, dim=self.m,
-                  inputs=[x, state.midpoint, self.world, edges, self.rules, lists, self.reach, self.inv_cell,
+                  inputs=[x, state.midpoint, self.world, edges, self.rules, lists, self.reach, state.inv_cell,
                           self.mask, EDGE_BUCKET_CAPACITY, state.bucket_size, state.bucket_items], device=device)

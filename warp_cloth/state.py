@@ -46,11 +46,13 @@ class ContactState:
 @dataclass
 class EdgeListState:
     """Edge contacts' arrays (kernels/edge_collision.py): each edge's candidate list, and the spatial hash
-    of the edges' midpoints they are made from (stamped with the particle lists' epoch)."""
+    of the edges' midpoints they are made from (stamped with the particle lists' epoch), its cells' inverse
+    width chosen at each remake (``inv_cell``, one element)."""
 
     neighbors: wp.array
     counts: wp.array
     midpoint: wp.array
+    inv_cell: wp.array
     bucket_size: wp.array
     bucket_items: wp.array
 
@@ -127,6 +129,7 @@ class DeviceState:
         return EdgeListState(neighbors=wp.zeros(m * EDGE_NEIGHBORS, dtype=int, device=device),
                              counts=wp.zeros(m, dtype=int, device=device),
                              midpoint=wp.zeros(m, dtype=wp.vec3, device=device),
+                             inv_cell=wp.zeros(1, dtype=float, device=device),
                              bucket_size=wp.zeros(table, dtype=int, device=device),
                              bucket_items=wp.zeros(table * EDGE_BUCKET_CAPACITY, dtype=int, device=device))
 
