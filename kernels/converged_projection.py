@@ -1,6 +1,7 @@
 """A converged projection's kernels besides its passes: Chebyshev's acceleration of an iteration, ending with
-the rigid colliders, and the check of how far limits and contacts are from holding. solve_loop.py keeps
-the loop's bookkeeping; warp_cloth/limit_solve.py runs them.
+the rigid colliders, the check of how far limits and contacts are from holding, and each particle's
+violation of its limits (a run's start is measured by it: warp_cloth/start_projection.py). solve_loop.py
+keeps the loop's bookkeeping; warp_cloth/limit_solve.py runs them.
 """
 
 import warp as wp
@@ -52,6 +53,25 @@ class ResidualArgs:
     colliders: RigidColliders  # the spheres that attachments run around
 
 
+@wp.func
+def limits_and_attachments_violation(args: ResidualArgs, i: int, x: wp.array(dtype=wp.vec3)) -> float:
+    """The worst of particle i's limit and attachment violations, as a fraction of the allowed length."""
+    worst = limit_violation(args.limits, i, x)
+    if args.attachments.pin.shape[0] > 0:
+        worst = wp.max(worst, attachment_violation(args.attachments, args.colliders, i, x))
+    return worst
+
+
+@wp.kernel
+def limit_violations(x: wp.array(dtype=wp.vec3), args: ResidualArgs, violation: wp.array(dtype=float)):
+    """violation[i]: free particle i's worst limit or attachment violation, as a fraction of the allowed
+    length (0 or less where all hold, and for a pinned particle)."""
+    i = wp.tid()
+    violation[i] = 0.0
+    if args.inv_mass[i] != 0.0:
+        violation[i] = limits_and_attachments_violation(args, i, x)
+
+
 @wp.kernel
 def projection_residual(x: wp.array(dtype=wp.vec3), args: ResidualArgs, residual: wp.array(dtype=float)):
     """residual[0] becomes the worst of each free particle's limit violation and contact overlap, each in
@@ -61,10 +81,7 @@ def projection_residual(x: wp.array(dtype=wp.vec3), args: ResidualArgs, residual
         return
     worst = float(0.0)
     if args.check_limits != 0:
-        worst = limit_violation(args.limits, i, x)
-        if args.attachments.pin.shape[0] > 0:
-            worst = wp.max(worst, attachment_violation(args.attachments, args.colliders, i, x))
-        worst = worst / args.limit_tolerance
+        worst = limits_and_attachments_violation(args, i, x) / args.limit_tolerance
     if args.check_contacts != 0:
         worst = wp.max(worst, deepest_overlap(args.contacts, i, x) / args.contact_tolerance)
     if worst > 1.0:

@@ -214,7 +214,10 @@ def test_the_printed_plan_names_every_launch_of_the_solve_and_says_the_simulator
         "          continue_chebyshev_solve (the loop's bookkeeping)",
         "   4. clock",
         "not in the plan: after each substep of a frame (Simulator.step and run, not Simulator.substep)",
-        "the simulator checks the state for a blow-up (check_state)"]
+        "the simulator checks the state for a blow-up (check_state)",
+        "before the first substep of a run that starts fresh (not restored from a checkpoint), the",
+        "simulator projects the cloths that start past their strain limits onto them (limit_violations,",
+        "then a converged solve of the limits+colliders pass), keeping the velocities the scene gives"]
     passes = {"move_spheres", "explicit_step", "limit_pass", "advance_clock"}
     assert all(kernel in printed for kernel in set(launches) - passes)
     pile = str(wc.Simulator(wc.load_scene("pile"), device="cpu").plan)

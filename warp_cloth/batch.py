@@ -26,6 +26,7 @@ from .output import RunOutcome
 from .scene import Scene
 from .shot_clock import with_start
 from .simulator import RunSummary, Simulator
+from .start_projection import StartedPast, StartReport
 from .stability import scene_with_step
 
 def shared_settings(scene: Scene) -> dict[str, object]:
@@ -172,6 +173,26 @@ class Batch:
     def stopped_worlds(self) -> dict[int, UnstableSimulation]:
         return {group.members[k]: stopped for group in self.groups
                 for k, stopped in group.simulator.stopped_worlds.items()}
+
+    @property
+    def start_projections(self) -> dict[int, StartReport]:
+        """Each world whose cloths started past their strain limits, and what projected them onto the limits
+        (``Simulator.start_projection``, with the world's own cloth indices and names; the passes and the
+        solve's end are its step group's)."""
+        reports: dict[int, StartReport] = {}
+        for group in self.groups:
+            report = group.simulator.start_projection
+            if report is None:
+                continue
+            cloth_world = group.worlds.cloth_world  # the group's cloths are its worlds', in world order
+            first_cloth = np.searchsorted(cloth_world, np.arange(len(group.members)))
+            cloths: dict[int, list[StartedPast]] = {}
+            for c in report.cloths:
+                k = int(cloth_world[c.cloth])
+                w, own = group.members[k], c.cloth - int(first_cloth[k])
+                cloths.setdefault(w, []).append(dataclasses.replace(c, cloth=own, name=self.scenes[w].cloths[own].name))
+            reports.update({w: dataclasses.replace(report, cloths=tuple(mine)) for w, mine in cloths.items()})
+        return dict(sorted(reports.items()))
 
     def place(self, w: int) -> tuple[StepGroup, int]:
         """World ``w``'s group and its index there."""

@@ -376,6 +376,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
     except BaseException:
         _release(writers)
         raise
+    if sim.start_projection is not None:  # a fresh run's, not a resumed one's
+        print(f"{scene.name}: {sim.start_projection.describe()}", flush=True)
     from .metrics import MetricsWriter
     from .strain import StrainMonitor
 

@@ -72,7 +72,7 @@ class ConvergedProjection:
     """Runs ``body`` (passes that leave the positions' buffer parity as they found it) until the check after
     it finds every limit and contact within tolerance, or ``settings.max_passes`` passes have run. Where
     ``later_body`` is given, a solve that has run ``switch_at`` counted passes runs that body instead for the
-    rest of it.
+    rest of it. Without ``contacts`` it checks the limits alone (for a body that does not separate).
 
     Each iteration is accelerated by Chebyshev's method (``kernels/solve_loop.py``) with a spectral radius
     the solver adjusts from solve to solve (lowered where the residual grows, raised where an accelerated
@@ -81,7 +81,7 @@ class ConvergedProjection:
     def __init__(self, model: DeviceModel, state: DeviceState, settings: LimitSolveSettings, body: list[Pass],
                  colliders: RigidColliders | None, counted: int | None = None,
                  later_body: list[Pass] | None = None, later_counted: int | None = None,
-                 switch_at: int | None = None) -> None:
+                 switch_at: int | None = None, contacts: bool = True) -> None:
         assert len(body) % 2 == 0, "a loop's body must leave the positions where it found them"
         assert later_body is None or len(later_body) % 2 == 0
         self.body, self.later_body = body, later_body
@@ -98,7 +98,7 @@ class ConvergedProjection:
         args.limits = model.limits if model.limits is not None else model.no_limits()
         args.attachments = attachments_of(model)
         args.limit_tolerance = settings.tolerance
-        args.check_contacts = int(model.contacts is not None)
+        args.check_contacts = int(contacts and model.contacts is not None)
         args.contacts = contacts_args(model, state) if model.contacts is not None else model.no_contacts()
         args.contact_tolerance = model.contacts.settings.tolerance if model.contacts is not None else 1.0
         args.inv_mass = model.inv_mass

@@ -18,6 +18,7 @@ from .neighbour_lists import LIST_THREADS_BY_SIZE, NeighbourLists
 from .passes import (AdvanceClock, Collide, ContactStart, DrivePins, FollowKeys, FollowTargets, Pass, WindForces,
                      contact_start_args, contact_velocities, edge_separation_pass, limit_and_separation_pass,
                      limit_pass, separation_pass)
+from .start_projection import StartProjection
 from .state import DeviceState
 from .wording import counted
 
@@ -49,6 +50,7 @@ class Plan:
     solve: SolvingPass | None  # the integrator's pass where it solves, for its figures
     lists: NeighbourLists | None  # particle collision's candidate lists
     projection: ConvergedProjection | None  # the converged limit solve, for its figures
+    start: StartProjection | None  # what the simulator projects a fresh run's start with, where cloths are limited
 
     def run_substep(self, state: DeviceState) -> None:
         for step in self.passes:
@@ -68,6 +70,8 @@ class Plan:
             lines += [f"  {number:>2}. {described[0]}{repeats}"] + [f"      {line}" for line in described[1:]]
         lines += ["not in the plan: after each substep of a frame (Simulator.step and run, not Simulator.substep)",
                   "the simulator checks the state for a blow-up (check_state)"]
+        if self.start is not None:
+            lines += self.start.describe()
         return "\n".join(lines)
 
 
@@ -129,7 +133,9 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
     if driven_pins or model.collider_motion or \
             (model.wind is not None and (model.wind.turbulence > 0 or model.wind.key_time.shape[0] > 1)):
         passes.append(AdvanceClock())
-    return Plan(tuple(passes), model.h, chosen, step if isinstance(step, SolvingPass) else None, lists, projection)
+    start_projection = StartProjection(model, state, solve, chosen, rigid) if model.limits is not None else None
+    return Plan(tuple(passes), model.h, chosen, step if isinstance(step, SolvingPass) else None, lists, projection,
+                start_projection)
 
 
 def converged_projection(model: DeviceModel, state: DeviceState, solve: LimitSolveSettings, threads: int,

@@ -34,6 +34,7 @@ from .plan import Plan, build_plan
 from .scene import Scene
 from .shot_clock import ShotClock, shot_clock
 from .stability import MAX_PASSES_PER_FRAME, UnstableStepWarning, beyond_bound_message, resolve_step
+from .start_projection import StartReport
 from .state import DeviceState
 from .warp_init import init_warp
 
@@ -196,7 +197,9 @@ class Simulator:
     ``plan`` is the substep's passes in order (``print(sim.plan)`` shows them); ``step_choice`` the step it
     takes and why (``print(sim)`` says it in one line, with the scene, device and particles); ``integrator``
     the scene's (warp_cloth/integrators.py); ``limit_solve`` how the plan solves the strain limits and
-    contacts (warp_cloth/limit_solve.py).
+    contacts (warp_cloth/limit_solve.py); ``start_projection`` which cloths started past their strain
+    limits and were projected onto them before the first substep (None: the state starts as the scene
+    gives it, or, after ``restore``, as the checkpoint does; warp_cloth/start_projection.py).
     """
 
     INITIAL_OVERLAP_LIMIT = 0.5  # of the contact distance: closer starting pairs are refused
@@ -247,6 +250,11 @@ class Simulator:
         self._refuse_initial_overlap()
         self._refuse_start_inside_colliders()
         check_pins_within_reach(self.scene, self.model)
+        # cloths that start past their strain limits projected onto them (warp_cloth/start_projection.py)
+        self.start_projection: StartReport | None = None if self.plan.start is None else self.plan.start.project(
+            np.asarray(self.model.offsets), [c.name for c in self.scene.cloths])
+        if self.start_projection is not None and self.plan.lists is not None:
+            self.plan.lists.remake_now(self.state.x)  # from where the cloths now start
 
     def _refuse_initial_overlap(self) -> None:
         """Cloths that start deep inside each other (or themselves) would be shot apart: refuse them."""
@@ -472,6 +480,7 @@ class Simulator:
         else:
             source = "checkpoint"
         restore(self, checkpoint, source)
+        self.start_projection = None
 
     def run(self, frames: int | None = None, writers: Iterable[FrameWriter] = (), progress: bool = False) -> RunSummary:
         """Simulate ``frames`` frames (default: the scene's, and its preroll where it is still ahead), handing
