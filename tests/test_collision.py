@@ -46,22 +46,27 @@ def grid_coordinates(scene: wc.Scene) -> np.ndarray:
 
 
 def brute_force_pairs(x, radius, separation, cloth_id, grid_xy, exclude, self_on, between_on):
-    """Every allowed pair closer than its contact distance, by checking all n^2 pairs (grid neighbours by
-    their grid coordinates gx + 65536 gy)."""
+    """Every allowed pair closer than its contact distance, by checking all pairs that can be (grid neighbours
+    by their grid coordinates gx + 65536 gy): with the particles sorted along x, a block of them against the
+    run that lies within the largest contact distance (widened past rounding) along x."""
+    order = np.argsort(x[:, 0], kind="stable")
+    along = x[order, 0]
+    widest = 1.001 * separation * radius.max()
+    gx, gy = grid_xy & 65535, grid_xy >> 16
+    excluded = np.zeros(len(x), dtype=bool) if exclude is None else np.asarray(exclude, dtype=bool)[cloth_id]
     pairs = set()
-    n = len(x)
-    for i in range(n):
-        d = np.linalg.norm(x - x[i], axis=1)
-        reach = separation * 0.5 * (radius[i] + radius)
-        for j in np.nonzero((d < reach) & (np.arange(n) != i))[0]:
-            same = cloth_id[i] == cloth_id[j]
-            if same and not self_on or not same and not between_on:
-                continue
-            if same and exclude is not None and exclude[cloth_id[i]]:
-                gi, gj = grid_xy[i], grid_xy[j]
-                if abs((gi & 65535) - (gj & 65535)) <= 1 and abs((gi >> 16) - (gj >> 16)) <= 1:
-                    continue
-            pairs.add((i, int(j)))
+    for start in range(0, len(x), 64):
+        end = min(start + 64, len(x))
+        i = order[start:end, None]
+        j = order[None, np.searchsorted(along, along[start] - widest):np.searchsorted(along, along[end - 1] + widest,
+                                                                                         "right")]
+        d = np.linalg.norm(x[j] - x[i], axis=2)
+        reach = separation * 0.5 * (radius[i] + radius[j])
+        same = cloth_id[i] == cloth_id[j]
+        neighbours = (np.abs(gx[i] - gx[j]) <= 1) & (np.abs(gy[i] - gy[j]) <= 1)
+        allowed = np.where(same, self_on, between_on) & ~(same & excluded[i] & neighbours)
+        rows, columns = np.nonzero((d < reach) & (i != j) & allowed)
+        pairs.update(zip(i[rows, 0].tolist(), j[0, columns].tolist()))
     return pairs
 
 

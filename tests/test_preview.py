@@ -36,6 +36,23 @@ def cloth_pixels(png: Path) -> np.ndarray:
     return (rgb[..., 1] > rgb[..., 0] + 0.1) & (rgb[..., 1] > rgb[..., 2] + 0.1)
 
 
+@pytest.fixture
+def small_pictures(monkeypatch):
+    """Blender renders 96 x 54 pictures at one sample (a second each, where the default still takes half a
+    minute on two cores): for tests of which pictures are made and where, not of how they look."""
+    from warp_cloth import preview
+
+    real = preview._run_blender
+
+    def run_blender(job: Path, *args) -> None:
+        settings = json.loads(job.read_text())
+        settings.update(resolution=[96, 54], samples=1, animation_resolution=[96, 54], animation_samples=1)
+        job.write_text(json.dumps(settings))
+        real(job, *args)
+
+    monkeypatch.setattr(preview, "_run_blender", run_blender)
+
+
 def movie_pictures(path: Path) -> int:
     """The pictures in a video, as Blender reads it (in its own process: it carries its own USD)."""
     code = f"import bpy; print('PICTURES', bpy.data.movieclips.load({str(path)!r}).frame_duration)"
@@ -63,7 +80,7 @@ def test_run_preview_renders_the_cloth_in_its_colour_and_a_picture_per_frame(tmp
 
 
 @needs_blender
-def test_preview_of_a_result_animates_the_frames_asked_and_replaces_only_when_done(tmp_path):
+def test_preview_of_a_result_animates_the_frames_asked_and_replaces_only_when_done(tmp_path, small_pictures):
     from PIL import Image
 
     scene = green_hanging(tmp_path)
@@ -84,7 +101,7 @@ def test_preview_of_a_result_animates_the_frames_asked_and_replaces_only_when_do
 
 
 @needs_blender
-def test_a_preview_never_replaces_a_picture_of_the_users_nor_renders_beside_another(tmp_path):
+def test_a_preview_never_replaces_a_picture_of_the_users_nor_renders_beside_another(tmp_path, small_pictures):
     from PIL import Image
 
     from conftest import lock_held_by_another_process

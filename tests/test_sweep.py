@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from pxr import Usd
+from pxr import Usd, UsdGeom
 
 import warp_cloth as wc
 from conftest import run_cli, run_cli_in_process
@@ -155,18 +155,19 @@ def test_a_sweep_started_again_runs_only_what_its_table_lacks(tmp_path):
 
 
 def test_an_interrupted_sweep_resumed_completes_each_variant_once(tmp_path):
-    # A stable step (chosen by the scene) and seconds a variant: time to stop the sweep after the first. The
-    # finer cloth at the file's 30 substeps blew up within a frame, and a sweep of variants that stop at once
-    # could end before the interrupt arrived.
-    slow = SCENE.replace("frames = 6", "frames = 720").replace("resolution = [8, 8]", "resolution = [12, 12]")
-    slow = slow.replace("substeps = 30\n", "")
+    # A stable step (chosen by the scene); the first variant a fraction of a second, the second seconds: the
+    # sweep is stopped once the second has begun writing its frames (a signal between batches lets the next
+    # one run whole). The finer cloth at the file's 30 substeps blew up within a frame, and a sweep of
+    # variants that stop at once could end before the interrupt arrived.
+    slow = SCENE.replace("resolution = [8, 8]", "resolution = [12, 12]").replace("substeps = 30\n", "")
     (tmp_path / "sheet.toml").write_text(slow)
-    args = [sys.executable, "-m", "warp_cloth", "sweep", "sheet.toml", "--set", "cloth.density=0.1,0.15,0.2,0.25",
-            "--worlds", "1", "--out", "s"]
+    frames = [24, 720, 48, 72]
+    args = [sys.executable, "-m", "warp_cloth", "sweep", "sheet.toml", "--set",
+            f"simulation.frames={','.join(map(str, frames))}", "--worlds", "1", "--out", "s"]
     process = subprocess.Popen(args, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    results = tmp_path / "s" / "results.jsonl"
+    second = tmp_path / "s" / f"{file_stem((('simulation.frames', 720),))}.incomplete.usdc"
     deadline = time.monotonic() + 120
-    while time.monotonic() < deadline and not (results.exists() and results.read_text().strip()):
+    while time.monotonic() < deadline and not second.exists():
         time.sleep(0.05)
     process.send_signal(signal.SIGINT)
     stopped, err = process.communicate(timeout=120)
@@ -179,7 +180,11 @@ def test_an_interrupted_sweep_resumed_completes_each_variant_once(tmp_path):
     assert resumed.returncode == 0, resumed.stderr
     assert f"4 variants ({len(first)} done before)" in resumed.stdout
     rows = rows_of(tmp_path / "s")
-    assert sorted(r["settings"]["cloth.density"] for r in rows) == [0.1, 0.15, 0.2, 0.25]  # each once
+    assert sorted(r["settings"]["simulation.frames"] for r in rows) == sorted(frames)  # each once
+    for row in rows:  # and run to its end: no row for the variant the interrupt cut short
+        stage = Usd.Stage.Open(str(tmp_path / row["usd"]))
+        points = UsdGeom.Mesh(stage.GetPrimAtPath("/World/cloth")).GetPointsAttr()
+        assert len(points.GetTimeSamples()) == row["settings"]["simulation.frames"] + 1, row["variant"]
 
 
 @pytest.mark.parametrize("sets, expected", [
