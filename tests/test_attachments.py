@@ -81,7 +81,9 @@ def test_without_pins_or_with_attachments_off_nothing_is_allocated():
 def test_the_plan_shows_the_limit_passes_that_hold_to_the_pins():
     sim = wc.Simulator(with_attachments(wc.load_scene("hanging"), True), device="cpu")
     assert sim.device_model.attachments is not None
-    assert "2 at a time: limits+attachments, limits+attachments" in str(sim.plan)
+    iteration = [line.strip() for line in str(sim.plan).splitlines()]
+    start = iteration.index("each iteration:")
+    assert iteration[start + 1:start + 3] == ["limits+attachments", "limits+attachments"]
 
 
 def shortest_paths_by_relaxation(n, pairs, lengths, sources):
@@ -141,9 +143,10 @@ def test_a_mesh_cloth_is_attached_along_its_edges_and_hangs_within_its_limit(tri
     assert ratio.max() <= (1.0824 if not triangles else np.sqrt(2.0)) + 1e-6
     x = mesh.positions()
     reach = np.linalg.norm(x[attached] - x[m.attachment_pin[attached]], axis=1)
-    assert (reach <= m.attachment_length[attached] * (1 + 1e-5)).all()
+    tolerance = mesh.scene.simulation.limit_tolerance  # of each allowed length, attachments' too
+    assert (reach <= m.attachment_length[attached] * (1 + tolerance)).all()
     limited = np.isfinite(mesh.model.springs.limit_max)
-    assert np.abs(spring_strains(mesh)[limited]).max() <= 0.1 + 0.005 * 1.1  # the solve's tolerance
+    assert np.abs(spring_strains(mesh)[limited]).max() <= 0.1 + tolerance * 1.1
     assert mesh.solver_stats().limit_residual <= 1.0  # every solve ended within it
     lowest = x[:, 1].min()
     assert lowest >= 10.0 - 10.0 * 1.1 * 1.005
