@@ -48,7 +48,11 @@ MAX_SHOWN = 80  # characters of a rejected value shown in a message
 
 
 def _shortened(text: str) -> str:
-    return text if len(text) <= MAX_SHOWN else text[:MAX_SHOWN - 3] + "..."
+    """``text`` whole, or its start and its end (where a path names its file) around "..."."""
+    if len(text) <= MAX_SHOWN:
+        return text
+    start = (MAX_SHOWN - 3) // 2
+    return text[:start] + "..." + text[-(MAX_SHOWN - 3 - start):]
 
 
 class UnstableSimulation(RuntimeError):
