@@ -69,7 +69,7 @@ def test_readme_starts_with_the_install_and_test_commands():
     text = (REPO / "README.md").read_text()
     blocks = re.findall(r"```\n(.*?)\n```", text, re.S)
     assert "pip install -e . " in blocks[0] and "warp-cloth run hanging" in blocks[0]  # the light install
-    assert blocks[1] == "pip install -e '.[test]' && python -m pytest -q"
+    assert blocks[1] == "pip install -e '.[test]' && python -m pytest -q -n auto --dist loadfile"
     ci = (REPO / ".ci" / "run").read_text()
     assert blocks[1] in ci
 
