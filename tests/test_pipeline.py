@@ -61,7 +61,15 @@ EXPECTED_PLANS = {
 # integration step, which begins the contacts) and at the end of every pass; the last 4 passes limit and
 # separate in one kernel. The neighbour lists' kernels (spatial hash, gather) launch every substep but
 # remake the lists only when a particle has moved far enough.
-PASSES = 8
+PASSES = 8  # the collision's fixed passes these counts take (the scene files leave the default)
+
+
+def fixed_collision(name: str) -> wc.Scene:
+    """A built-in collision scene with fixed passes: the limit's 4 and the collision's ``PASSES``."""
+    scene = fixed(wc.load_scene(name))
+    return dataclasses.replace(scene, collision=dataclasses.replace(scene.collision, iterations=PASSES))
+
+
 EXPECTED_WITH_COLLISION = {
     name: {"explicit_step_and_contact_start": 1, "insert_points": 1, "gather_neighbors": 1,
            "separation_pass": PASSES - LIMIT_ITERATIONS, "limit_and_separation_pass": LIMIT_ITERATIONS,
@@ -99,8 +107,8 @@ def test_driven_pins_move_before_the_contacts_start():
 
 @pytest.mark.parametrize("name", sorted(EXPECTED_WITH_COLLISION))
 def test_collision_stage_exists_only_when_declared(name, launches):
-    scene = fixed(wc.load_scene(name))
-    assert scene.collision.iterations == PASSES and scene.simulation.limit_iterations == LIMIT_ITERATIONS
+    scene = fixed_collision(name)
+    assert scene.simulation.limit_iterations == LIMIT_ITERATIONS
     sim = wc.Simulator(scene, device="cpu", graph=False)  # (it makes the lists to check the start)
     contacts = sim.state.contacts
     lists_made = lambda: (int(contacts.epoch.numpy()[0]), contacts.x_built.numpy().copy())  # noqa: E731
@@ -138,7 +146,7 @@ def test_lists_remade_every_substep_where_a_test_asks(launches, monkeypatch):
 
 def test_sequential_projection_runs_the_limit_and_then_the_separation_in_each_pass_that_has_both(launches):
     with lab_hooks(joint_passes=0):  # the fixed passes sequential from the first
-        sim = wc.Simulator(fixed(wc.load_scene("pile")), device="cpu", graph=False)
+        sim = wc.Simulator(fixed_collision("pile"), device="cpu", graph=False)
     launches.clear()
     sim.substep()
     assert dict(launches) == {"explicit_step_and_contact_start": 1, "insert_points": 1, "gather_neighbors": 1,

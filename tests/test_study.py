@@ -94,9 +94,9 @@ def test_unstable_runs_are_reported_not_raised(tmp_path, capsys):
     # 1000 keep some run from blowing up within 24 frames: plain passes capped at 200 here.)
     out = tmp_path / "study"
     text = wc_scene_file_text("hanging")
-    assert "\nlimit_solve = " in text
+    assert "\n[simulation]\n" in text
     scene = tmp_path / "hanging.toml"
-    scene.write_text(text.replace("\nlimit_solve = ", "\nlimit_max_passes = 200\nlimit_solve = ", 1))
+    scene.write_text(text.replace("\n[simulation]\n", "\n[simulation]\nlimit_max_passes = 200\n", 1))
     with lab_hooks(chebyshev_rho=0.0):  # plain passes
         code = main([str(scene), "--dt", "0.0208", "0.0104", "--frames", "24", "--device", "cpu", "--out", str(out)])
     assert code == 0
