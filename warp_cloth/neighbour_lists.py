@@ -70,6 +70,17 @@ class NeighbourLists:
             self.rebuild.fill_(1)
         self._remake_if_asked(state.x)
 
+    @property
+    def kernels(self) -> list[wp.Kernel]:
+        """What a substep launches, in order (each returns at once where no list is to be remade)."""
+        particles = [spatial_hash.insert_points, gather_neighbors_kernel(self.threads)] if self.use_hash \
+            else [particle_collision.gather_neighbors_brute_force]
+        return particles + (self.edges.kernels if self.edges is not None else [])
+
+    def describe(self) -> list[str]:
+        """For the printed plan: the pass and its launches."""
+        return [f"{self.name}:"] + [f"    {kernel.key}" for kernel in self.kernels]
+
     def _remake_if_asked(self, x: wp.array) -> None:
         if self.use_hash:
             wp.launch(spatial_hash.insert_points, dim=self.n,
@@ -133,6 +144,9 @@ class EdgeLists:
         self.least_inv_cell = 1.0 / (constants.longest + self.reach)
         self.mask = edge_hash_table_size(self.m) - 1
         self.world = constants.world
+
+    kernels = [edge_collision.start_edge_cells, edge_collision.widen_edge_cells, edge_collision.edge_midpoints,
+               spatial_hash.insert_points_at_chosen_width, gather_edge_candidates]  # as remake_if_asked launches them
 
     def remake_if_asked(self, x: wp.array, lists: ListState) -> None:
         edges, state, device = self.edges, self.state, x.device

@@ -239,6 +239,12 @@ class WindForces:
         self.model = model
         self.shares = wp.zeros(model.wind.faces.shape[0], dtype=wp.vec3, device=model.device)
 
+    kernels = [wind.face_forces, wind.wind_accelerations]  # as run launches them
+
+    def describe(self) -> list[str]:
+        """For the printed plan: the pass and its launches."""
+        return [f"{self.name}:"] + [f"    {kernel.key}" for kernel in self.kernels]
+
     def run(self, state: DeviceState) -> None:
         model = self.model
         launch(wind.face_forces, self.shares.shape[0], state,
