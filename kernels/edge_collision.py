@@ -104,35 +104,28 @@ def pair_gap(ends: wp.array(dtype=wp.vec2i), x: wp.array(dtype=wp.vec3), e: int,
 @wp.kernel
 def start_edge_cells(rebuild: wp.array(dtype=int), least_inv_width: float, inv_width: wp.array(dtype=float)):
     """The edge hash's cells at their least width (one thread), where ``rebuild`` is set: as wide as the
-    longest an edge may get plus the reach, before ``widen_edge_cells``."""
+    longest an edge may get plus the reach, before ``midpoints_and_cell_width``."""
     if rebuild[0] != 0:
         inv_width[0] = least_inv_width
 
 
 @wp.kernel
-def widen_edge_cells(x: wp.array(dtype=wp.vec3), ends: wp.array(dtype=wp.vec2i), rebuild: wp.array(dtype=int),
-                     longest: float, reach: float, inv_width: wp.array(dtype=float)):
-    """Where ``rebuild`` is set, the edge hash's cells widened to the longest edge longer than ``longest``
-    plus ``reach`` (its inverse width the least over those edges), so that the 27 cells around any edge's
-    midpoint hold every edge within reach of it: two edges' midpoints lie up to half their lengths plus
-    the reach apart."""
-    if rebuild[0] == 0:
-        return
-    ends_e = ends[wp.tid()]
-    length = wp.length(x[ends_e[1]] - x[ends_e[0]])
-    if length > longest:
-        wp.atomic_min(inv_width, 0, 1.0 / (length + reach))
-
-
-@wp.kernel
-def edge_midpoints(x: wp.array(dtype=wp.vec3), ends: wp.array(dtype=wp.vec2i), rebuild: wp.array(dtype=int),
-                   midpoint: wp.array(dtype=wp.vec3)):
-    """Each edge's midpoint, for the hash, where ``rebuild`` is set."""
+def midpoints_and_cell_width(x: wp.array(dtype=wp.vec3), ends: wp.array(dtype=wp.vec2i),
+                             rebuild: wp.array(dtype=int), longest: float, reach: float,
+                             midpoint: wp.array(dtype=wp.vec3), inv_width: wp.array(dtype=float)):
+    """Where ``rebuild`` is set, each edge's midpoint, for the hash, and the hash's cells widened to the
+    longest edge longer than ``longest`` plus ``reach`` (its inverse width the least over those edges), so
+    that the 27 cells around any edge's midpoint hold every edge within reach of it: two edges' midpoints
+    lie up to half their lengths plus the reach apart."""
     if rebuild[0] == 0:
         return
     e = wp.tid()
     ends_e = ends[e]
-    midpoint[e] = 0.5 * (x[ends_e[0]] + x[ends_e[1]])
+    p, q = x[ends_e[0]], x[ends_e[1]]
+    midpoint[e] = 0.5 * (p + q)
+    length = wp.length(q - p)
+    if length > longest:
+        wp.atomic_min(inv_width, 0, 1.0 / (length + reach))
 
 
 @wp.func

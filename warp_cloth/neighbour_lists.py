@@ -145,18 +145,16 @@ class EdgeLists:
         self.mask = edge_hash_table_size(self.m) - 1
         self.world = constants.world
 
-    kernels = [edge_collision.start_edge_cells, edge_collision.widen_edge_cells, edge_collision.edge_midpoints,
+    kernels = [edge_collision.start_edge_cells, edge_collision.midpoints_and_cell_width,
                spatial_hash.insert_points_at_chosen_width, gather_edge_candidates]  # as remake_if_asked launches them
 
     def remake_if_asked(self, x: wp.array, lists: ListState) -> None:
         edges, state, device = self.edges, self.state, x.device
         wp.launch(edge_collision.start_edge_cells, dim=1, inputs=[lists.rebuild, self.least_inv_cell],
                   outputs=[state.inv_cell], device=device)
-        wp.launch(edge_collision.widen_edge_cells, dim=self.m,
-                  inputs=[x, edges.ends, lists.rebuild, self.longest, self.reach], outputs=[state.inv_cell],
-                  device=device)
-        wp.launch(edge_collision.edge_midpoints, dim=self.m, inputs=[x, edges.ends, lists.rebuild],
-                  outputs=[state.midpoint], device=device)
+        wp.launch(edge_collision.midpoints_and_cell_width, dim=self.m,
+                  inputs=[x, edges.ends, lists.rebuild, self.longest, self.reach],
+                  outputs=[state.midpoint, state.inv_cell], device=device)
         wp.launch(spatial_hash.insert_points_at_chosen_width, dim=self.m,
                   inputs=[state.midpoint, self.world, state.inv_cell, self.mask, EDGE_BUCKET_CAPACITY, lists.epoch,
                           lists.rebuild],
