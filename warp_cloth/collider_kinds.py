@@ -22,6 +22,7 @@ if TYPE_CHECKING:
 
 
 def upload(values: np.ndarray, dtype, device) -> wp.array:
+    """A host array on the device (the device model's uploads and its collider kinds')."""
     return wp.array(values, dtype=dtype, device=device)
 
 

@@ -20,16 +20,12 @@ from warp_cloth.kernels.particle_collision import Contacts, PairRules
 from warp_cloth.kernels.springs import Springs
 from warp_cloth.kernels.wind import Wind
 
-from .collider_kinds import KINDS, Meshes
+from .collider_kinds import KINDS, Meshes, upload
 from .model import Model, Worlds
 from .scene import Collision, Scene, WindKey
 
 if TYPE_CHECKING:
     from .state import DeviceState
-
-
-def upload(values: np.ndarray, dtype, device) -> wp.array:
-    return wp.array(values, dtype=dtype, device=device)
 
 
 @dataclass(frozen=True)

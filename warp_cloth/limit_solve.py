@@ -68,6 +68,23 @@ class LimitSolveSettings:
                    simulation.limit_max_passes, CHEBYSHEV_RHO, JOINT_PASSES)
 
 
+def residual_args(model: DeviceModel, state: DeviceState, settings: LimitSolveSettings, colliders: RigidColliders,
+                  contacts: bool = True) -> converged_projection.ResidualArgs:
+    """What the solve's check reads: the limits and attachments, and where ``contacts`` the particle
+    contacts, with their tolerances."""
+    args = converged_projection.ResidualArgs()
+    args.check_limits = int(model.limits is not None)
+    args.limits = model.limits if model.limits is not None else model.no_limits()
+    args.attachments = attachments_of(model)
+    args.limit_tolerance = settings.tolerance
+    args.check_contacts = int(contacts and model.contacts is not None)
+    args.contacts = contacts_args(model, state) if model.contacts is not None else model.no_contacts()
+    args.contact_tolerance = model.contacts.settings.tolerance if model.contacts is not None else 1.0
+    args.inv_mass = model.inv_mass
+    args.colliders = colliders
+    return args
+
+
 class ConvergedProjection:
     """Runs ``body`` (passes that leave the positions' buffer parity as they found it) until the check after
     it finds every limit and contact within tolerance, or ``settings.max_passes`` passes have run. Where
@@ -93,17 +110,7 @@ class ConvergedProjection:
         self.switch_at = switch_at if later_body is not None else settings.max_passes + 1
         self.h = model.h
         device = model.device
-        args = converged_projection.ResidualArgs()
-        args.check_limits = int(model.limits is not None)
-        args.limits = model.limits if model.limits is not None else model.no_limits()
-        args.attachments = attachments_of(model)
-        args.limit_tolerance = settings.tolerance
-        args.check_contacts = int(contacts and model.contacts is not None)
-        args.contacts = contacts_args(model, state) if model.contacts is not None else model.no_contacts()
-        args.contact_tolerance = model.contacts.settings.tolerance if model.contacts is not None else 1.0
-        args.inv_mass = model.inv_mass
-        args.colliders = self.colliders
-        self.args = args
+        self.args = residual_args(model, state, settings, self.colliders, contacts)
         self.active = wp.zeros(1, dtype=int, device=device)
         self.switched = wp.zeros(1, dtype=int, device=device)
         self.counts = wp.zeros(3, dtype=int, device=device)

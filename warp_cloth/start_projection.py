@@ -17,7 +17,7 @@ from warp_cloth.kernels import converged_projection
 from warp_cloth.kernels.colliders import RigidColliders
 
 from .device_model import DeviceModel
-from .limit_solve import ConvergedProjection, LimitSolveSettings
+from .limit_solve import ConvergedProjection, LimitSolveSettings, residual_args
 from .passes import limit_pass, limits_name
 from .state import DeviceState
 from .wording import counted
@@ -76,16 +76,18 @@ class StartProjection:
         """Projects the cloths (particles ``cloth_starts[c]:cloth_starts[c + 1]``) that start past their limits;
         None where none does (then nothing is launched but the measure, and the state is untouched)."""
         model, state = self.model, self.state
-        solve = ConvergedProjection(model, state, self.settings, [limit_pass(model, self.threads, self.colliders,
-                                                                             None, 1)] * 2,
-                                    self.colliders, contacts=False)
+        colliders = self.colliders if self.colliders is not None else model.no_colliders()
         violation = wp.zeros(model.particle_count, dtype=float, device=model.device)
-        wp.launch(converged_projection.limit_violations, dim=model.particle_count, inputs=[state.x, solve.args],
+        wp.launch(converged_projection.limit_violations, dim=model.particle_count,
+                  inputs=[state.x, residual_args(model, state, self.settings, colliders, contacts=False)],
                   outputs=[violation], device=model.device)
         past = np.maximum.reduceat(violation.numpy(), cloth_starts[:-1])
         projected = np.nonzero(past > self.settings.tolerance)[0]
         if len(projected) == 0:
             return None
+        solve = ConvergedProjection(model, state, self.settings,
+                                    [limit_pass(model, self.threads, self.colliders, None, 1)] * 2, self.colliders,
+                                    contacts=False)
         start, velocities = state.x.numpy().copy(), wp.clone(state.v)
         solve.run(state)
         wp.copy(state.v, velocities)
