@@ -18,7 +18,7 @@ from pxr import Usd, UsdGeom
 
 import warp_cloth as wc
 from conftest import run_cli, run_cli_in_process
-from warp_cloth.sweep import file_stem
+from warp_cloth.sweep import file_stem, spread
 
 SCENE = """
 name = "sheet"
@@ -238,18 +238,28 @@ def test_a_sweep_on_a_local_ray_cluster_gives_the_table_a_local_sweep_gives(tmp_
     sets = ["--set", "cloth.density=0.1,0.2,0.3,0.4", "--set", "cloth.bend.stiffness=1,10", "--no-usd"]
     assert run_cli_in_process("sweep", "sheet.toml", *sets, "--out", "here", cwd=tmp_path)[0] == 0
     monkeypatch.setenv("RAY_ADDRESS", "127.0.0.1:1")  # another cluster's (gone): local starts a cluster of its own
-    code, out, err = run_cli_in_process("sweep", "sheet.toml", *sets, "--out", "ray", "--worlds", "3",
+    code, out, err = run_cli_in_process("sweep", "sheet.toml", *sets, "--out", "ray",
                                         "--cluster", "local", "--cluster-workers", "2", cwd=tmp_path)
     assert code == 0, err
     # none of Ray's log lines: off a terminal, only the sweep's own progress lines
     assert all(line.startswith("sweep sheet: ") for line in err.splitlines()), err
-    assert "8 variants (0 done before) in 3 batches" in out
+    assert "8 variants (0 done before) in 2 batches" in out  # one batch of 8 here, split for the two workers
     here = {r["variant"]: r for r in rows_of(tmp_path / "here")}
     there = rows_of(tmp_path / "ray")
     assert sorted(r["variant"] for r in there) == sorted(here)
-    for row in there:  # the same figures (batched 3 at a time there, all 8 together here)
+    assert [r["batch_worlds"] for r in there] == [4] * 8
+    for row in there:  # the same figures (batched 4 at a time there, all 8 together here)
         assert row["stretch"] == pytest.approx(here[row["variant"]]["stretch"], abs=1e-6)
         assert row["kinetic_energy"] == pytest.approx(here[row["variant"]]["kinetic_energy"], rel=1e-5)
+
+
+def test_batches_are_split_until_each_worker_has_one_where_there_are_variants_enough():
+    todo = [list("abcdefgh"), list("xy")]
+    assert spread(todo, 1) == todo and spread(todo, 2) == todo
+    assert spread(todo, 3) == [list("abcd"), list("efgh"), list("xy")]
+    assert spread(todo, 4) == [list("ab"), list("cd"), list("efgh"), list("xy")]
+    assert sorted(map(len, spread(todo, 64))) == [1] * 10  # no more batches than variants
+    assert spread([list("abc")], 2) == [list("ab"), list("c")]
 
 
 @needs_ray

@@ -23,7 +23,7 @@ run again. The folder is locked while a sweep runs (``results.lock``): a second 
 
 With ``--cluster ADDRESS`` (a running Ray cluster's, or ``local`` for one started on this machine with
 ``--cluster-workers`` workers), each batch is a Ray task, on a GPU where the cluster has them (else on a
-CPU), retried on another worker if its worker is lost (``--retries``). The tasks write their USD files
+CPU; batches are split until each GPU, or worker, has one, where there are variants enough), retried on another worker if its worker is lost (``--retries``). The tasks write their USD files
 into the output folder, which every worker must reach (shared storage on a real cluster); the table is
 written here as their results come back. An address where no Ray cluster answers is refused within
 seconds; Ray's own log lines show with ``--verbose``. Ray is the ``cluster`` extra:
@@ -459,10 +459,13 @@ def run_cluster(todo: list[list[Variant]], out: Path, device: str | None, usd: b
         try:
             with contextlib.nullcontext() if verbose else _stderr_dropped():
                 _start_ray(ray, address, workers, verbose)
-            gpus = ray.cluster_resources().get("GPU", 0) > 0 and device in (None, "cuda")
+            resources = ray.cluster_resources()
+            gpus = int(resources.get("GPU", 0)) if device in (None, "cuda") else 0
             task = ray.remote(num_gpus=1 if gpus else 0, num_cpus=0 if gpus else 1, max_retries=retries,
                               retry_exceptions=False)(run_batch)
-            pending = [task.remote(chunk, out.absolute(), "cuda" if gpus else "cpu", usd) for chunk in todo]
+            slots = gpus or int(resources.get("CPU", 1))
+            pending = [task.remote(chunk, out.absolute(), "cuda" if gpus else "cpu", usd)
+                       for chunk in spread(todo, slots)]
             while pending:
                 done, pending = ray.wait(pending, num_returns=1)
                 rows = ray.get(done[0])
@@ -470,6 +473,19 @@ def run_cluster(todo: list[list[Variant]], out: Path, device: str | None, usd: b
                 yield rows
         finally:
             ray.shutdown()
+
+
+def spread(todo: list[list[Variant]], slots: int) -> list[list[Variant]]:
+    """The batches split until each of ``slots`` workers (a cluster's GPUs, or its CPUs) has one, where
+    there are variants enough: the largest halved each time, so that a sweep of one batch of 8 worlds runs
+    as two of 4 on a host of two GPUs rather than on one of them."""
+    todo = list(todo)
+    while len(todo) < slots and max(map(len, todo), default=1) > 1:
+        largest = max(range(len(todo)), key=lambda k: len(todo[k]))
+        chunk = todo.pop(largest)
+        half = (len(chunk) + 1) // 2
+        todo[largest:largest] = [chunk[:half], chunk[half:]]
+    return todo
 
 
 class ClusterUnavailable(Exception):
@@ -540,7 +556,8 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--cluster", metavar="ADDRESS",
                         help="run the batches on a Ray cluster: its address (HOST:PORT), or local to start one here")
     parser.add_argument("--cluster-workers", type=int, default=2,
-                        help="with --cluster local, how many workers (default 2)")
+                        help="with --cluster local on a machine without GPUs, how many workers (default 2); "
+                             "with GPUs, one a GPU")
     parser.add_argument("--retries", type=int, default=3,
                         help="with --cluster, how often a batch whose worker was lost runs again (default 3)")
     parser.add_argument("--verbose", action="store_true",
@@ -616,7 +633,7 @@ def _run(args: argparse.Namespace, out: Path, variants: list[Variant], scenes: l
     skipped = len(variants) - sum(len(c) for c in todo)
     bar = Progress(len(variants), f"sweep {scenes[0].name}")
     bar.update(skipped)
-    finished, unstable, started = skipped, 0, time.perf_counter()
+    finished, unstable, batches_run, started = skipped, 0, 0, time.perf_counter()
     usd = not args.no_usd
     runs = run_local(todo, out, args.device, usd) if args.cluster is None else \
         run_cluster(todo, out, args.device, usd, args.cluster, args.cluster_workers, args.retries, args.verbose)
@@ -624,6 +641,7 @@ def _run(args: argparse.Namespace, out: Path, variants: list[Variant], scenes: l
     try:
         with StopOnSignal() as stop:  # a signal between batches
             for rows in runs:
+                batches_run += 1
                 finished += len(rows)
                 unstable += sum(row["unstable_frame"] is not None for row in rows)
                 bar.update(finished)
@@ -653,7 +671,7 @@ def _run(args: argparse.Namespace, out: Path, variants: list[Variant], scenes: l
         if rows:
             write_table(out, rows)
     status = (f"{counted(len(variants), 'variant')} ({skipped} done before) in "
-              f"{counted(len(todo), 'batch', 'batches')}")
+              f"{counted(batches_run, 'batch', 'batches')}")
     if stopped_by is not None:
         status = (f"interrupted by {signal.Signals(stopped_by).name} after {finished} of {len(variants)} variants "
                   f"({skipped} done before); start the sweep again to go on")
