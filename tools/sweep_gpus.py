@@ -2,7 +2,7 @@
 particles swinging onto a sphere, 10 substeps a frame, 10% limit, the default converged limit solve) run by ``warp-cloth sweep`` on one GPU
 without Ray, then with ``--cluster local`` on the first 1, 2, ... GPUs of this host (each run a fresh
 process seeing only those GPUs through ``CUDA_VISIBLE_DEVICES``, its time the whole command's: Ray's start
-and each worker's kernel loads counted). Throughput is variant-frames a second; each row carries the worst
+and each worker's kernel loads counted, after an untimed one-frame sweep has compiled them). Throughput is variant-frames a second; each row carries the worst
 edge strain over every frame and variant that the sweep's table reports, so that speed is read with the
 quality it was bought at.
 
@@ -114,6 +114,8 @@ def main() -> None:
         scene = Path(folder) / f"sphere_{args.n}.toml"
         text, bend = sphere_cloth_toml(args.n)
         scene.write_text(text)
+        warm_up = argparse.Namespace(**{**vars(args), "variants": 1, "frames": 1})
+        run_sweep(scene, bend, Path(folder) / "warm-up", 1, False, warm_up)  # compiles: the runs timed load
         runs = [(1, False)] + [(g, True) for g in args.gpus]
         for k, (gpus, cluster) in enumerate(runs):
             rows.append(run_sweep(scene, bend, Path(folder) / f"sweep-{k}", gpus, cluster, args))
