@@ -109,6 +109,7 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=48)
     args = parser.parse_args()
     wp.config.quiet = True
+    env = environment("cuda" if wp.is_cuda_available() else "cpu")
     rows = []
     with tempfile.TemporaryDirectory() as folder:
         scene = Path(folder) / f"sphere_{args.n}.toml"
@@ -120,8 +121,8 @@ def main() -> None:
         for k, (gpus, cluster) in enumerate(runs):
             rows.append(run_sweep(scene, bend, Path(folder) / f"sweep-{k}", gpus, cluster, args))
             print(f"[{k + 1}/{len(runs)}] {rows[-1]['how']} on {gpus} GPU(s): {rows[-1]['seconds']} s", flush=True)
+            args.out.write_text(json.dumps({"environment": env, "rows": rows}, indent=1))  # each run's, as it ends
     print(format_table(rows))
-    args.out.write_text(json.dumps({"environment": environment("cuda" if wp.is_cuda_available() else "cpu"), "rows": rows}, indent=1))
     print(f"sweep_gpus: {len(rows)} sweeps; wrote {args.out}")
 
 
