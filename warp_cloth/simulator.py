@@ -142,7 +142,7 @@ def check_work(scene: Scene, substeps: int) -> None:
     """Refuse a frame that would take too long to end: substeps x passes a substep (the strain limit's or
     the collision's iterations, or the most the integrator's solve may take, whichever is more), of a scene
     as ``resolve_step`` leaves it (with substeps auto, as it runs at ``substeps``: ``stability.at_substeps``)."""
-    total, factors = frame_work(scene, substeps)
+    total, factors = frame_work(at_substeps(scene, substeps) if scene.simulation.auto_substeps else scene, substeps)
     if total > MAX_PASSES_PER_FRAME:
         key = max(factors, key=factors.get)
         raise SceneError(key, f"at most {MAX_PASSES_PER_FRAME:,} passes a frame, so that a frame ends: "
@@ -242,7 +242,7 @@ class Simulator:
         self.scene, self.step_choice = resolve_step(scene, self.model)
         self.substeps_per_frame = self.step_choice.substeps  # the next frame's
         auto = self.scene.simulation.auto_substeps
-        check_work(at_substeps(self.scene, self.substeps_per_frame) if auto else self.scene, self.substeps_per_frame)
+        check_work(self.scene, self.substeps_per_frame)
         if self.step_choice.beyond_bound:
             warnings.warn(UnstableStepWarning(beyond_bound_message(self.step_choice, scene.simulation)), stacklevel=2)
         self.integrator: Integrator = integrator_for(self.scene.simulation.integrator, self.scene.implicit)
