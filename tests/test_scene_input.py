@@ -16,7 +16,8 @@ from conftest import run_cli_in_process
 from warp_cloth import scene as scene_module, simulator
 from warp_cloth.lab import bench
 from warp_cloth.writers.shot_layer import prim_name
-from warp_cloth.stability import scene_with_step
+from warp_cloth.model import build_model
+from warp_cloth.stability import choose_step, scene_with_step
 
 VALID = """
 [simulation]
@@ -50,6 +51,15 @@ def test_scene_file_maps_onto_dataclasses(tmp_path):
     assert scene.simulation.substeps_per_frame == 2
 
 
+def test_substeps_auto_is_said_or_left_out_and_a_number_fixes_the_step():
+    auto = wc.scene_from_dict(tomllib.loads(VALID.replace("substeps = 2", 'substeps = "auto"')))
+    left_out = wc.scene_from_dict(tomllib.loads(VALID.replace("substeps = 2\n", "")))
+    assert auto.simulation.auto_substeps and left_out.simulation.auto_substeps
+    assert auto.simulation.substeps_per_frame is None and auto.simulation.time_step is None
+    assert scene_with_step(auto) == scene_with_step(left_out)  # one scene to a checkpoint's fingerprint
+    assert not wc.scene_from_dict(tomllib.loads(VALID)).simulation.auto_substeps
+
+
 @pytest.mark.parametrize("dt, substeps", [(0.0025, 17), (0.0052, 8), (0.0104, 4), (0.0208, 2), (0.04165, 1)])
 def test_seed_time_steps_land_on_whole_substeps(dt, substeps):
     assert wc.Simulation(fps=24, dt=dt).substeps_per_frame == substeps
@@ -67,6 +77,10 @@ BAD = [
     (VALID.replace("size = [1.0, 1.0]", "size = [1.0, 1.0]\nmass = 0.0"), "cloth[0].mass", "> 0"),
     (VALID.replace("size = [1.0, 1.0]", "size = [1.0, 1.0]\nshear = { stiffness = -5.0 }"),
      "cloth[0].shear.stiffness", "> 0"),
+    (VALID.replace("substeps = 2", 'substeps = "fast"'), "simulation.substeps", "a whole number or 'auto', got 'fast'"),
+    (VALID.replace("substeps = 2", "substeps = 2.5"), "simulation.substeps", "a whole number or 'auto', got 2.5"),
+    (VALID.replace("substeps = 2", "substeps = 0"), "simulation.substeps", 'a whole number in [1, 10000] or "auto"'),
+    (VALID.replace("substeps = 2", 'substeps = "auto"\ndt = 0.01'), "simulation.dt", "either substeps or dt"),
     (VALID.replace("substeps = 2", "dt = 0.0"), "simulation.dt", "> 0"),
     (VALID.replace("substeps = 2", "dt = -0.01"), "simulation.dt", "> 0"),
     (VALID.replace("substeps = 2", "dt = nan"), "simulation.dt", "a finite number"),
@@ -364,7 +378,10 @@ def test_no_built_in_scene_sets_a_solver_constant():
 
 def check_work_bounds(scene: wc.Scene) -> None:
     scene = scene_with_step(scene)
-    simulator.check_work(scene, scene.simulation.substeps_per_frame)
+    substeps = scene.simulation.substeps_per_frame
+    if substeps is None:  # substeps auto: from the stable floor
+        substeps = choose_step(build_model(scene), scene.simulation).substeps
+    simulator.check_work(scene, substeps)
 
 
 def test_work_bounds_leave_the_built_in_scenes_and_benchmarks_valid():

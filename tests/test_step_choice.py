@@ -217,7 +217,8 @@ def test_cli_says_the_chosen_step_first_and_warns_of_a_set_one_before_running(tm
     assert code == 0, err
     choice = wc.Simulator(wc.load_scene("drape"), device="cpu").step_choice
     assert out.splitlines()[0] == f"drape: {choice.describe()}"
-    assert re.match(r"step [\d.]+ ms \(\d+ substeps/frame\), chosen for stability", choice.describe())
+    assert re.match(r"step [\d.]+ ms \(\d+ substeps/frame\) to start, substeps auto \(the stable floor; more where "
+                    r"a frame's solves miss\), chosen for stability", choice.describe())
     assert "warp-cloth: warning" not in err
     code, out, err = run_cli_in_process("run", "drape", "--frames", "1", "--substeps", "4", "--no-usd", "--no-poly",
                                         "--device", "cpu", cwd=tmp_path)

@@ -27,7 +27,7 @@ from .scene import Scene
 from .shot_clock import with_start
 from .simulator import RunSummary, Simulator
 from .start_projection import StartedPast, StartReport
-from .stability import scene_with_step
+from .stability import resolve_step, scene_with_step
 
 def shared_settings(scene: Scene) -> dict[str, object]:
     """What the worlds of a batch share, by key (``simulation.substeps``, ``collision``, ...): every
@@ -44,9 +44,15 @@ def shared_settings(scene: Scene) -> dict[str, object]:
 
 
 def step_key(scene: Scene) -> str:
-    """``shared_settings`` of the scene as a simulator runs it (``stability.scene_with_step``: its step
-    chosen where it sets none), as one text: scenes with the same key can be stepped by the same launches,
-    each at the step it takes alone. Cheap for a scene whose step is set; else it builds the scene's model."""
+    """``shared_settings`` of the scene as a simulator runs it (``stability.scene_with_step``: substeps auto
+    where it sets no step), as one text: scenes with the same key can be stepped by the same launches, each
+    at the step it takes alone, or with substeps auto, from the stable floor it starts at alone (part of the
+    key), at the counts the simulator chooses for all of them. Cheap for a scene whose step is set; else
+    it builds the scene's model."""
+    if scene.simulation.auto_substeps:
+        scene, choice = resolve_step(scene, build_model(scene))
+        return json.dumps({**shared_settings(scene), "substeps auto, from": choice.substeps}, sort_keys=True,
+                          default=str)
     return json.dumps(shared_settings(scene_with_step(scene)), sort_keys=True, default=str)
 
 
@@ -54,8 +60,11 @@ def step_groups(scenes: Sequence[Scene]) -> list[list[int]]:
     """The scenes' indices by step (``step_key``), each group in order, the groups in the order their
     first scene comes."""
     groups: dict[str, list[int]] = {}
+    keys: dict[int, str] = {}  # by scene: copies of one scene keyed once
     for w, scene in enumerate(scenes):
-        groups.setdefault(step_key(scene), []).append(w)
+        if id(scene) not in keys:
+            keys[id(scene)] = step_key(scene)
+        groups.setdefault(keys[id(scene)], []).append(w)
     return list(groups.values())
 
 
@@ -112,9 +121,12 @@ class Batch:
     that share the step, the solves' settings, collision and wind settings (``shared_settings``) are
     packed together; those that differ there are packed apart, a ``StepGroup`` for each step, and the
     groups are stepped one after another (``groups``: each world's own step, at the cost of its group's
-    launches). A world whose scene sets no step takes the one chosen for that scene alone
-    (``stability.scene_with_step``), so worlds of one scene in other densities or stiffnesses may fall in
-    groups of their own. A converged strain solve runs until every world of its group is
+    launches). Worlds whose scenes set no step (substeps auto) are grouped by the stable floor each starts
+    at alone (``step_key``, so worlds of one scene in other densities or stiffnesses may fall in
+    groups of their own); a group takes one count of substeps a frame for all its worlds, chosen frame by
+    frame, a frame that misses in any world made again with more for all (``warp_cloth.auto_substeps``). A
+    converged
+    strain solve runs until every world of its group is
     within tolerance, so a world may take more passes than alone: its frames then differ from its scene's
     alone within that tolerance; a fixed solve gives them to rounding. With the implicit step each world
     runs its own Newton loop and conjugate gradient (its own sums, step lengths and stopping test:
@@ -227,9 +239,11 @@ class Batch:
         particle_substeps = sum(s.particles * s.substeps for s in summaries)
         particles = sum(s.particles for s in summaries)
         stop = next((s for s in summaries if s.interrupted), None)
+        alone = summaries[0] if len(summaries) == 1 else RunSummary(0, 0, 0, 0.0, False)
         return RunSummary(min(s.frames for s in summaries), particle_substeps // max(1, particles), particles,
                           sum(s.wall_seconds for s in summaries), stop is not None,
-                          None if stop is None else stop.stop_signal)
+                          None if stop is None else stop.stop_signal, frame_substeps=alone.frame_substeps,
+                          kept_missing=alone.kept_missing)
 
     def _each_group(self, act) -> None:
         """``act`` on every group; a group whose worlds have all stopped is left, and once every world has

@@ -2,7 +2,9 @@
 
 A checkpoint is one ``.npz`` file: every device array of the state that a substep reads before it writes it
 (``DeviceState.carried``: positions, velocities, the substep clock, the spheres' centres, the collision's
-neighbour lists and hash table), with the frame, the substep count and a fingerprint of the scene. The frame
+neighbour lists and hash table), with the frame, the substep count, with substeps auto the next frame's
+substeps and the counts that missed lately (``auto_substeps.SubstepChoice.carried``), and a fingerprint of the
+scene. The frame
 and the substeps are on the shot's clock (``warp_cloth.shot_clock``), as the simulator's are: a checkpoint of
 a run that starts at 1001 after a preroll of 24 frames may be at frame 990, of its preroll. It is written
 under a temporary name and renamed, so a kill leaves the previous one whole.
@@ -62,11 +64,14 @@ class Checkpoint:
     scene: str  # the scene's fingerprint
     arrays: dict[str, np.ndarray]
     extra: dict  # what the writer of the checkpoint keeps with it (the CLI: where each output's frames are)
+    substeps_choice: dict | None = None  # with substeps auto: ``SubstepChoice.carried()``
 
 
 def save_checkpoint(sim, path: str | Path, extra: dict | None = None) -> None:
     arrays = {name: array.numpy() for name, array in _arrays(sim).items()}
-    _write(Path(path), Checkpoint(sim.frame, sim.substep_count, scene_fingerprint(sim.scene), arrays, extra or {}))
+    choice = sim.auto.carried() if sim.auto is not None else None
+    _write(Path(path), Checkpoint(sim.frame, sim.substep_count, scene_fingerprint(sim.scene), arrays, extra or {},
+                                  choice))
 
 
 def rewrite_extra(path: Path, extra: dict) -> None:
@@ -79,6 +84,8 @@ def rewrite_extra(path: Path, extra: dict) -> None:
 def _write(path: Path, checkpoint: Checkpoint) -> None:
     meta = {"format": FORMAT, "frame": checkpoint.frame, "substeps": checkpoint.substeps, "scene": checkpoint.scene,
             "extra": checkpoint.extra}
+    if checkpoint.substeps_choice is not None:
+        meta["substeps_choice"] = checkpoint.substeps_choice
     arrays = checkpoint.arrays
     temporary = temporary_path(path)
     with open(temporary, "wb") as f:
@@ -107,7 +114,8 @@ def load_checkpoint(path: str | Path) -> Checkpoint:
             found = "is missing" if name not in meta else f"is {meta[name]!r}"
             raise SceneError("checkpoint.meta", f"the fields {', '.join(others)} and {last} ({name} {found})",
                              has_got=False, source=str(path))
-    return Checkpoint(meta["frame"], meta["substeps"], meta["scene"], arrays, meta.get("extra", {}))
+    return Checkpoint(meta["frame"], meta["substeps"], meta["scene"], arrays, meta.get("extra", {}),
+                      meta.get("substeps_choice"))
 
 
 def check_scene(checkpoint: Checkpoint, scene, source: str) -> None:

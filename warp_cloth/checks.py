@@ -53,10 +53,13 @@ def _type_hints(cls: type) -> dict[str, Any]:
 def describe(hint: Any) -> str:
     """What a value of type ``hint`` looks like, in a scene file's terms."""
     origin = get_origin(hint)
+    if origin in (typing.Union, types.UnionType):
+        return " or ".join(describe(a) for a in get_args(hint) if a is not type(None))
     if dataclasses.is_dataclass(hint):
         return f"a table of {hint.__name__} settings"
     if origin is Literal:
-        return "one of " + ", ".join(repr(c) for c in get_args(hint))
+        names = get_args(hint)
+        return repr(names[0]) if len(names) == 1 else "one of " + ", ".join(repr(c) for c in names)
     if origin is tuple:
         args = get_args(hint)
         if len(args) == 2 and args[1] is Ellipsis:
@@ -75,7 +78,16 @@ def _checked(value: Any, hint: Any, key: str) -> Any:
     origin = get_origin(hint)
     if origin in (typing.Union, types.UnionType):
         options = [a for a in get_args(hint) if a is not type(None)]
-        return None if value is None else _checked(value, options[0], key)
+        if value is None or len(options) == 1:
+            return None if value is None else _checked(value, options[0], key)
+        # several kinds (a whole number or a name): the value's own kind says which it must be
+        chosen = next((o for o in options if get_origin(o) is Literal), None) if isinstance(value, str) else None
+        if chosen is None:
+            chosen = next((o for o in options if get_origin(o) is not Literal), options[0])
+        try:
+            return _checked(value, chosen, key)
+        except SceneError:
+            raise SceneError(key, describe(hint), value) from None
     if dataclasses.is_dataclass(hint):
         if not isinstance(value, hint):
             raise SceneError(key, describe(hint), value)

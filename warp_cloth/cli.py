@@ -8,6 +8,7 @@ import dataclasses
 import importlib
 import os
 import signal
+import statistics
 import sys
 import threading
 import time
@@ -43,7 +44,7 @@ def _parser() -> argparse.ArgumentParser:
                      help="frames simulated before the first written frame, for the cloth to settle (default: "
                           "the scene's, else 0)")
     step = run.add_mutually_exclusive_group()
-    step.add_argument("--substeps", type=int, help="substeps per frame")
+    step.add_argument("--substeps", type=_substeps, help="substeps per frame, or auto: chosen frame by frame")
     step.add_argument("--dt", type=float, help="time step in seconds (rounded to a whole number of substeps)")
     run.add_argument("--integrator", choices=INTEGRATORS, help="time integrator")
     run.add_argument("--limit-solve", choices=("fixed", "converged"), dest="limit_solve",
@@ -86,7 +87,7 @@ def _parser() -> argparse.ArgumentParser:
     plan.add_argument("scene", help="built-in scene name (see 'warp-cloth scenes') or path to a .toml file")
     plan.add_argument("--device", help="cpu, cuda or cuda:N (default: cuda if available, else cpu)")
     plan_step = plan.add_mutually_exclusive_group()
-    plan_step.add_argument("--substeps", type=int, help="substeps per frame")
+    plan_step.add_argument("--substeps", type=_substeps, help="substeps per frame, or auto: chosen frame by frame")
     plan_step.add_argument("--dt", type=float, help="time step in seconds (rounded to a whole number of substeps)")
     plan.add_argument("--integrator", choices=INTEGRATORS, help="time integrator")
 
@@ -99,6 +100,16 @@ def _parser() -> argparse.ArgumentParser:
     commands.add_parser("preview", help="render a result's USD: a still of its last frame and an animation, with "
                                         "Blender (see 'preview --help')", add_help=False)
     return parser
+
+
+def _substeps(text: str) -> int | str:
+    """``--substeps``: a whole number, or ``auto``."""
+    if text == "auto":
+        return text
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number or auto, got {text!r}") from None
 
 
 # The lab's commands (warp_cloth/lab), each imported by its module's name when asked for: nothing of the
@@ -184,7 +195,7 @@ def _limit_solve(sim) -> str:
         fixed = sim.scene.simulation.limit_solve == "fixed" and sim.model.limits is not None
         return "; limit solve fixed: a set number of passes a substep, not solved to a tolerance" if fixed else ""
     stats = sim.solver_stats(since_start=True)
-    cap = sim.scene.simulation.limit_max_passes
+    cap = sim.limit_solve.max_passes
     ended = ("every solve ended within tolerance" if stats.limit_residual <= 1.0 else
              f"some reached the cap of {cap} passes at {stats.limit_residual:.3g} tolerances")
     return (f"; limit solve {stats.limit_mean_passes:.1f} passes a substep on average, {stats.limit_passes} at most, "
@@ -201,7 +212,9 @@ def _cmd_plan(args: argparse.Namespace) -> int:
         warnings.simplefilter("ignore")  # a step past the bound is for a run to warn of
         sim = Simulator(scene, device=args.device)
     substeps = sim.substeps_per_frame
-    print(f"{scene.name} on {sim.device.alias}, {counted(substeps, 'substep')} a frame; {sim.plan}")
+    said = f"substeps: auto (starting at {substeps}, the stable floor)" if sim.auto is not None else \
+        f"{counted(substeps, 'substep')} a frame"
+    print(f"{scene.name} on {sim.device.alias}, {said}; {sim.plan}")
     return 0
 
 
@@ -434,12 +447,31 @@ def _cmd_run(args: argparse.Namespace) -> int:
         wrote += f" ({older} older .poly files of other frames left there)"
     if args.preview and not summary.interrupted:
         wrote += _preview(outputs, args)
-    print(f"{scene.name}: {status} ({counted(summary.substeps, 'substep')} of {sim.dt * 1e3:.3g} ms, "
+    print(f"{scene.name}: {status} ({_substeps_said(summary, sim)}, "
           f"{sim_settings.integrator}) of {summary.particles} particles on {sim.device.alias} in "
           f"{summary.wall_seconds:.2f} s (+{building + summary.prepare_seconds:.1f} s building and compiling; "
           f"{summary.particle_substeps_per_second:.3g} particle-substeps/s); "
           f"wrote {wrote}; {_strain(strain)}{_limit_solve(sim)}" + (f"; {check.summary()}" if check else ""))
     return EXIT_SIGNAL_BASE + summary.stop_signal if summary.interrupted else 0
+
+
+def _substeps_said(summary, sim) -> str:
+    """The run's substeps, for the summary line: with substeps auto, those a frame took and what was made
+    again."""
+    if sim.auto is None:
+        return f"{counted(summary.substeps, 'substep')} of {sim.dt * 1e3:.3g} ms"
+    chosen = summary.frame_substeps
+    if not chosen:
+        return f"{counted(summary.substeps, 'substep')}, auto"
+    said = (f"{counted(summary.substeps, 'substep')}, auto: substeps a frame: min {min(chosen)}, median "
+            f"{statistics.median(chosen):g}, max {max(chosen)}")
+    again = summary.substeps - sum(chosen)
+    if again:
+        said += f"; {again} in frames made again with more"
+    if summary.kept_missing:
+        said += (f"; {counted(summary.kept_missing, 'frame')} kept at the most, {sim.auto.most}, with a solve "
+                 "missing its tolerance or the guard's flag")
+    return said
 
 
 def _strain(monitor) -> str:

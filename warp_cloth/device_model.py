@@ -127,6 +127,14 @@ class DeviceModel:
         self.no_marks = wp.zeros(0, dtype=int, device=device)  # for passes whose colliders mark no one
         self._no_colliders = no_colliders(device)
 
+    def set_step(self, h: float) -> None:
+        """A substep of ``h`` seconds from now on (between frames, where the simulator chooses the substeps):
+        the passes that move the colliders take it at once; a plan built before keeps its own, so the
+        simulator builds its plan again."""
+        self.h = h
+        for motion in self.collider_motion:
+            motion.h = h
+
     def _springs(self, model: Model, n: int) -> Springs:
         """The spring adjacency and parameters (offsets all zero and the rest empty without springs)."""
         device, springs = self.device, Springs()

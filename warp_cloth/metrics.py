@@ -8,8 +8,9 @@ nothing in the run); the crossing triangle pairs (where the run's ``--check`` co
 potential energy (gravity's, from y = 0 along the gravity of the cloth's world, plus the springs' elastic
 energy, 1/2 k L (l/L - 1)^2 for each spring in the regime it acts in) and the springs' part of it, in
 joules; the substeps' solves since the frame before (the converged strain limit solve's mean and most
-passes a substep, the implicit step's most CG iterations); and the frame's wall time, from the end of the
-frame before (simulation and the writers before this one).
+passes a substep, the implicit step's most CG iterations); the frame's substeps (with substeps auto, those
+it was kept at); and the frame's wall time, from the end of the frame before (simulation and the writers
+before this one).
 
 The CSV is an output like the USD (``warp_cloth.output.StagedOutput``): locked while the run writes it, so
 that a second run naming the same file is refused; written under a staging name and put in place when the
@@ -39,7 +40,7 @@ from .output import StagedOutput, check_file_output, first_free, labelled, png_m
 
 COLUMNS = ("frame", "time", "structural_stretch", "structural_compression", "shear_stretch", "shear_compression",
            "closest_contact", "crossing_pairs", "kinetic_energy", "potential_energy", "spring_energy",
-           "limit_passes_mean", "limit_passes_most", "cg_iterations", "wall_seconds")
+           "limit_passes_mean", "limit_passes_most", "cg_iterations", "substeps", "wall_seconds")
 PLOT = "metrics plot"  # what the PNG is, in its mark and in messages
 PLOTS = (  # (title, columns, unit) of each panel of the PNG
     ("worst edge strain", ("structural_stretch", "structural_compression", "shear_stretch", "shear_compression"),
@@ -47,6 +48,7 @@ PLOTS = (  # (title, columns, unit) of each panel of the PNG
     ("energy", ("kinetic_energy", "potential_energy", "spring_energy"), "J"),
     ("closest contact", ("closest_contact",), "of contact distance"),
     ("solver", ("limit_passes_mean", "limit_passes_most", "cg_iterations"), "a substep"),
+    ("substeps", ("substeps",), "a frame"),
     ("wall time", ("wall_seconds",), "s a frame"),
 )
 
@@ -107,7 +109,7 @@ class MetricsWriter(StagedOutput):
         self._gravity = worlds.gravity[model.particle_world].astype(np.float64)
         self._masses = model.masses.astype(np.float64)
         self._last: float | None = None
-        self._substeps = sim.substep_count
+        self._frame = sim.frame
 
     def write_frame(self, sim, frame: int) -> None:
         model = sim.model
@@ -127,11 +129,12 @@ class MetricsWriter(StagedOutput):
         row["potential_energy"] = -float(np.sum(self._masses * np.sum(self._gravity * x, axis=1))) + spring_energy
         row["spring_energy"] = spring_energy
         stats = sim.solver_stats()
-        stepped = stats is not None and sim.substep_count > self._substeps  # none before the first frame's
-        self._substeps = sim.substep_count
+        stepped = stats is not None and sim.frame > self._frame  # none before the first frame's
+        self._frame = sim.frame
         row["limit_passes_mean"] = stats.limit_mean_passes if stepped and stats.limit_solves else ""
         row["limit_passes_most"] = stats.limit_passes if stepped and stats.limit_solves else ""
         row["cg_iterations"] = stats.cg_iterations if stepped and stats.cg_iterations is not None else ""
+        row["substeps"] = sim.frame_substeps if sim.frame > sim.clock.first else ""
         now = time.perf_counter()
         row["wall_seconds"] = "" if self._last is None else now - self._last  # none for the first frame written
         self._last = now

@@ -8,6 +8,8 @@ from dataclasses import dataclass
 from itertools import groupby
 from typing import Protocol, runtime_checkable
 
+import warp as wp
+
 from warp_cloth.kernels.colliders import RigidColliders
 
 from .device_model import DeviceModel
@@ -51,6 +53,12 @@ class Plan:
     lists: NeighbourLists | None  # particle collision's candidate lists
     projection: ConvergedProjection | None  # the converged limit solve, for its figures
     start: StartProjection | None  # what the simulator projects a fresh run's start with, where cloths are limited
+
+    def carried(self) -> dict[str, wp.array]:
+        """The plan's arrays that a substep reads before writing them (the converged solve's estimated
+        spectral radius, which it carries from solve to solve), by name."""
+        projection = self.projection
+        return {"projection.omega": projection.omega} if projection is not None and projection.accelerated else {}
 
     def run_substep(self, state: DeviceState) -> None:
         for step in self.passes:

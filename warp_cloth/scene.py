@@ -646,9 +646,12 @@ class ImplicitSolver:
 
 @dataclass(frozen=True)
 class Simulation:
-    """Time stepping. Give ``substeps`` per frame or a step ``dt``, or neither: then the simulator chooses
-    a stable step from the scene's own springs and masses (``warp_cloth.stability``) and warns before the
-    run where a step set here is past that bound. The step used is ``1 / (fps * substeps)``
+    """Time stepping. ``substeps = "auto"``, or neither ``substeps`` nor ``dt``: the simulator chooses the
+    substeps frame by frame (``warp_cloth.auto_substeps``), starting at the stable step of the scene's own
+    springs and masses (``warp_cloth.stability``), taking more where a frame's solves miss their tolerance
+    within their caps or the blow-up guard flags it, fewer (never below that start) where they converge
+    with room. A number of ``substeps`` per frame or a step ``dt`` fixes the step; the simulator warns before
+    the run where it is past the stable bound. The step used is ``1 / (fps * substeps)``
     so that frames fall on exact times: for ``dt`` that is the largest such step at most 1% over ``dt``
     (so the seed's 0.0052, 0.0104, 0.0208 and 0.04165 s at 24 fps become 1/8, 1/4, 1/2 and 1 frame).
     ``drag`` is a linear air drag rate in 1/s (acceleration ``-drag * v``). A run stops as unstable when
@@ -683,7 +686,7 @@ class Simulation:
     frames: int = 240
     start: int | None = None
     preroll: int = 0
-    substeps: int | None = None
+    substeps: int | Literal["auto"] | None = None
     dt: float | None = None
     integrator: Integrator = "symplectic"
     gravity: Vec3 = (0.0, -9.81, 0.0)
@@ -704,8 +707,9 @@ class Simulation:
         _whole_in(self.preroll, 0, MAX_FRAMES, "preroll")
         _require(not (self.substeps is not None and self.dt is not None), "dt",
                  "either substeps or dt, not both", self.dt)
-        if self.substeps is not None:
-            _whole_in(self.substeps, 1, MAX_SUBSTEPS, "substeps")
+        if isinstance(self.substeps, int):
+            _require(1 <= self.substeps <= MAX_SUBSTEPS, "substeps",
+                     f"a whole number in [1, {MAX_SUBSTEPS}] or \"auto\"", self.substeps)
         if self.dt is not None:
             _positive(self.dt, "dt")
             _require(self.dt <= 1.0 / self.fps * 1.01, "dt", f"at most one frame (1/fps = {1 / self.fps:g} s)",
@@ -728,14 +732,20 @@ class Simulation:
 
     @property
     def substeps_per_frame(self) -> int | None:
-        """The substeps a frame that ``substeps`` or ``dt`` set; None when neither is set: the simulator
-        then chooses them from the scene's stiffness, masses and cells (``Simulator.substeps_per_frame``,
-        see ``stability.choose_step``)."""
-        if self.substeps is not None:
+        """The substeps a frame that ``substeps`` or ``dt`` set; None under ``auto_substeps``: the simulator
+        then chooses them frame by frame (``Simulator.substeps_per_frame``, see ``stability.choose_step`` and
+        ``warp_cloth.auto_substeps``)."""
+        if isinstance(self.substeps, int):
             return self.substeps
         if self.dt is None:
             return None
         return max(1, math.ceil(0.99 / (self.fps * self.dt)))
+
+    @property
+    def auto_substeps(self) -> bool:
+        """Whether the simulator chooses the substeps frame by frame: ``substeps = "auto"``, or neither
+        ``substeps`` nor ``dt`` set."""
+        return self.substeps_per_frame is None
 
     @property
     def time_step(self) -> float | None:

@@ -18,6 +18,7 @@ import warp as wp
 
 from warp_cloth.kernels import guard
 
+from .auto_substeps import MISS, FrameStart, SolveCaps, SubstepChoice, judge
 from .checkpoint import Checkpoint, load_checkpoint, restore, save_checkpoint
 from .collider_kinds import Meshes
 from .errors import SceneError, UnstableSimulation
@@ -33,7 +34,8 @@ from .limit_solve import LimitSolveSettings
 from .plan import Plan, build_plan
 from .scene import Scene
 from .shot_clock import ShotClock, shot_clock
-from .stability import MAX_PASSES_PER_FRAME, UnstableStepWarning, beyond_bound_message, resolve_step
+from .stability import (AUTOMATIC_MAX_SUBSTEPS, MAX_PASSES_PER_FRAME, UnstableStepWarning, at_substeps,
+                        beyond_bound_message, resolve_step)
 from .start_projection import StartReport
 from .state import DeviceState
 from .warp_init import init_warp
@@ -73,12 +75,14 @@ class FrameWriter(Protocol):
 @dataclass(frozen=True)
 class RunSummary:
     frames: int
-    substeps: int
+    substeps: int  # simulated, frames made again with more substeps included
     particles: int
     wall_seconds: float
     interrupted: bool
     stop_signal: int | None = None  # the signal that stopped an interrupted run
     prepare_seconds: float = 0.0  # before the clock of ``wall_seconds``: kernels compiled or loaded (``prepare``)
+    frame_substeps: tuple[int, ...] = ()  # with substeps auto: each frame's, as kept
+    kept_missing: int = 0  # with substeps auto: frames kept at the most substeps a frame takes though they missed
 
     @property
     def particle_substeps_per_second(self) -> float:
@@ -137,7 +141,28 @@ def check_memory(scene: Scene, device: wp.context.Device) -> None:
 def check_work(scene: Scene, substeps: int) -> None:
     """Refuse a frame that would take too long to end: substeps x passes a substep (the strain limit's or
     the collision's iterations, or the most the integrator's solve may take, whichever is more), of a scene
-    as ``resolve_step`` leaves it."""
+    as ``resolve_step`` leaves it (with substeps auto, as it runs at ``substeps``: ``stability.at_substeps``)."""
+    total, factors = frame_work(at_substeps(scene, substeps) if scene.simulation.auto_substeps else scene, substeps)
+    if total > MAX_PASSES_PER_FRAME:
+        key = max(factors, key=factors.get)
+        raise SceneError(key, f"at most {MAX_PASSES_PER_FRAME:,} passes a frame, so that a frame ends: "
+                              f"{substeps} substeps x {total // substeps} passes a substep is {total:,}", factors[key])
+
+
+def most_substeps(scene: Scene) -> int:
+    """With substeps auto, the most a frame takes: at most ``AUTOMATIC_MAX_SUBSTEPS``, and as many as keep a
+    frame within ``MAX_PASSES_PER_FRAME`` passes (the limit solve's cap fitted to them)."""
+    low, high = 1, AUTOMATIC_MAX_SUBSTEPS
+    while low < high:
+        middle = (low + high + 1) // 2
+        fits = frame_work(at_substeps(scene, middle), middle)[0] <= MAX_PASSES_PER_FRAME
+        low, high = (middle, high) if fits else (low, middle - 1)
+    return low
+
+
+def frame_work(scene: Scene, substeps: int) -> tuple[int, dict[str, int]]:
+    """The most passes a frame of ``substeps`` may take (see ``check_work``), and the scene keys that set
+    them with their values."""
     sim = scene.simulation
     factors = {"simulation.dt" if sim.dt is not None else "simulation.substeps": substeps}
     limited = any(c.limit for c in scene.cloths)
@@ -149,11 +174,7 @@ def check_work(scene: Scene, substeps: int) -> None:
     iterations.update(integrator_for(sim.integrator, scene.implicit).solve_passes())
     passes = 1 + max(iterations.values())
     factors.update(iterations)
-    total = substeps * passes
-    if total > MAX_PASSES_PER_FRAME:
-        key = max(factors, key=factors.get)
-        raise SceneError(key, f"at most {MAX_PASSES_PER_FRAME:,} passes a frame, so that a frame ends: "
-                              f"{substeps} substeps x {passes} passes a substep is {total:,}", factors[key])
+    return substeps * passes, factors
 
 
 STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
@@ -217,34 +238,38 @@ class Simulator:
         check_memory(scene, self.device)
         self.model: Model = build_model(scene, worlds)
         # The step (and the limit solve's cap), chosen here where the scene sets none: from now on the scene
-        # is the one with them.
+        # is the one with them (with substeps auto, the step choice's substeps are where the run starts).
         self.scene, self.step_choice = resolve_step(scene, self.model)
-        check_work(self.scene, self.step_choice.substeps)
+        self.substeps_per_frame = self.step_choice.substeps  # the next frame's
+        auto = self.scene.simulation.auto_substeps
+        check_work(self.scene, self.substeps_per_frame)
         if self.step_choice.beyond_bound:
             warnings.warn(UnstableStepWarning(beyond_bound_message(self.step_choice, scene.simulation)), stacklevel=2)
         self.integrator: Integrator = integrator_for(self.scene.simulation.integrator, self.scene.implicit)
-        self.device_model = DeviceModel(self.model, self.scene, self.scene.simulation.time_step, self.device,
+        self.device_model = DeviceModel(self.model, self.scene, self.step_choice.step, self.device,
                                         masses=self.integrator.needs_masses)
         self.clock: ShotClock = shot_clock(self.scene)
         self.frame = self.clock.first  # the shot's frame number; 0 where the scene has no shot
-        self.substep_count = self.clock.first * self.substeps_per_frame
+        self.substep_count = self.clock.first * self.substeps_per_frame  # the clock: substeps since time 0
+        self.substeps_run = 0  # substeps simulated, frames made again included
         self.state = DeviceState(self.model.positions, self.model.velocities, self.device_model, self.substep_count)
-        self.limit_solve = LimitSolveSettings.of(self.scene.simulation)
+        self.limit_solve = LimitSolveSettings.of(
+            at_substeps(self.scene, self.substeps_per_frame).simulation if auto else self.scene.simulation)
+        self._threads = threads_per_particle
         self.plan: Plan = build_plan(self.device_model, self.state, self.integrator, self.limit_solve,
                                      threads_per_particle)
+        # with substeps auto: their choice from frame to frame, and a copy of each frame's start to make it again
+        self.auto = SubstepChoice(self.substeps_per_frame, most_substeps(self.scene)) if auto else None
+        self._frame_start = FrameStart(self._carried()) if auto else None
         self._stats_since_start: SolveStats | None = None
+        self._stats_unread: SolveStats | None = None  # of frames kept, read by the substeps' choice
         # An animated mesh collider's BVH refit is a host call on the CPU, which a CPU graph does not record
         # (a CUDA graph records the refit's kernels): there, launch pass by pass.
         self.use_graph = graph and not (self.device.is_cpu and self.device_model.collider_kinds[Meshes].motion)
         self._graphs: dict[tuple[int, int], tuple[wp.Graph, int]] = {}
         self._launches_recorded = False  # without graphs: prepare() has recorded a frame (its modules are loaded)
-        # One flag per substep of a frame, set by the blow-up guard (see kernels/guard.py), in two slots
-        # that alternate by frame, so that a frame can run while the one before it is checked. On a GPU
-        # each frame ends by copying its slot to pinned host memory, and an event says when it is there.
-        flags = (2, self.substeps_per_frame, self.device_model.world_count)
-        self._guard_status = wp.zeros(flags, dtype=int, device=self.device)
+        self._guard_flags()
         if self.device.is_cuda:
-            self._guard_host = wp.zeros(flags, dtype=int, device="cpu", pinned=True)
             self._frame_done = [wp.Event(self.device), wp.Event(self.device)]
         self.stopped_worlds: dict[int, UnstableSimulation] = {}  # of a batch: each world stopped, and why
         self._refuse_initial_overlap()
@@ -255,6 +280,15 @@ class Simulator:
             np.asarray(self.model.offsets), [c.name for c in self.scene.cloths])
         if self.start_projection is not None and self.plan.lists is not None:
             self.plan.lists.remake_now(self.state.x)  # from where the cloths now start
+
+    def _guard_flags(self) -> None:
+        """One flag per substep of a frame, set by the blow-up guard (see kernels/guard.py), in two slots
+        that alternate by frame, so that a frame can run while the one before it is checked. On a GPU each
+        frame ends by copying its slot to pinned host memory, and an event says when it is there."""
+        flags = (2, self.substeps_per_frame, self.device_model.world_count)
+        self._guard_status = wp.zeros(flags, dtype=int, device=self.device)
+        if self.device.is_cuda:
+            self._guard_host = wp.zeros(flags, dtype=int, device="cpu", pinned=True)
 
     def _refuse_initial_overlap(self) -> None:
         """Cloths that start deep inside each other (or themselves) would be shot apart: refuse them."""
@@ -293,10 +327,6 @@ class Simulator:
     def __repr__(self) -> str:
         return (f"<Simulator {self.scene.name} on {self.device.alias}: {self.model.particle_count} particles, frame "
                 f"{self.frame}; {self.step_choice.describe()}>")
-
-    @property
-    def substeps_per_frame(self) -> int:
-        return self.step_choice.substeps
 
     @property
     def dt(self) -> float:
@@ -349,15 +379,26 @@ class Simulator:
         since the simulator was made (reading them waits for the device): the implicit integrator's CG and
         Newton iterations and residuals, and a converged limit solve's passes and residual; None where the
         scene has neither."""
+        stats = _merged(self._stats_unread, self._read_stats())
+        self._stats_unread = None
+        if stats is not None:
+            self._stats_since_start = stats if self._stats_since_start is None else \
+                self._stats_since_start.merged(stats)
+        return self._stats_since_start if since_start else stats
+
+    def _read_stats(self) -> SolveStats | None:
+        """The plan's solve figures since they were last read (waits for the device), and none kept."""
         stats = self.plan.solve.read_stats() if self.plan.solve is not None else None
         if self.plan.projection is not None:
             most, residual, mean, solves = self.plan.projection.read_stats()
             stats = dataclasses.replace(stats or SolveStats(), limit_passes=most, limit_residual=residual,
                                         limit_mean_passes=mean, limit_solves=solves)
-        if stats is not None:
-            self._stats_since_start = stats if self._stats_since_start is None else \
-                self._stats_since_start.merged(stats)
-        return self._stats_since_start if since_start else stats
+        return stats
+
+    @property
+    def frame_substeps(self) -> int:
+        """The substeps the last frame took (with substeps auto, as kept; before any frame, the next's)."""
+        return self.auto.frames[-1] if self.auto is not None and self.auto.frames else self.substeps_per_frame
 
     def substep(self) -> None:
         """Advance one substep, launching pass by pass (for tests and debugging; frames are faster)."""
@@ -369,9 +410,73 @@ class Simulator:
 
         A frame's launches are captured once for each buffer parity and guard slot and replayed (a CUDA
         graph on a GPU, a Warp CPU graph on the CPU); ``graph=False`` launches pass by pass instead.
-        Raises ``UnstableSimulation`` if the blow-up guard flagged any of its substeps.
+        Raises ``UnstableSimulation`` if the blow-up guard flagged any of its substeps (with substeps auto,
+        only at the most substeps a frame takes: below, the frame is made again with more; see
+        ``warp_cloth.auto_substeps``).
         """
-        self._check_frame(self._launch_frame())
+        if self.auto is not None:
+            self._auto_frame()
+        else:
+            self._check_frame(self._launch_frame())
+
+    def _auto_frame(self) -> None:
+        """A frame with substeps auto: made again from its start with twice the substeps while it misses
+        (below the most), then kept, and the next frame's substeps chosen."""
+        arrays = self._carried()
+        self._frame_start.take(arrays, self.state.parity)
+        caps = self._solve_caps()
+        while True:
+            frame = self._launch_frame()
+            status = self._guard_status_of(frame)
+            stats = self._read_stats()
+            verdict = judge(stats, bool(status.any()), caps)
+            more = self.auto.redo(frame, verdict)
+            if more is None:
+                break
+            self.frame -= 1
+            self.state.parity = self._frame_start.parity
+            self._set_substeps(more)
+            self._frame_start.put_back(self._carried())
+            self._set_clock()
+            caps = self._solve_caps()
+        self._stats_unread = _merged(self._stats_unread, stats)
+        self._check_status(frame, status)
+        following = self.auto.keep(frame, verdict)
+        if following != self.substeps_per_frame:
+            self._set_substeps(following)
+            self._set_clock()
+
+    def _carried(self) -> dict[str, wp.array]:
+        """What a frame starts from: the state's carried arrays and the plan's."""
+        return {**self.state.carried(), **self.plan.carried()}
+
+    def _solve_caps(self) -> SolveCaps:
+        """The caps and tolerances of the solves at the current substeps (``auto_substeps.judge``)."""
+        limit = self.limit_solve.max_passes if self.plan.projection is not None else None
+        if self.plan.solve is None:
+            return SolveCaps(limit)
+        implicit = self.scene.implicit
+        newton = implicit.newton_iterations if implicit.newton_iterations > 1 else None
+        return SolveCaps(limit, implicit.cg_max_iterations, implicit.cg_tolerance, newton, implicit.newton_tolerance)
+
+    def _set_substeps(self, substeps: int) -> None:
+        """Take ``substeps`` a frame from the current frame on (with substeps auto, between frames): the
+        device model's step and the plan built again for it (the old plan freed, the converged solve's
+        estimated radius carried over), its frame graphs captured anew. The clock is ``_set_clock``'s."""
+        carried = self.plan.carried()
+        self._graphs.clear()
+        self.substeps_per_frame = substeps
+        self.limit_solve = LimitSolveSettings.of(at_substeps(self.scene, substeps).simulation)
+        self.device_model.set_step(1.0 / (self.scene.simulation.fps * substeps))
+        self.plan = build_plan(self.device_model, self.state, self.integrator, self.limit_solve, self._threads)
+        for name, array in self.plan.carried().items():
+            wp.copy(array, carried[name])
+        self._guard_flags()
+
+    def _set_clock(self) -> None:
+        """The clock at the current frame at the current substeps, so that time stays frame / fps."""
+        self.substep_count = self.frame * self.substeps_per_frame
+        self.state.clock.fill_(self.substep_count)
 
     def _launch_frame(self) -> int:
         """Queue the next frame and return its number (its check is ``_check_frame``'s)."""
@@ -385,6 +490,7 @@ class Simulator:
         if self.device.is_cuda:
             wp.record_event(self._frame_done[slot])
         self.substep_count += self.substeps_per_frame
+        self.substeps_run += self.substeps_per_frame
         self.frame += 1
         return self.frame
 
@@ -408,12 +514,18 @@ class Simulator:
     def _check_frame(self, frame: int) -> None:
         """Wait for frame ``frame``'s guard flags and raise ``UnstableSimulation`` if any is set; in a batch,
         stop each world flagged instead (see ``_stop_world``), and raise only once every world has stopped."""
+        self._check_status(frame, self._guard_status_of(frame))
+
+    def _guard_status_of(self, frame: int) -> np.ndarray:
+        """Frame ``frame``'s guard flags, (substeps, worlds), once the device has set them."""
         slot = (frame - 1) % 2
         if self.device.is_cuda:
             wp.synchronize_event(self._frame_done[slot])
-            status = self._guard_host.numpy()[slot]
-        else:
-            status = self._guard_status.numpy()[slot]
+            return self._guard_host.numpy()[slot]
+        return self._guard_status.numpy()[slot]
+
+    def _check_status(self, frame: int, status: np.ndarray) -> None:
+        """``_check_frame`` of the flags ``status`` read."""
         if not status.any():
             return
         if self.model.worlds is None:
@@ -479,7 +591,15 @@ class Simulator:
             checkpoint = load_checkpoint(checkpoint)
         else:
             source = "checkpoint"
+        if self.auto is not None and checkpoint.substeps_choice is None:
+            raise SceneError("checkpoint", "a checkpoint of a run with substeps auto (one that keeps the substeps "
+                                           "chosen)", has_got=False, source=source)
         restore(self, checkpoint, source)
+        if self.auto is not None:
+            self.auto.restore(checkpoint.substeps_choice)
+            if self.auto.substeps != self.substeps_per_frame:
+                self._set_substeps(self.auto.substeps)
+            self._set_clock()
         self.start_projection = None
 
     def run(self, frames: int | None = None, writers: Iterable[FrameWriter] = (), progress: bool = False) -> RunSummary:
@@ -492,7 +612,8 @@ class Simulator:
         (see ``FrameWriter``) with every completed frame, and the summary says which signal stopped it. A
         failure (``UnstableSimulation``, a writer's error) abandons them too, then is raised. Without writers,
         each frame's blow-up check waits until the next frame is queued, so the device never idles between
-        frames; ``UnstableSimulation`` then names the same frame, but the state has gone one frame further.
+        frames; ``UnstableSimulation`` then names the same frame, but the state has gone one frame further
+        (with substeps auto, each frame is checked before the next is chosen).
         """
         if frames is None:
             frames = self.scene.simulation.frames + max(0, self.clock.start - self.frame)
@@ -507,7 +628,8 @@ class Simulator:
         bar = Progress(frames, f"{self.scene.name} on {self.device.alias}") if progress else None
         begun: list[FrameWriter] = []
         written = 0
-        start_substeps = self.substep_count
+        start_substeps = self.substeps_run
+        start_frames, start_missing = (len(self.auto.frames), self.auto.kept_missing) if self.auto else (0, 0)
         started = time.perf_counter()
         try:
             with StopOnSignal() as stop:
@@ -522,12 +644,15 @@ class Simulator:
                 for _ in range(frames):
                     if stop.requested:
                         break
-                    launched = self._launch_frame()
-                    if writers:
-                        self._check_frame(launched)
-                    elif unchecked is not None:
-                        self._check_frame(unchecked)
-                    unchecked = None if writers else launched
+                    if self.auto is not None:  # each frame judged before the next is chosen
+                        self._auto_frame()
+                    else:
+                        launched = self._launch_frame()
+                        if writers:
+                            self._check_frame(launched)
+                        elif unchecked is not None:
+                            self._check_frame(unchecked)
+                        unchecked = None if writers else launched
                     if self.clock.writes(self.frame):
                         for w in writers:
                             w.write_frame(self, self.frame)
@@ -563,8 +688,10 @@ class Simulator:
             if bar:
                 bar.close()
         wall = time.perf_counter() - started
-        return RunSummary(written, self.substep_count - start_substeps, self.model.particle_count, wall,
-                          stopped_by is not None, stopped_by, prepare_seconds)
+        chosen = tuple(self.auto.frames[start_frames:]) if self.auto else ()
+        missing = self.auto.kept_missing - start_missing if self.auto else 0
+        return RunSummary(written, self.substeps_run - start_substeps, self.model.particle_count, wall,
+                          stopped_by is not None, stopped_by, prepare_seconds, chosen, missing)
 
     def _frame_substeps(self, slot: int) -> None:
         status = self._guard_status[slot]
@@ -577,6 +704,10 @@ class Simulator:
                       outputs=[status], device=self.device)
         if self.device.is_cuda:
             wp.copy(self._guard_host[slot], status)
+
+
+def _merged(earlier: SolveStats | None, later: SolveStats | None) -> SolveStats | None:
+    return later if earlier is None else earlier if later is None else earlier.merged(later)
 
 
 def _sync(writers: list, sim: Simulator) -> None:

@@ -1,5 +1,6 @@
 """The largest stable time step of the explicit integrators on a scene's own springs and masses, and the
-step a run takes: the scene's own (``substeps`` or ``dt``) or, when it sets neither, one chosen from it.
+step a run takes: the scene's own (``substeps`` or ``dt``) or, under ``substeps = "auto"`` (where it sets
+neither), the stable floor the run starts at (``warp_cloth.auto_substeps`` chooses from frame to frame).
 
 The derivation (docs/stability.md has it at length). Linearised about a state, a cloth is
 ``M x'' = -K x - C v``. A spring i-j of rest length L0, stiffness k and damping b, direction n, adds
@@ -64,6 +65,10 @@ AUTOMATIC_MIN_SUBSTEPS = 10  # never coarser than the old default: stability is 
 AUTOMATIC_MAX_SUBSTEPS = 10000  # past this a scene is refused: the implicit integrator suits it better
 
 
+# How a step choice of ``substeps = "auto"`` is said: its count is where the run starts and the least it takes.
+AUTO_START = "to start, substeps auto (the stable floor; more where a frame's solves miss)"
+
+
 class UnstableStepWarning(UserWarning):
     """A step set by the user (``substeps`` or ``dt``) that is past the scene's stable bound: the run may
     blow up. Given when the simulator is built, before the first frame."""
@@ -89,7 +94,9 @@ class StabilityBound:
 
 @dataclass(frozen=True)
 class StepChoice:
-    """The step a run takes and where it comes from. ``bound`` is None for an integrator stable at any step."""
+    """The step a run takes and where it comes from. ``bound`` is None for an integrator stable at any step.
+    ``automatic``: ``substeps = "auto"``, where ``substeps`` is the stable floor a run starts at (and never
+    goes below)."""
 
     substeps: int
     step: float
@@ -105,14 +112,15 @@ class StepChoice:
         """One line: the step, and why it is what it is."""
         head = f"step {_ms(self.step)} ({counted(self.substeps, 'substep')}/frame)"
         if self.bound is None:
-            return head + (f", the {self.integrator} integrator's default (no stability bound on its step)"
-                           if self.automatic else
+            return head + (f" {AUTO_START}, the {self.integrator} integrator's default (no stability bound on its "
+                           "step)" if self.automatic else
                            f", as set (the {self.integrator} integrator has no stability bound on its step)")
         if not self.automatic:
             return head + f", as set; {self.bound.describe()}"
         if self.substeps == AUTOMATIC_MIN_SUBSTEPS and self.step < safety(self.bound) * self.bound.step:
-            return head + f", the fewest chosen (within the stable bound: {self.bound.describe()})"
-        return head + f", chosen for stability: {safety(self.bound):g} x the bound; {self.bound.describe()}"
+            return head + f" {AUTO_START}, the fewest chosen (within the stable bound: {self.bound.describe()})"
+        return head + (f" {AUTO_START}, chosen for stability: {safety(self.bound):g} x the bound; "
+                       f"{self.bound.describe()}")
 
 
 def _ms(seconds: float) -> str:
@@ -221,27 +229,39 @@ def cap_that_fits(cap: int, substeps: int) -> int:
     return max(2, min(cap, MAX_PASSES_PER_FRAME // substeps - 1))
 
 
-def with_passes_cap(scene: Scene, substeps: int) -> Scene:
+def with_passes_cap(scene: Scene, substeps: int | None) -> Scene:
     """The scene with its converged limit solve's cap chosen where it sets none: ``DEFAULT_LIMIT_MAX_PASSES``
-    a substep, or fewer where that many would not fit a frame (``cap_that_fits``)."""
+    a substep, or fewer where that many would not fit a frame of ``substeps`` (``cap_that_fits``; None:
+    substeps chosen frame by frame, which fit the cap to each count, ``at_substeps``)."""
     simulation = scene.simulation
     if simulation.limit_max_passes is not None:
         return scene
-    cap = cap_that_fits(DEFAULT_LIMIT_MAX_PASSES, substeps)
+    cap = DEFAULT_LIMIT_MAX_PASSES if substeps is None else cap_that_fits(DEFAULT_LIMIT_MAX_PASSES, substeps)
     return dataclasses.replace(scene, simulation=dataclasses.replace(simulation, limit_max_passes=cap))
 
 
+def at_substeps(scene: Scene, substeps: int) -> Scene:
+    """A scene of ``substeps = "auto"`` (as ``resolve_step`` leaves it) as it runs at ``substeps`` a frame:
+    that count, and its limit solve's cap fitted to it (``cap_that_fits``)."""
+    simulation = scene.simulation
+    return dataclasses.replace(scene, simulation=dataclasses.replace(
+        simulation, substeps=substeps, limit_max_passes=cap_that_fits(simulation.limit_max_passes, substeps)))
+
+
 def resolve_step(scene: Scene, model: Model) -> tuple[Scene, StepChoice]:
-    """The scene as a simulator runs it, and the step choice made: its step fixed (automatic substeps filled
-    in) and its limit solve's cap chosen where it sets none (``with_passes_cap``)."""
+    """The scene as a simulator runs it, and the step choice made: its limit solve's cap chosen where it
+    sets none (``with_passes_cap``), and ``substeps = "auto"`` written out where it sets neither substeps
+    nor dt (the choice's substeps are then the floor the run starts at)."""
     choice = choose_step(model, scene.simulation)
-    if choice.automatic:
-        scene = dataclasses.replace(scene, simulation=dataclasses.replace(scene.simulation, substeps=choice.substeps))
-    return with_passes_cap(scene, choice.substeps), choice
+    if not choice.automatic:
+        return with_passes_cap(scene, choice.substeps), choice
+    scene = dataclasses.replace(scene, simulation=dataclasses.replace(scene.simulation, substeps="auto"))
+    return with_passes_cap(scene, None), choice
 
 
 def scene_with_step(scene: Scene) -> Scene:
-    """The scene as a simulator runs it (``resolve_step``), without building its model where it sets a step."""
+    """The scene as a simulator runs it (``resolve_step``), without building its model where it sets a step
+    (with substeps auto it builds it, to refuse a floor past ``AUTOMATIC_MAX_SUBSTEPS`` here)."""
     substeps = scene.simulation.substeps_per_frame
     if substeps is not None:
         return with_passes_cap(scene, substeps)
@@ -255,4 +275,5 @@ def beyond_bound_message(choice: StepChoice, simulation: Simulation) -> str:
     setting = f"substeps = {simulation.substeps}" if simulation.substeps is not None else f"dt = {simulation.dt:g}"
     chosen = automatic_substeps(simulation.fps, bound)
     return (f"{setting} gives a step of {_ms(choice.step)}, past the stable bound: {bound.describe()}; it may "
-            f"blow up: leave substeps and dt out to have a stable step chosen ({chosen} substeps a frame)")
+            f"blow up: leave substeps and dt out (substeps auto) to have the simulator choose them (from "
+            f"{chosen} a frame)")
