@@ -240,7 +240,7 @@ class Simulator:
         # The step (and the limit solve's cap), chosen here where the scene sets none: from now on the scene
         # is the one with them (with substeps auto, the step choice's substeps are where the run starts).
         self.scene, self.step_choice = resolve_step(scene, self.model)
-        self.substeps_per_frame = self.step_choice.substeps  # the next frame's
+        self._substeps = self.step_choice.substeps  # the next frame's (``substeps_per_frame``)
         auto = self.scene.simulation.auto_substeps
         check_work(self.scene, self.substeps_per_frame)
         if self.step_choice.beyond_bound:
@@ -396,6 +396,12 @@ class Simulator:
         return stats
 
     @property
+    def substeps_per_frame(self) -> int:
+        """The next frame's substeps (read only: the guard's flags, the graphs and the plan are sized for them;
+        with substeps auto the simulator changes them between frames)."""
+        return self._substeps
+
+    @property
     def frame_substeps(self) -> int:
         """The substeps the last frame took (with substeps auto, as kept; before any frame, the next's)."""
         return self.auto.frames[-1] if self.auto is not None and self.auto.frames else self.substeps_per_frame
@@ -465,7 +471,7 @@ class Simulator:
         estimated radius carried over), its frame graphs captured anew. The clock is ``_set_clock``'s."""
         carried = self.plan.carried()
         self._graphs.clear()
-        self.substeps_per_frame = substeps
+        self._substeps = substeps
         self.limit_solve = LimitSolveSettings.of(at_substeps(self.scene, substeps).simulation)
         self.device_model.set_step(1.0 / (self.scene.simulation.fps * substeps))
         self.plan = build_plan(self.device_model, self.state, self.integrator, self.limit_solve, self._threads)
