@@ -30,6 +30,7 @@ from .implicit import SolveStats
 from .integrators import Integrator, integrator_for
 from .pin_reach import check_pins_within_reach
 from .limit_solve import LimitSolveSettings
+from .line_solve import grid_lines
 from .plan import Plan, build_plan
 from .scene import Scene
 from .shot_clock import ShotClock, shot_clock
@@ -230,8 +231,9 @@ class Simulator:
         self.substep_count = self.clock.first * self.substeps_per_frame
         self.state = DeviceState(self.model.positions, self.model.velocities, self.device_model, self.substep_count)
         self.limit_solve = LimitSolveSettings.of(self.scene.simulation)
+        lines = grid_lines(self.model, self.scene) if self.limit_solve.line_solve else None
         self.plan: Plan = build_plan(self.device_model, self.state, self.integrator, self.limit_solve,
-                                     threads_per_particle)
+                                     threads_per_particle, lines)
         self._stats_since_start: SolveStats | None = None
         # An animated mesh collider's BVH refit is a host call on the CPU, which a CPU graph does not record
         # (a CUDA graph records the refit's kernels): there, launch pass by pass.

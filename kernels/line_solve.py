@@ -1,0 +1,100 @@
+"""The strain limits of a grid cloth's lines solved directly, one thread a line (the lab's alternative to the
+Jacobi limit pass; issue 33). A line is a chain of limited springs along the grid (a row, a column or a
+diagonal) whose ends are its only pinned particles. Every spring of the line is held: one out of its range at
+the nearer end of it, the others at their current length (holding only the violated ones tears the line at
+the first one held by none). The linearised projection J W J^T dlambda = -C along a line is tridiagonal and
+solved by Thomas' algorithm, its elimination in float64; the particles then move by W J^T dlambda and their
+velocities by that over h. The lines of one family share no free particle, so a family's threads move their
+particles in place.
+"""
+
+import warp as wp
+
+from .attachments import Attachments, hold_to_pin
+from .colliders import RigidColliders, collide_particle
+
+
+@wp.struct
+class GridLines:
+    start: wp.array(dtype=int)  # (lines + 1,) line l's particles are particle[start[l]:start[l + 1]]
+    particle: wp.array(dtype=int)
+    min_length: wp.array(dtype=float)  # per slot k < a line's last: the spring particle[k]-particle[k + 1]'s range
+    max_length: wp.array(dtype=float)
+    normal: wp.array(dtype=wp.vec3)  # per slot: scratch, the spring's direction
+    upper: wp.array(dtype=wp.float64)  # per slot: scratch, the eliminated upper diagonal
+    multiplier: wp.array(dtype=wp.float64)  # per slot: scratch, the eliminated right side, then dlambda
+
+
+@wp.kernel
+def solve_lines(lines: GridLines, inv_mass: wp.array(dtype=float), h: float, x: wp.array(dtype=wp.vec3),
+                v: wp.array(dtype=wp.vec3)):
+    """Line l's held projection, moving its free particles (and their velocities by the move over h)."""
+    l = wp.tid()
+    first = lines.start[l]
+    last = lines.start[l + 1] - 1  # the line's last particle; its springs are slots first..last-1
+    pivot_before = wp.float64(1.0)
+    right_before = wp.float64(0.0)
+    normal_before = wp.vec3(0.0)
+    for k in range(first, last):
+        a = lines.particle[k]
+        b = lines.particle[k + 1]
+        d = x[b] - x[a]
+        length = wp.length(d)
+        normal = wp.vec3(0.0)
+        if length > 1.0e-12:
+            normal = d / length
+        wa = inv_mass[a]
+        diagonal = wp.float64(inv_mass[a] + inv_mass[b])
+        right = wp.float64(wp.clamp(length, lines.min_length[k], lines.max_length[k]) - length)
+        if diagonal == wp.float64(0.0) or length <= 1.0e-12:
+            diagonal = wp.float64(1.0)  # a spring nothing can move: dlambda 0, coupled to no neighbour
+            right = wp.float64(0.0)
+        # the coupling with the spring before through their shared particle a
+        lower = wp.float64(-wa * wp.dot(normal_before, normal))
+        upper_before = wp.float64(0.0)
+        if k > first:
+            upper_before = lower / pivot_before
+            lines.upper[k - 1] = upper_before
+        pivot = diagonal - lower * upper_before
+        pivot = wp.max(pivot, wp.float64(1.0e-9) * diagonal)
+        right = (right - lower * right_before) / pivot
+        lines.multiplier[k] = right
+        lines.normal[k] = normal
+        pivot_before = pivot
+        right_before = right
+        normal_before = normal
+    after = wp.float64(0.0)
+    for step in range(last - first):
+        k = last - 1 - step
+        m = lines.multiplier[k]
+        if k < last - 1:
+            m = m - lines.upper[k] * after
+        lines.multiplier[k] = m
+        after = m
+    for k in range(first, last + 1):
+        p = lines.particle[k]
+        w = inv_mass[p]
+        if w == 0.0:
+            continue
+        move = wp.vec3(0.0)
+        if k < last:
+            move = move - float(lines.multiplier[k]) * lines.normal[k]
+        if k > first:
+            move = move + float(lines.multiplier[k - 1]) * lines.normal[k - 1]
+        move = w * move
+        x[p] = x[p] + move
+        v[p] = v[p] + move / h
+
+
+@wp.kernel
+def hold_and_collide(attachments: Attachments, colliders: RigidColliders, inv_mass: wp.array(dtype=float), h: float,
+                     x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3)):
+    """The end of a round of line solves, as of a limit pass: free particle i held to its pin, then put out
+    of the rigid colliders (reading only pins, which do not move, it can write in place)."""
+    i = wp.tid()
+    if inv_mass[i] == 0.0:
+        return
+    p, vel = hold_to_pin(attachments, colliders, i, x[i], v[i], h, x)
+    p, vel, hit = collide_particle(i, p, vel, colliders, h)
+    x[i] = p
+    v[i] = vel
