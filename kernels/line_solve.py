@@ -1,11 +1,16 @@
 """The strain limits of a grid cloth's lines solved directly, one thread a line (the lab's alternative to the
 Jacobi limit pass; issue 33). A line is a chain of limited springs along the grid (a row, a column or a
-diagonal) whose ends are its only pinned particles. Every spring of the line is held: one out of its range at
-the nearer end of it, the others at their current length (holding only the violated ones tears the line at
-the first one held by none). The linearised projection J W J^T dlambda = -C along a line is tridiagonal and
-solved by Thomas' algorithm, its elimination in float64; the particles then move by W J^T dlambda and their
-velocities by that over h. The lines of one family share no free particle, so a family's threads move their
-particles in place.
+diagonal) whose ends are its only pinned particles. A spring out of its range, or within ``hold_margin`` (a
+fraction of the limit's length) of either end of it, is held: the first at the nearer end of the range, the
+second at its current length; the others are left out of the solve, which cuts the line there. Holding every
+spring makes a line rigid: a correction then slides the whole rest of the line along itself against its
+neighbours, breaking the other families' springs all along it, and at 256^2 the rounds stalled; holding only
+the violated ones lets the spring beside a correction, at its limit, take all of it (docs/notebook/
+strain-solve.md). The linearised projection J W J^T dlambda = -C along a line is tridiagonal and solved by
+Thomas' algorithm, its elimination in float64; the particles then move by W J^T dlambda and their velocities
+by that over h; ``newton_steps`` times, each from where the last left the line (a long line's step moves its
+far particles enough that one linearisation leaves percents). The lines of one family share no free
+particle, so a family's threads move their particles in place.
 """
 
 import warp as wp
@@ -20,18 +25,15 @@ class GridLines:
     particle: wp.array(dtype=int)
     min_length: wp.array(dtype=float)  # per slot k < a line's last: the spring particle[k]-particle[k + 1]'s range
     max_length: wp.array(dtype=float)
-    normal: wp.array(dtype=wp.vec3)  # per slot: scratch, the spring's direction
+    normal: wp.array(dtype=wp.vec3)  # per slot: scratch, the spring's direction (zero where it is left out)
     upper: wp.array(dtype=wp.float64)  # per slot: scratch, the eliminated upper diagonal
     multiplier: wp.array(dtype=wp.float64)  # per slot: scratch, the eliminated right side, then dlambda
 
 
-@wp.kernel
-def solve_lines(lines: GridLines, inv_mass: wp.array(dtype=float), h: float, x: wp.array(dtype=wp.vec3),
-                v: wp.array(dtype=wp.vec3)):
-    """Line l's held projection, moving its free particles (and their velocities by the move over h)."""
-    l = wp.tid()
-    first = lines.start[l]
-    last = lines.start[l + 1] - 1  # the line's last particle; its springs are slots first..last-1
+@wp.func
+def held_line_step(lines: GridLines, inv_mass: wp.array(dtype=float), hold_margin: float, h: float, first: int,
+                   last: int, x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3)):
+    """One linearised projection of the line of particles first..last, moving its free particles."""
     pivot_before = wp.float64(1.0)
     right_before = wp.float64(0.0)
     normal_before = wp.vec3(0.0)
@@ -45,10 +47,14 @@ def solve_lines(lines: GridLines, inv_mass: wp.array(dtype=float), h: float, x: 
             normal = d / length
         wa = inv_mass[a]
         diagonal = wp.float64(inv_mass[a] + inv_mass[b])
-        right = wp.float64(wp.clamp(length, lines.min_length[k], lines.max_length[k]) - length)
-        if diagonal == wp.float64(0.0) or length <= 1.0e-12:
-            diagonal = wp.float64(1.0)  # a spring nothing can move: dlambda 0, coupled to no neighbour
+        longest = lines.max_length[k]
+        shortest = lines.min_length[k]
+        right = wp.float64(wp.clamp(length, shortest, longest) - length)
+        held = length >= (1.0 - hold_margin) * longest or length <= (1.0 + hold_margin) * shortest
+        if diagonal == wp.float64(0.0) or length <= 1.0e-12 or not held:
+            diagonal = wp.float64(1.0)  # a spring left out or that nothing can move: dlambda 0, no neighbour
             right = wp.float64(0.0)
+            normal = wp.vec3(0.0)
         # the coupling with the spring before through their shared particle a
         lower = wp.float64(-wa * wp.dot(normal_before, normal))
         upper_before = wp.float64(0.0)
@@ -84,6 +90,15 @@ def solve_lines(lines: GridLines, inv_mass: wp.array(dtype=float), h: float, x: 
         move = w * move
         x[p] = x[p] + move
         v[p] = v[p] + move / h
+
+
+@wp.kernel
+def solve_lines(lines: GridLines, inv_mass: wp.array(dtype=float), hold_margin: float, newton_steps: int, h: float,
+                x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3)):
+    """Line l's held projection, moving its free particles (and their velocities by the move over h)."""
+    l = wp.tid()
+    for unused in range(newton_steps):
+        held_line_step(lines, inv_mass, hold_margin, h, lines.start[l], lines.start[l + 1] - 1, x, v)
 
 
 @wp.kernel

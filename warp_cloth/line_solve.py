@@ -101,17 +101,21 @@ def upload_lines(starts: np.ndarray, particles: np.ndarray, lo: np.ndarray, hi: 
 
 
 class LineSolves:
-    """The four families' line solves, one launch each, moving the positions in place."""
+    """The four families' line solves, one launch each, moving the positions in place: springs within
+    ``hold_margin`` of a limit held, ``newton_steps`` linearised steps a line (kernels/line_solve.py)."""
 
     name = "line solves (rows, columns, diagonals, antidiagonals)"
 
-    def __init__(self, model: DeviceModel, lines: dict[str, tuple[np.ndarray, ...]]) -> None:
+    def __init__(self, model: DeviceModel, lines: dict[str, tuple[np.ndarray, ...]], hold_margin: float,
+                 newton_steps: int) -> None:
         self.model = model
+        self.hold_margin, self.newton_steps = hold_margin, newton_steps
         self.families = [(upload_lines(*lines[f], model.device), len(lines[f][0]) - 1) for f in FAMILIES]
 
     def run(self, state: DeviceState) -> None:
         for lines, count in self.families:
-            wp.launch(solve_lines, dim=count, inputs=[lines, self.model.inv_mass, self.model.h],
+            wp.launch(solve_lines, dim=count,
+                      inputs=[lines, self.model.inv_mass, self.hold_margin, self.newton_steps, self.model.h],
                       outputs=[state.x, state.v], device=state.device)
 
 

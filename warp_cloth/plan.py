@@ -123,8 +123,9 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
             passes.extend(edge_passes + projection_passes(model, state, solve, chosen, rigid))
         passes.append(contact_velocities(model, state, chosen))
     elif model.limits is not None and converged and solve.line_solve:
-        projection = ConvergedProjection(model, state, solve, [LineSolves(model, lines), HoldAndCollide(model, rigid)],
-                                         rigid, counted=1)
+        rounds = [LineSolves(model, lines, solve.line_hold_margin, solve.line_newton_steps),
+                  HoldAndCollide(model, rigid)]
+        projection = ConvergedProjection(model, state, solve, rounds, rigid, counted=1)
         passes.append(projection)
     elif model.limits is not None and converged:
         projection = ConvergedProjection(model, state, solve, [limit_pass(model, chosen, rigid, None, 1)] * 2, rigid)
