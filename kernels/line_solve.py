@@ -31,6 +31,50 @@ class GridLines:
 
 
 @wp.func
+def spring_equation(lines: GridLines, inv_mass: wp.array(dtype=float), hold_margin: float,
+                    x: wp.array(dtype=wp.vec3), k: int):
+    """Slot k's spring in its line's system: its direction, its diagonal entry and its right side (a spring
+    left out, or that nothing can move, gets direction 0: dlambda 0, coupled to no neighbour)."""
+    a = lines.particle[k]
+    b = lines.particle[k + 1]
+    d = x[b] - x[a]
+    length = wp.length(d)
+    normal = wp.vec3(0.0)
+    if length > 1.0e-12:
+        normal = d / length
+    diagonal = wp.float64(inv_mass[a] + inv_mass[b])
+    longest = lines.max_length[k]
+    shortest = lines.min_length[k]
+    right = wp.float64(wp.clamp(length, shortest, longest) - length)
+    held = length >= (1.0 - hold_margin) * longest or length <= (1.0 + hold_margin) * shortest
+    if diagonal == wp.float64(0.0) or length <= 1.0e-12 or not held:
+        diagonal = wp.float64(1.0)
+        right = wp.float64(0.0)
+        normal = wp.vec3(0.0)
+    return normal, diagonal, right
+
+
+@wp.func
+def move_by_multipliers(lines: GridLines, multiplier: wp.array(dtype=wp.float64), inv_mass: wp.array(dtype=float),
+                        h: float, k: int, after: bool, before: bool, x: wp.array(dtype=wp.vec3),
+                        v: wp.array(dtype=wp.vec3)):
+    """The particle at slot k moved by W J^T dlambda (``multiplier`` per slot) of the springs after it (slot
+    k) and before it (slot k - 1) where it has them, its velocity by the move over h."""
+    p = lines.particle[k]
+    w = inv_mass[p]
+    if w == 0.0:
+        return
+    move = wp.vec3(0.0)
+    if after:
+        move = move - float(multiplier[k]) * lines.normal[k]
+    if before:
+        move = move + float(multiplier[k - 1]) * lines.normal[k - 1]
+    move = w * move
+    x[p] = x[p] + move
+    v[p] = v[p] + move / h
+
+
+@wp.func
 def held_line_step(lines: GridLines, inv_mass: wp.array(dtype=float), hold_margin: float, h: float, first: int,
                    last: int, x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3)):
     """One linearised projection of the line of particles first..last, moving its free particles."""
@@ -38,25 +82,9 @@ def held_line_step(lines: GridLines, inv_mass: wp.array(dtype=float), hold_margi
     right_before = wp.float64(0.0)
     normal_before = wp.vec3(0.0)
     for k in range(first, last):
-        a = lines.particle[k]
-        b = lines.particle[k + 1]
-        d = x[b] - x[a]
-        length = wp.length(d)
-        normal = wp.vec3(0.0)
-        if length > 1.0e-12:
-            normal = d / length
-        wa = inv_mass[a]
-        diagonal = wp.float64(inv_mass[a] + inv_mass[b])
-        longest = lines.max_length[k]
-        shortest = lines.min_length[k]
-        right = wp.float64(wp.clamp(length, shortest, longest) - length)
-        held = length >= (1.0 - hold_margin) * longest or length <= (1.0 + hold_margin) * shortest
-        if diagonal == wp.float64(0.0) or length <= 1.0e-12 or not held:
-            diagonal = wp.float64(1.0)  # a spring left out or that nothing can move: dlambda 0, no neighbour
-            right = wp.float64(0.0)
-            normal = wp.vec3(0.0)
-        # the coupling with the spring before through their shared particle a
-        lower = wp.float64(-wa * wp.dot(normal_before, normal))
+        normal, diagonal, right = spring_equation(lines, inv_mass, hold_margin, x, k)
+        # the coupling with the spring before through their shared particle
+        lower = wp.float64(-inv_mass[lines.particle[k]] * wp.dot(normal_before, normal))
         upper_before = wp.float64(0.0)
         if k > first:
             upper_before = lower / pivot_before
@@ -78,18 +106,7 @@ def held_line_step(lines: GridLines, inv_mass: wp.array(dtype=float), hold_margi
         lines.multiplier[k] = m
         after = m
     for k in range(first, last + 1):
-        p = lines.particle[k]
-        w = inv_mass[p]
-        if w == 0.0:
-            continue
-        move = wp.vec3(0.0)
-        if k < last:
-            move = move - float(lines.multiplier[k]) * lines.normal[k]
-        if k > first:
-            move = move + float(lines.multiplier[k - 1]) * lines.normal[k - 1]
-        move = w * move
-        x[p] = x[p] + move
-        v[p] = v[p] + move / h
+        move_by_multipliers(lines, lines.multiplier, inv_mass, h, k, k < last, k > first, x, v)
 
 
 @wp.kernel

@@ -12,6 +12,8 @@ import warp as wp
 
 from warp_cloth.kernels.colliders import RigidColliders
 from warp_cloth.kernels.line_solve import GridLines, hold_and_collide, solve_lines
+from warp_cloth.kernels.line_solve_segments import (LineSegments, finish_segments, segment_equations,
+                                                    solve_segments, solve_separators)
 
 from .device_model import DeviceModel
 from .model import Model
@@ -100,23 +102,70 @@ def upload_lines(starts: np.ndarray, particles: np.ndarray, lo: np.ndarray, hi: 
     return lines
 
 
+def line_segments(starts: np.ndarray, size: int) -> dict[str, np.ndarray]:
+    """The lines' (``starts`` as ``grid_lines`` gives them) separators, every ``size``-th spring of a line but
+    its last, and the segments between them (kernels/line_solve_segments.py): per segment its first slot,
+    one past its last, and the separators' slots before and after it (-1: none); per line its separators."""
+    first, end, left, right, separator_start, separator = [], [], [], [], [0], []
+    for begin, stop in zip(starts[:-1].tolist(), starts[1:].tolist()):
+        last = stop - 1  # the line's springs are slots begin..last-1
+        cuts = [begin + j for j in range(size - 1, last - begin - 1, size)]
+        bounds = [begin - 1] + cuts + [last]
+        for i in range(len(bounds) - 1):
+            first.append(bounds[i] + 1)
+            end.append(bounds[i + 1])
+            left.append(bounds[i] if i > 0 else -1)
+            right.append(bounds[i + 1] if i < len(bounds) - 2 else -1)
+        separator += cuts
+        separator_start.append(len(separator))
+    as_int = lambda values: np.asarray(values, dtype=np.int32)  # noqa: E731
+    return dict(first=as_int(first), end=as_int(end), left=as_int(left), right=as_int(right),
+                separator_start=as_int(separator_start), separator=as_int(separator))
+
+
+def upload_segments(segments: dict[str, np.ndarray], slots: int, device) -> LineSegments:
+    uploaded = LineSegments()
+    for name, values in segments.items():
+        setattr(uploaded, name, wp.array(values, dtype=int, device=device))
+    for name in ("diagonal", "lower", "right_side", "solution", "from_left", "from_right", "upper"):
+        setattr(uploaded, name, wp.zeros(slots, dtype=wp.float64, device=device))
+    return uploaded
+
+
 class LineSolves:
-    """The four families' line solves, one launch each, moving the positions in place: springs within
-    ``hold_margin`` of a limit held, ``newton_steps`` linearised steps a line (kernels/line_solve.py)."""
+    """The four families' line solves, one family after another, moving the positions in place: springs
+    within ``hold_margin`` of a limit held, ``newton_steps`` linearised steps a line (kernels/line_solve.py);
+    a thread a line, or with ``segment`` springs a segment (0: whole lines) a thread a segment
+    (kernels/line_solve_segments.py)."""
 
     name = "line solves (rows, columns, diagonals, antidiagonals)"
 
     def __init__(self, model: DeviceModel, lines: dict[str, tuple[np.ndarray, ...]], hold_margin: float,
-                 newton_steps: int) -> None:
+                 newton_steps: int, segment: int = 0) -> None:
         self.model = model
         self.hold_margin, self.newton_steps = hold_margin, newton_steps
         self.families = [(upload_lines(*lines[f], model.device), len(lines[f][0]) - 1) for f in FAMILIES]
+        self.segments = None
+        if segment:
+            tables = [line_segments(lines[f][0], segment) for f in FAMILIES]
+            self.segments = [(upload_segments(table, len(lines[f][1]), model.device), len(table["first"]))
+                             for f, table in zip(FAMILIES, tables)]
 
     def run(self, state: DeviceState) -> None:
-        for lines, count in self.families:
-            wp.launch(solve_lines, dim=count,
-                      inputs=[lines, self.model.inv_mass, self.hold_margin, self.newton_steps, self.model.h],
-                      outputs=[state.x, state.v], device=state.device)
+        for f, (lines, count) in enumerate(self.families):
+            if self.segments is None:
+                wp.launch(solve_lines, dim=count,
+                          inputs=[lines, self.model.inv_mass, self.hold_margin, self.newton_steps, self.model.h],
+                          outputs=[state.x, state.v], device=state.device)
+                continue
+            segments, pieces = self.segments[f]
+            for _ in range(self.newton_steps):
+                wp.launch(segment_equations, dim=pieces, inputs=[lines, segments, self.model.inv_mass,
+                                                                 self.hold_margin, state.x], device=state.device)
+                wp.launch(solve_segments, dim=pieces, inputs=[segments], device=state.device)
+                wp.launch(solve_separators, dim=count, inputs=[segments], device=state.device)
+                wp.launch(finish_segments, dim=pieces, inputs=[lines, segments, self.model.inv_mass, self.model.h],
+                          outputs=[state.x, state.v], device=state.device)
 
 
 class HoldAndCollide:

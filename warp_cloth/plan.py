@@ -123,7 +123,7 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
             passes.extend(edge_passes + projection_passes(model, state, solve, chosen, rigid))
         passes.append(contact_velocities(model, state, chosen))
     elif model.limits is not None and converged and solve.line_solve:
-        rounds = [LineSolves(model, lines, solve.line_hold_margin, solve.line_newton_steps),
+        rounds = [LineSolves(model, lines, solve.line_hold_margin, solve.line_newton_steps, solve.line_segment),
                   HoldAndCollide(model, rigid)]
         projection = ConvergedProjection(model, state, solve, rounds, rigid, counted=1)
         passes.append(projection)
