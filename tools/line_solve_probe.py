@@ -1,12 +1,12 @@
 """The converged limit solve by rounds of line solves (``lab_hooks(line_solve=True)``, plain or with
-Chebyshev's acceleration; ``lines-held-all``: every spring of a line held and one linearised step a round, as
-before the 256^2 stall was explained) against the default (Jacobi passes in pairs, Chebyshev with its
-estimated radius), back to back on the speed matrix's sphere cloth (symplectic, 10 substeps a frame): the worst
-edge strain over every frame (stretch and compression, structural and shear), passes (for the line solve,
-rounds) a substep on average and at most, frames with a solve at the cap, and the wall time.
+Chebyshev's acceleration; ``lines-segments``: the same a thread a segment of 32 springs; ``lines-held-all``:
+every spring of a line held and one linearised step a round, as before the 256^2 stall was explained) against
+the default (Jacobi passes in pairs, Chebyshev with its estimated radius), back to back on the speed matrix's
+sphere cloth (symplectic, 10 substeps a frame): the worst edge strain over every frame (stretch and
+compression, structural and shear), passes (for the line solve, rounds) a substep on average and at most,
+frames with a solve at the cap, and the wall time.
 
-    python tools/line_solve_probe.py OUT.json [--sizes 32 64 128] [--methods jacobi lines lines+chebyshev]
-        [--frames 48]
+    python tools/line_solve_probe.py OUT.json [--sizes 32 64 128] [--methods jacobi lines ...] [--frames 48]
 
 docs/notebook/strain-solve.md ("Held line solves in dynamics") quotes its output on this project's CPU."""
 
@@ -25,6 +25,7 @@ from warp_cloth.limit_solve import lab_hooks
 # method: the hooks its simulator is built with
 METHODS = {"jacobi": {}, "lines": {"line_solve": True, "chebyshev_rho": 0.0},
            "lines+chebyshev": {"line_solve": True},
+           "lines-segments": {"line_solve": True, "chebyshev_rho": 0.0, "line_segment": 32},
            "lines-held-all": {"line_solve": True, "chebyshev_rho": 0.0, "line_hold_margin": 1.0,
                               "line_newton_steps": 1}}
 
