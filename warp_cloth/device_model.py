@@ -132,8 +132,8 @@ class DeviceModel:
         the passes that move the colliders take it at once; a plan built before keeps its own, so the
         simulator builds its plan again."""
         self.h = h
-        for motion in self.collider_motion:
-            motion.h = h
+        for moving in self.collider_motion:
+            moving.h = h
 
     def _springs(self, model: Model, n: int) -> Springs:
         """The spring adjacency and parameters (offsets all zero and the rest empty without springs)."""

@@ -34,38 +34,56 @@ CHEBYSHEV_RHO: float | None = None
 # contact cannot shorten, and seed_default's solves stalled at the cap there 2 to 4 tolerances out, where
 # the sequential ones converge (docs/notebook/strain-solve.md).
 JOINT_PASSES = 200
+# rounds of line solves (warp_cloth/line_solve.py) in place of the limit's Jacobi passes, on grid cloths
+# without particle collision: the lab's alternative of issue 33, off by default; with the springs held within
+# LINE_HOLD_MARGIN of a limit (1: every spring) and LINE_NEWTON_STEPS linearised steps a line a round
+# (kernels/line_solve.py), a thread a line or, with LINE_SEGMENT springs a segment, a thread a segment
+# (kernels/line_solve_segments.py).
+LINE_SOLVE = False
+LINE_HOLD_MARGIN = 0.02
+LINE_NEWTON_STEPS = 2
+LINE_SEGMENT = 0
 
 
 @contextmanager
-def lab_hooks(chebyshev_rho: float | None = None, joint_passes: int = JOINT_PASSES) -> Iterator[None]:
+def lab_hooks(chebyshev_rho: float | None = None, joint_passes: int = JOINT_PASSES, line_solve: bool = False,
+              line_hold_margin: float = LINE_HOLD_MARGIN, line_newton_steps: int = LINE_NEWTON_STEPS,
+              line_segment: int = LINE_SEGMENT) -> Iterator[None]:
     """Simulators built inside take these hooks' values (the lab's and tests', never a scene's)."""
-    global CHEBYSHEV_RHO, JOINT_PASSES
-    before = CHEBYSHEV_RHO, JOINT_PASSES
-    CHEBYSHEV_RHO, JOINT_PASSES = chebyshev_rho, joint_passes
+    global CHEBYSHEV_RHO, JOINT_PASSES, LINE_SOLVE, LINE_HOLD_MARGIN, LINE_NEWTON_STEPS, LINE_SEGMENT
+    before = CHEBYSHEV_RHO, JOINT_PASSES, LINE_SOLVE, LINE_HOLD_MARGIN, LINE_NEWTON_STEPS, LINE_SEGMENT
+    CHEBYSHEV_RHO, JOINT_PASSES, LINE_SOLVE, LINE_HOLD_MARGIN, LINE_NEWTON_STEPS, LINE_SEGMENT = \
+        chebyshev_rho, joint_passes, line_solve, line_hold_margin, line_newton_steps, line_segment
     try:
         yield
     finally:
-        CHEBYSHEV_RHO, JOINT_PASSES = before
+        CHEBYSHEV_RHO, JOINT_PASSES, LINE_SOLVE, LINE_HOLD_MARGIN, LINE_NEWTON_STEPS, LINE_SEGMENT = before
 
 
 @dataclass(frozen=True)
 class LimitSolveSettings:
     """How the plan solves the strain limits (and, with particle collision, the contacts with them):
     ``converged`` repeats its passes until within ``tolerance`` (a fraction of an allowed length), at most
-    ``max_passes`` a substep; else ``iterations`` fixed passes a substep. ``chebyshev_rho`` and
-    ``joint_passes``: the lab's hooks above, as they were when the settings were made."""
+    ``max_passes`` a substep; else ``iterations`` fixed passes a substep. ``chebyshev_rho``, ``joint_passes``
+    and the ``line_`` ones: the lab's hooks above, as they were when the settings were made."""
     converged: bool
     iterations: int
     tolerance: float
     max_passes: int
     chebyshev_rho: float | None
     joint_passes: int
+    line_solve: bool = False
+    line_hold_margin: float = LINE_HOLD_MARGIN
+    line_newton_steps: int = LINE_NEWTON_STEPS
+    line_segment: int = LINE_SEGMENT
 
     @classmethod
     def of(cls, simulation: Simulation) -> LimitSolveSettings:
         """The settings of a scene's ``[simulation]`` as the simulator resolved it (its cap chosen)."""
         return cls(simulation.limit_solve == "converged", simulation.limit_iterations, simulation.limit_tolerance,
-                   simulation.limit_max_passes, CHEBYSHEV_RHO, JOINT_PASSES)
+                   simulation.limit_max_passes, CHEBYSHEV_RHO, JOINT_PASSES,
+                   LINE_SOLVE and simulation.limit_solve == "converged", LINE_HOLD_MARGIN, LINE_NEWTON_STEPS,
+                   LINE_SEGMENT)
 
 
 def residual_args(model: DeviceModel, state: DeviceState, settings: LimitSolveSettings, colliders: RigidColliders,

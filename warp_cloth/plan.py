@@ -16,6 +16,7 @@ from .device_model import DeviceModel
 from .implicit import SolveStats
 from .integrators import Integrator
 from .limit_solve import ConvergedProjection, LimitSolveSettings
+from .line_solve import HoldAndCollide, LineSolves
 from .neighbour_lists import LIST_THREADS_BY_SIZE, NeighbourLists
 from .passes import (AdvanceClock, Collide, ContactStart, DrivePins, FollowKeys, FollowTargets, Pass, WindForces,
                      contact_start_args, contact_velocities, edge_separation_pass, limit_and_separation_pass,
@@ -84,7 +85,7 @@ class Plan:
 
 
 def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, solve: LimitSolveSettings,
-               threads: int | None = None) -> Plan:
+               threads: int | None = None, lines: dict | None = None) -> Plan:
     """The substep, in order: moving spheres and animated mesh colliders to the substep's end (nothing before
     the colliders reads them); the wind's forces; the integrator's pass; driven pins (oscillating, on
     colliders, on keys); then, with particle collision, the contacts' start (in the integrator's pass where it
@@ -93,7 +94,7 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
     follows a projection; with fixed passes, one edge pass before them) and the contact velocities; without
     it, the strain limit's passes or the colliders alone; the clock last, where something moves with it.
     ``solve``: how the limits and contacts are solved; ``threads``: per particle on the gathering passes
-    (None: by size)."""
+    (None: by size); ``lines``: the grid's lines where ``solve.line_solve`` (line_solve.grid_lines)."""
     chosen = threads_per_particle(model.particle_count, model.device) if threads is None else threads
     rigid = model.colliders(state) if model.has_colliders else None
     oscillating_pins = model.pins is not None and model.pins.moving
@@ -129,6 +130,11 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
         else:
             passes.extend(edge_passes + projection_passes(model, state, solve, chosen, rigid))
         passes.append(contact_velocities(model, state, chosen))
+    elif model.limits is not None and converged and solve.line_solve:
+        rounds = [LineSolves(model, lines, solve.line_hold_margin, solve.line_newton_steps, solve.line_segment),
+                  HoldAndCollide(model, rigid)]
+        projection = ConvergedProjection(model, state, solve, rounds, rigid, counted=1)
+        passes.append(projection)
     elif model.limits is not None and converged:
         projection = ConvergedProjection(model, state, solve, [limit_pass(model, chosen, rigid, None, 1)] * 2, rigid)
         passes.append(projection)

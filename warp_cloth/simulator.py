@@ -18,7 +18,7 @@ import warp as wp
 
 from warp_cloth.kernels import guard
 
-from .auto_substeps import MISS, FrameStart, SolveCaps, SubstepChoice, judge
+from .auto_substeps import FrameStart, SolveCaps, SubstepChoice, judge
 from .checkpoint import Checkpoint, load_checkpoint, restore, save_checkpoint
 from .collider_kinds import Meshes
 from .errors import SceneError, UnstableSimulation
@@ -31,6 +31,7 @@ from .implicit import SolveStats
 from .integrators import Integrator, integrator_for
 from .pin_reach import check_pins_within_reach
 from .limit_solve import LimitSolveSettings
+from .line_solve import grid_lines
 from .plan import Plan, build_plan
 from .scene import Scene
 from .shot_clock import ShotClock, shot_clock
@@ -256,8 +257,9 @@ class Simulator:
         self.limit_solve = LimitSolveSettings.of(
             at_substeps(self.scene, self.substeps_per_frame).simulation if auto else self.scene.simulation)
         self._threads = threads_per_particle
+        self._lines = grid_lines(self.model, self.scene) if self.limit_solve.line_solve else None
         self.plan: Plan = build_plan(self.device_model, self.state, self.integrator, self.limit_solve,
-                                     threads_per_particle)
+                                     threads_per_particle, self._lines)
         # with substeps auto: their choice from frame to frame, and a copy of each frame's start to make it again
         self.auto = SubstepChoice(self.substeps_per_frame, most_substeps(self.scene)) if auto else None
         self._frame_start = FrameStart(self._carried()) if auto else None
@@ -474,7 +476,8 @@ class Simulator:
         self._substeps = substeps
         self.limit_solve = LimitSolveSettings.of(at_substeps(self.scene, substeps).simulation)
         self.device_model.set_step(1.0 / (self.scene.simulation.fps * substeps))
-        self.plan = build_plan(self.device_model, self.state, self.integrator, self.limit_solve, self._threads)
+        self.plan = build_plan(self.device_model, self.state, self.integrator, self.limit_solve, self._threads,
+                               self._lines)
         for name, array in self.plan.carried().items():
             wp.copy(array, carried[name])
         self._guard_flags()

@@ -1,0 +1,87 @@
+"""The converged limit solve by rounds of line solves (``lab_hooks(line_solve=True)``, plain or with
+Chebyshev's acceleration; ``lines-segments``: the same a thread a segment of 32 springs; ``lines-held-all``:
+every spring of a line held and one linearised step a round, as before the 256^2 stall was explained) against
+the default (Jacobi passes in pairs, Chebyshev with its estimated radius), back to back on the speed matrix's
+sphere cloth (symplectic, 10 substeps a frame): the worst edge strain over every frame (stretch and
+compression, structural and shear), passes (for the line solve, rounds) a substep on average and at most,
+frames with a solve at the cap, and the wall time.
+
+    python tools/line_solve_probe.py OUT.json [--sizes 32 64 128] [--methods jacobi lines ...] [--frames 48]
+
+docs/notebook/strain-solve.md ("Held line solves in dynamics") quotes its output on this project's CPU."""
+
+import argparse
+import dataclasses
+import json
+import time
+
+import numpy as np
+import warp as wp
+
+import warp_cloth as wc
+from warp_cloth.lab.bench import environment, matrix_scene
+from warp_cloth.limit_solve import lab_hooks
+
+# method: the hooks its simulator is built with
+METHODS = {"jacobi": {}, "lines": {"line_solve": True, "chebyshev_rho": 0.0},
+           "lines+chebyshev": {"line_solve": True},
+           "lines-segments": {"line_solve": True, "chebyshev_rho": 0.0, "line_segment": 32},
+           "lines-held-all": {"line_solve": True, "chebyshev_rho": 0.0, "line_hold_margin": 1.0,
+                              "line_newton_steps": 1}}
+
+
+def measure(n: int, method: str, frames: int, cap: int, device: str) -> dict:
+    scene = matrix_scene("sphere", n, "symplectic")
+    scene = dataclasses.replace(scene, simulation=dataclasses.replace(
+        scene.simulation, limit_solve="converged", limit_max_passes=cap))
+    with lab_hooks(**METHODS[method]):
+        sim = wc.Simulator(scene, device=device)
+    edges, rest = sim.model.edges, sim.model.edge_rest
+    stretch = compression = 0.0
+    most, passes, solves, capped, seconds = 0, 0.0, 0, 0, 0.0
+    stable = True
+    sim.prepare()  # compiles before the clock starts
+    sim.solver_stats()
+    for _ in range(frames):
+        started = time.perf_counter()
+        try:
+            sim.step()
+        except wc.UnstableSimulation:
+            stable = False
+            break
+        wp.synchronize_device(sim.device)
+        seconds += time.perf_counter() - started
+        stats = sim.solver_stats()
+        most = max(most, stats.limit_passes)
+        passes += stats.limit_mean_passes * stats.limit_solves
+        solves += stats.limit_solves
+        capped += stats.limit_passes >= cap
+        x = sim.positions()
+        strain = np.linalg.norm(x[edges[:, 1]] - x[edges[:, 0]], axis=1) / rest - 1.0
+        stretch, compression = max(stretch, float(strain.max())), max(compression, float(-strain.min()))
+    return {"n": n, "method": method, "frames": frames, "cap": cap, "stable": stable,
+            "stretch": round(stretch, 4), "compression": round(compression, 4),
+            "mean_passes": round(passes / max(solves, 1), 2), "most_passes": most, "frames_capped": capped,
+            "seconds": round(seconds, 2)}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("out")
+    parser.add_argument("--device", default="cpu")
+    parser.add_argument("--sizes", type=int, nargs="+", default=[32, 64, 128])
+    parser.add_argument("--methods", nargs="+", choices=list(METHODS), default=list(METHODS))
+    parser.add_argument("--frames", type=int, default=48)
+    parser.add_argument("--cap", type=int, default=200)
+    args = parser.parse_args()
+    wp.config.log_level = wp.LOG_ERROR
+    rows = []
+    for n in args.sizes:
+        for method in args.methods:
+            rows.append(measure(n, method, args.frames, args.cap, args.device))
+            print(rows[-1], flush=True)
+            json.dump({"environment": environment(args.device), "rows": rows}, open(args.out, "w"), indent=1)
+
+
+if __name__ == "__main__":
+    main()
