@@ -1,5 +1,5 @@
-"""The strain limits of a grid cloth's lines solved directly, one thread a line (the lab's alternative to the
-Jacobi limit pass; issue 33). A line is a chain of limited springs along the grid (a row, a column or a
+"""The strain limits of a cloth's lines solved directly, one thread a line (the lab's alternative to the
+Jacobi limit pass; issue 33). A line is a chain of limited springs (on a grid a row, a column or a
 diagonal) whose ends are its only pinned particles. A spring out of its range, or within ``hold_margin`` (a
 fraction of the limit's length) of either end of it, is held: the first at the nearer end of the range, the
 second at its current length; the others are left out of the solve, which cuts the line there. Holding every
@@ -20,7 +20,7 @@ from .colliders import RigidColliders, collide_particle
 
 
 @wp.struct
-class GridLines:
+class ClothLines:
     start: wp.array(dtype=int)  # (lines + 1,) line l's particles are particle[start[l]:start[l + 1]]
     particle: wp.array(dtype=int)
     min_length: wp.array(dtype=float)  # per slot k < a line's last: the spring particle[k]-particle[k + 1]'s range
@@ -31,7 +31,7 @@ class GridLines:
 
 
 @wp.func
-def spring_equation(lines: GridLines, inv_mass: wp.array(dtype=float), hold_margin: float,
+def spring_equation(lines: ClothLines, inv_mass: wp.array(dtype=float), hold_margin: float,
                     x: wp.array(dtype=wp.vec3), k: int):
     """Slot k's spring in its line's system: its direction, its diagonal entry and its right side (a spring
     left out, or that nothing can move, gets direction 0: dlambda 0, coupled to no neighbour)."""
@@ -55,7 +55,7 @@ def spring_equation(lines: GridLines, inv_mass: wp.array(dtype=float), hold_marg
 
 
 @wp.func
-def move_by_multipliers(lines: GridLines, multiplier: wp.array(dtype=wp.float64), inv_mass: wp.array(dtype=float),
+def move_by_multipliers(lines: ClothLines, multiplier: wp.array(dtype=wp.float64), inv_mass: wp.array(dtype=float),
                         h: float, k: int, after: bool, before: bool, x: wp.array(dtype=wp.vec3),
                         v: wp.array(dtype=wp.vec3)):
     """The particle at slot k moved by W J^T dlambda (``multiplier`` per slot) of the springs after it (slot
@@ -75,7 +75,7 @@ def move_by_multipliers(lines: GridLines, multiplier: wp.array(dtype=wp.float64)
 
 
 @wp.func
-def held_line_step(lines: GridLines, inv_mass: wp.array(dtype=float), hold_margin: float, h: float, first: int,
+def held_line_step(lines: ClothLines, inv_mass: wp.array(dtype=float), hold_margin: float, h: float, first: int,
                    last: int, x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3)):
     """One linearised projection of the line of particles first..last, moving its free particles."""
     pivot_before = wp.float64(1.0)
@@ -110,7 +110,7 @@ def held_line_step(lines: GridLines, inv_mass: wp.array(dtype=float), hold_margi
 
 
 @wp.kernel
-def solve_lines(lines: GridLines, inv_mass: wp.array(dtype=float), hold_margin: float, newton_steps: int, h: float,
+def solve_lines(lines: ClothLines, inv_mass: wp.array(dtype=float), hold_margin: float, newton_steps: int, h: float,
                 x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3)):
     """Line l's held projection, moving its free particles (and their velocities by the move over h)."""
     l = wp.tid()

@@ -9,7 +9,7 @@ springs from it and move their particles. The same system as one thread a line s
 
 import warp as wp
 
-from .line_solve import GridLines, move_by_multipliers, spring_equation
+from .line_solve import ClothLines, move_by_multipliers, spring_equation
 
 
 @wp.struct
@@ -30,7 +30,7 @@ class LineSegments:
 
 
 @wp.kernel
-def segment_equations(lines: GridLines, segments: LineSegments, inv_mass: wp.array(dtype=float),
+def segment_equations(lines: ClothLines, segments: LineSegments, inv_mass: wp.array(dtype=float),
                       hold_margin: float, x: wp.array(dtype=wp.vec3)):
     """Segment s's springs' entries (and its right separator's), their directions into ``lines.normal``."""
     s = wp.tid()
@@ -121,7 +121,7 @@ def solve_separators(segments: LineSegments):
 
 
 @wp.kernel
-def finish_segments(lines: GridLines, segments: LineSegments, inv_mass: wp.array(dtype=float), h: float,
+def finish_segments(lines: ClothLines, segments: LineSegments, inv_mass: wp.array(dtype=float), h: float,
                     x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3)):
     """Segment s's springs' dlambda from its separators' (in place of its solution: only this thread reads
     those, its neighbours read the separators'), then its particles moved: from its first slot's to its

@@ -1,39 +1,72 @@
-"""The lab's held line solve of the strain limits (warp_cloth/line_solve.py): the grid's lines cover every
-limited spring once, rounds of it inside the converged solve hold the limit, and lines solved in segments
-(kernels/line_solve_segments.py) move the particles as whole lines do."""
+"""The lab's held line solve of the strain limits (warp_cloth/line_solve.py): the lines (warp_cloth/
+cloth_lines.py) of a grid and of a mesh cloth cover every limited spring once, split at the pins, in families
+whose lines share no free particle; rounds of it inside the converged solve hold the limit; and lines solved
+in segments (kernels/line_solve_segments.py) move the particles as whole lines do."""
 
 import dataclasses
 
 import numpy as np
+import pytest
 
 import warp_cloth as wc
+from warp_cloth.cloth_lines import cloth_lines, mesh_chains
+from warp_cloth.lab.bench_meshes import as_mesh_cloth
 from warp_cloth.limit_solve import lab_hooks
-from warp_cloth.line_solve import FAMILIES, LineSolves, grid_lines, line_segments
+from warp_cloth.line_solve import LineSolves, line_segments
 from warp_cloth.model import build_model
 from warp_cloth.strain import StrainMonitor
 
 
-def test_the_lines_hold_every_limited_spring_once_split_at_the_pins():
+def hanging(mesh: str) -> wc.Scene:
+    """The hanging scene's grid cloth, or the same read from an OBJ of its quads or of triangles."""
     scene = wc.load_scene("hanging")
+    return scene if mesh == "grid" else as_mesh_cloth(scene, triangles=mesh == "triangles")
+
+
+@pytest.mark.parametrize("mesh, families", [("grid", 4), ("quads", 4), ("triangles", 3)])
+def test_the_lines_hold_every_limited_spring_once_split_at_the_pins(mesh, families):
+    scene = hanging(mesh)
     model = build_model(scene)
-    lines = grid_lines(model, scene)
+    lines = cloth_lines(model, scene)
+    assert len(lines) == families  # on a mesh from a grid, its rows, columns and diagonals again
     n = model.particle_count
     found = []
-    for family in FAMILIES:
-        starts, particles, lo, hi = lines[family]
+    for starts, particles, lo, hi in lines:
+        free_in = []
         for first, end in zip(starts[:-1], starts[1:]):
             line = particles[first:end]
             assert (model.inv_mass[line[1:-1]] > 0).all()  # pins only at a line's ends
             a, b = np.minimum(line[:-1], line[1:]), np.maximum(line[:-1], line[1:])
             found += list(a.astype(np.int64) * n + b)
             assert (lo[first:end - 1] > 0).all() and (hi[first:end - 1] > lo[first:end - 1]).all()
+            free_in += list(np.unique(line[model.inv_mass[line] > 0]))
+        assert len(free_in) == len(set(free_in))  # no free particle in two lines of one family
     pairs = np.sort(model.springs.pairs[np.isfinite(model.springs.limit_max)], axis=1).astype(np.int64)
     free = (model.inv_mass[pairs] > 0).any(axis=1)  # a spring between two pins is in no line
     assert sorted(found) == sorted(pairs[free, 0] * n + pairs[free, 1])
 
 
-def test_rounds_of_line_solves_hold_the_hanging_cloth_within_the_tolerance():
-    scene = wc.load_scene("hanging")
+def test_mesh_chains_pair_the_springs_that_continue_each_other_and_open_a_closed_chain():
+    # a square with one diagonal: at each corner the springs meet at 90 or 45 degrees, none continues another
+    points = np.array([[0.0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]])
+    pairs = np.array([[0, 1], [1, 2], [2, 3], [3, 0], [0, 2]])
+    assert sorted(len(c) - 1 for c in mesh_chains(pairs, points)) == [1, 1, 1, 1, 1]
+    # a straight line of three springs given out of order, and a spring meeting its middle at 90 degrees
+    points = np.array([[0.0, 0, 0], [1, 0, 0], [2, 0, 0], [3, 0, 0], [1, 1, 0]])
+    pairs = np.array([[2, 3], [1, 4], [0, 1], [1, 2]])
+    chains = sorted(mesh_chains(pairs, points), key=len)
+    assert sorted(chains[0].tolist()) == [1, 4] and chains[1].tolist() in ([0, 1, 2, 3], [3, 2, 1, 0])
+    # a regular octagon's sides meet at 135 degrees and continue each other: one closed chain, opened
+    angle = np.pi / 4 * np.arange(8)
+    points = np.stack([np.cos(angle), np.sin(angle), 0 * angle], axis=1)
+    pairs = np.stack([np.arange(8), (np.arange(8) + 1) % 8], axis=1)
+    (chain,) = mesh_chains(pairs, points)
+    assert len(chain) == 9 and chain[0] == chain[-1] and sorted(chain[:-1]) == list(range(8))
+
+
+@pytest.mark.parametrize("mesh", ["grid", "triangles"])
+def test_rounds_of_line_solves_hold_the_hanging_cloth_within_the_tolerance(mesh):
+    scene = hanging(mesh)
     scene = dataclasses.replace(scene, simulation=dataclasses.replace(
         scene.simulation, limit_solve="converged", limit_tolerance=0.005))
     with lab_hooks(chebyshev_rho=0.0, line_solve=True):

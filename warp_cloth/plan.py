@@ -94,7 +94,8 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
     follows a projection; with fixed passes, one edge pass before them) and the contact velocities; without
     it, the strain limit's passes or the colliders alone; the clock last, where something moves with it.
     ``solve``: how the limits and contacts are solved; ``threads``: per particle on the gathering passes
-    (None: by size); ``lines``: the grid's lines where ``solve.line_solve`` (line_solve.grid_lines)."""
+    (None: by size); ``lines``: the cloths' families of lines where ``solve.line_solve``
+    (cloth_lines.cloth_lines)."""
     chosen = threads_per_particle(model.particle_count, model.device) if threads is None else threads
     rigid = model.colliders(state) if model.has_colliders else None
     oscillating_pins = model.pins is not None and model.pins.moving

@@ -31,7 +31,7 @@ from .implicit import SolveStats
 from .integrators import Integrator, integrator_for
 from .pin_reach import check_pins_within_reach
 from .limit_solve import LimitSolveSettings
-from .line_solve import grid_lines
+from .cloth_lines import cloth_lines
 from .plan import Plan, build_plan
 from .scene import Scene
 from .shot_clock import ShotClock, shot_clock
@@ -257,7 +257,7 @@ class Simulator:
         self.limit_solve = LimitSolveSettings.of(
             at_substeps(self.scene, self.substeps_per_frame).simulation if auto else self.scene.simulation)
         self._threads = threads_per_particle
-        self._lines = grid_lines(self.model, self.scene) if self.limit_solve.line_solve else None
+        self._lines = cloth_lines(self.model, self.scene) if self.limit_solve.line_solve else None
         self.plan: Plan = build_plan(self.device_model, self.state, self.integrator, self.limit_solve,
                                      threads_per_particle, self._lines)
         # with substeps auto: their choice from frame to frame, and a copy of each frame's start to make it again

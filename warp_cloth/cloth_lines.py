@@ -1,0 +1,162 @@
+"""The lines of a scene's cloths for the lab's line solve (issue 33; line_solve.py): chains of limited springs
+cut at pins, grouped into families whose lines share no free particle, so that one launch solves a family.
+
+A grid cloth's families are its rows, columns and the two diagonal families of its shear springs, found from
+its layout. A cloth from a mesh has no layout to read: its limited springs (structural and shear) are joined
+into chains at each vertex, the incident springs that continue each other most nearly paired first, and the
+chains' pieces between pins coloured greedily so that the pieces of one colour share no free particle. On a
+mesh made from a grid the chains are the grid's lines again (rows, columns, and one diagonal family a
+triangulated quad or two a quad)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .model import Model
+from .scene import Scene
+
+GRID_FAMILIES = ("rows", "columns", "diagonals", "antidiagonals")
+# Two springs at a vertex continue each other when the angle between them at rest is at least 120 degrees:
+# a grid's straight lines, not the turn from a boundary's column into its diagonal.
+CONTINUING_COSINE = -0.5
+
+# A family: its lines' starts, their particles, and each slot's allowed length range (the spring from that
+# particle to the next; 0 at a line's last particle).
+Family = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+
+
+def grid_chains(nx: int, ny: int) -> dict[str, list[np.ndarray]]:
+    """The particle chains of a grid of nx x ny cells (particle (x, y) is x + (nx + 1) y) along its
+    structural springs (rows, columns) and its shear springs ((x, y)-(x+1, y+1) and (x+1, y)-(x, y+1))."""
+    idx = lambda x, y: x + (nx + 1) * y  # noqa: E731
+    rows = [idx(np.arange(nx + 1), y) for y in range(ny + 1)]
+    columns = [idx(x, np.arange(ny + 1)) for x in range(nx + 1)]
+    diagonals, antidiagonals = [], []
+    for x0, y0 in [(x, 0) for x in range(nx)] + [(0, y) for y in range(1, ny)]:
+        t = np.arange(min(nx - x0, ny - y0) + 1)
+        diagonals.append(idx(x0 + t, y0 + t))
+    for s in range(1, nx + ny):
+        x0, y0 = min(s, nx), s - min(s, nx)
+        t = np.arange(min(x0, ny - y0) + 1)
+        antidiagonals.append(idx(x0 - t, y0 + t))
+    return dict(rows=rows, columns=columns, diagonals=diagonals, antidiagonals=antidiagonals)
+
+
+def mesh_chains(pairs: np.ndarray, points: np.ndarray) -> list[np.ndarray]:
+    """Chains of particles covering every spring of ``pairs`` (s, 2) once: at each vertex its springs paired
+    greedily, the most nearly opposite at rest (``points``) first, while they continue each other
+    (CONTINUING_COSINE); a chain runs through paired springs and ends at an unpaired one. A closed chain is
+    opened at one of its vertices, which is then its first particle and its last."""
+    ends = pairs.ravel()  # half h: spring h // 2 at its end h % 2
+    direction = points[pairs[:, 1]] - points[pairs[:, 0]]
+    direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+    outward = np.stack([direction, -direction], axis=1).reshape(-1, 3)  # from the half's vertex along its spring
+    link = np.full(len(ends), -1, dtype=np.int64)
+    order = np.argsort(ends, kind="stable")
+    bounds = np.searchsorted(ends[order], np.arange(len(points) + 1))
+    for v in np.nonzero(np.diff(bounds) >= 2)[0]:
+        halves = order[bounds[v]:bounds[v + 1]]
+        cosines = outward[halves] @ outward[halves].T
+        i, j = np.triu_indices(len(halves), 1)
+        for k in np.argsort(cosines[i, j], kind="stable"):
+            a, b = halves[i[k]], halves[j[k]]
+            if cosines[i[k], j[k]] >= CONTINUING_COSINE:
+                break
+            if link[a] < 0 and link[b] < 0:
+                link[a], link[b] = b, a
+    done = np.zeros(len(pairs), dtype=bool)
+    chains = []
+    # open chains from their unpaired ends, then what is left, the closed ones
+    for start in list(np.nonzero(link < 0)[0]) + list(range(0, len(ends), 2)):
+        if done[start // 2]:
+            continue
+        chain, half = [ends[start]], start
+        while True:
+            done[half // 2] = True
+            far = half ^ 1
+            chain.append(ends[far])
+            half = link[far]
+            if half < 0 or done[half // 2]:
+                break
+        chains.append(np.asarray(chain, dtype=np.int64))
+    return chains
+
+
+def line_pieces(chain: np.ndarray, free: np.ndarray, limited: np.ndarray) -> list[slice]:
+    """The pieces of ``chain`` cut at its pinned particles (each cut particle ends one piece and starts the
+    next) and at its springs that are not limited (``limited`` per spring of the chain), as slices of it;
+    pieces with no free particle are left out."""
+    pieces, begin = [], 0
+    for k in range(1, len(chain)):
+        if not limited[k - 1]:
+            pieces.append(slice(begin, k))
+            begin = k
+        elif not free[chain[k]]:
+            pieces.append(slice(begin, k + 1))
+            begin = k
+    pieces.append(slice(begin, len(chain)))
+    return [p for p in pieces if p.stop - p.start >= 2 and free[chain[p]].any()]
+
+
+def colour_lines(lines: list[np.ndarray], free: np.ndarray) -> np.ndarray:
+    """Per line, its colour: lines sharing a free particle differ, the longest coloured first, each the
+    smallest colour none of its coloured neighbours has."""
+    on = {}  # free particle -> the lines through it
+    for l, line in enumerate(lines):
+        for p in np.unique(line[free[line]]).tolist():
+            on.setdefault(p, []).append(l)
+    colour = np.full(len(lines), -1, dtype=np.int64)
+    for l in sorted(range(len(lines)), key=lambda l: -len(lines[l])):
+        taken = {colour[m] for p in np.unique(lines[l][free[lines[l]]]).tolist() for m in on[p]}
+        colour[l] = next(c for c in range(len(lines) + 1) if c not in taken)
+    return colour
+
+
+def cloth_lines(model: Model, scene: Scene) -> list[Family]:
+    """The scene's families of lines: a grid cloth's rows, columns, diagonals and antidiagonals, a mesh
+    cloth's coloured chains; the cloths' k-th families solved as one."""
+    if scene.collision is not None:
+        raise ValueError("the line solve takes cloths without particle collision only")
+    springs = model.springs
+    n = model.particle_count
+    limited = np.isfinite(springs.limit_max)
+    pairs = np.sort(springs.pairs[limited], axis=1).astype(np.int64)
+    keys = pairs[:, 0] * n + pairs[:, 1]
+    order = np.argsort(keys)
+    keys, lo, hi = keys[order], springs.limit_min[limited][order], springs.limit_max[limited][order]
+    free = model.inv_mass > 0
+
+    def slots_of(chain: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        a, b = np.minimum(chain[:-1], chain[1:]), np.maximum(chain[:-1], chain[1:])
+        at = np.minimum(np.searchsorted(keys, a * n + b), len(keys) - 1)
+        return at, keys[at] == a * n + b
+
+    families: list[list[tuple[np.ndarray, np.ndarray]]] = []  # per family its lines: particles, slots
+    for c, cloth in enumerate(scene.cloths):
+        offset = model.offsets[c]
+        if cloth.mesh is None:
+            grouped = [list(chains) for chains in grid_chains(*cloth.resolution).values()]
+        else:
+            inside = (pairs[:, 0] >= offset) & (pairs[:, 0] < model.offsets[c + 1])
+            grouped = [mesh_chains(pairs[inside] - offset, model.cloths[c].positions)]
+        for g, chains in enumerate(grouped):
+            lines = []
+            for chain in chains:
+                chain = chain + offset
+                at, found = slots_of(chain)
+                lines += [(chain[p], at[p.start:p.stop - 1]) for p in line_pieces(chain, free, found)]
+            if cloth.mesh is None:
+                colours = np.full(len(lines), g)
+            else:
+                colours = colour_lines([particles for particles, _ in lines], free)
+            for line, f in zip(lines, colours.tolist()):
+                families += [[] for _ in range(f + 1 - len(families))]
+                families[f].append(line)
+    out = []
+    for lines in filter(None, families):
+        starts = np.cumsum([0] + [len(particles) for particles, _ in lines])
+        slot_lo = [np.append(lo[slots], 0.0) for _, slots in lines]
+        slot_hi = [np.append(hi[slots], 0.0) for _, slots in lines]
+        out.append((starts.astype(np.int32), np.concatenate([p for p, _ in lines]).astype(np.int32),
+                    np.concatenate(slot_lo).astype(np.float32), np.concatenate(slot_hi).astype(np.float32)))
+    return out
