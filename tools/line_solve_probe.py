@@ -4,9 +4,12 @@ every spring of a line held and one linearised step a round, as before the 256^2
 the default (Jacobi passes in pairs, Chebyshev with its estimated radius), back to back on the speed matrix's
 sphere cloth (symplectic, 10 substeps a frame): the worst edge strain over every frame (stretch and
 compression, structural and shear), passes (for the line solve, rounds) a substep on average and at most,
-frames with a solve at the cap, and the wall time.
+frames with a solve at the cap, and the wall time. ``--cloth triangles`` (or ``quads``): the same cloth read
+from an OBJ of each quad as two triangles (or of its quads), whose lines are a mesh's (warp_cloth/
+cloth_lines.py).
 
     python tools/line_solve_probe.py OUT.json [--sizes 32 64 128] [--methods jacobi lines ...] [--frames 48]
+        [--cloth grid triangles quads]
 
 docs/notebook/strain-solve.md ("Held line solves in dynamics") quotes its output on this project's CPU."""
 
@@ -20,6 +23,7 @@ import warp as wp
 
 import warp_cloth as wc
 from warp_cloth.lab.bench import environment, matrix_scene
+from warp_cloth.lab.bench_meshes import as_mesh_cloth
 from warp_cloth.limit_solve import lab_hooks
 
 # method: the hooks its simulator is built with
@@ -30,8 +34,10 @@ METHODS = {"jacobi": {}, "lines": {"line_solve": True, "chebyshev_rho": 0.0},
                               "line_newton_steps": 1}}
 
 
-def measure(n: int, method: str, frames: int, cap: int, device: str) -> dict:
+def measure(n: int, method: str, frames: int, cap: int, device: str, cloth: str = "grid") -> dict:
     scene = matrix_scene("sphere", n, "symplectic")
+    if cloth != "grid":
+        scene = as_mesh_cloth(scene, triangles=cloth == "triangles")
     scene = dataclasses.replace(scene, simulation=dataclasses.replace(
         scene.simulation, limit_solve="converged", limit_max_passes=cap))
     with lab_hooks(**METHODS[method]):
@@ -59,7 +65,7 @@ def measure(n: int, method: str, frames: int, cap: int, device: str) -> dict:
         x = sim.positions()
         strain = np.linalg.norm(x[edges[:, 1]] - x[edges[:, 0]], axis=1) / rest - 1.0
         stretch, compression = max(stretch, float(strain.max())), max(compression, float(-strain.min()))
-    return {"n": n, "method": method, "frames": frames, "cap": cap, "stable": stable,
+    return {"n": n, "cloth": cloth, "method": method, "frames": frames, "cap": cap, "stable": stable,
             "stretch": round(stretch, 4), "compression": round(compression, 4),
             "mean_passes": round(passes / max(solves, 1), 2), "most_passes": most, "frames_capped": capped,
             "seconds": round(seconds, 2)}
@@ -73,14 +79,16 @@ def main() -> None:
     parser.add_argument("--methods", nargs="+", choices=list(METHODS), default=list(METHODS))
     parser.add_argument("--frames", type=int, default=48)
     parser.add_argument("--cap", type=int, default=200)
+    parser.add_argument("--cloth", nargs="+", choices=["grid", "triangles", "quads"], default=["grid"])
     args = parser.parse_args()
     wp.config.log_level = wp.LOG_ERROR
     rows = []
     for n in args.sizes:
-        for method in args.methods:
-            rows.append(measure(n, method, args.frames, args.cap, args.device))
-            print(rows[-1], flush=True)
-            json.dump({"environment": environment(args.device), "rows": rows}, open(args.out, "w"), indent=1)
+        for cloth in args.cloth:
+            for method in args.methods:
+                rows.append(measure(n, method, args.frames, args.cap, args.device, cloth))
+                print(rows[-1], flush=True)
+                json.dump({"environment": environment(args.device), "rows": rows}, open(args.out, "w"), indent=1)
 
 
 if __name__ == "__main__":
