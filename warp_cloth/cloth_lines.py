@@ -15,7 +15,6 @@ import numpy as np
 from .model import Model
 from .scene import Scene
 
-GRID_FAMILIES = ("rows", "columns", "diagonals", "antidiagonals")
 # Two springs at a vertex continue each other when the angle between them at rest is at least 120 degrees:
 # a grid's straight lines, not the turn from a boundary's column into its diagonal.
 CONTINUING_COSINE = -0.5
