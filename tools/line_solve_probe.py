@@ -6,10 +6,15 @@ sphere cloth (symplectic, 10 substeps a frame): the worst edge strain over every
 compression, structural and shear), passes (for the line solve, rounds) a substep on average and at most,
 frames with a solve at the cap, and the wall time. ``--cloth triangles`` (or ``quads``): the same cloth read
 from an OBJ of each quad as two triangles (or of its quads), whose lines are a mesh's (warp_cloth/
-cloth_lines.py).
+cloth_lines.py). ``--variant self``: the speed matrix's self-collision cloth instead (the same cloth with
+particle collision, whose converged solve projects the contacts with the limits: by default jointly, then
+sequentially; with line rounds, each round's separating pass after it, warp_cloth/plan.py), which adds the
+closest contact (a fraction of the contact distance, 1.0: no overlap) and the most crossing triangle pairs at
+a frame's end (warp_cloth/diagnostics.py, as tools/contact_quality.py and ``warp-cloth run --check`` count
+them).
 
     python tools/line_solve_probe.py OUT.json [--sizes 32 64 128] [--methods jacobi lines ...] [--frames 48]
-        [--cloth grid triangles quads]
+        [--cloth grid triangles quads] [--variant sphere self]
 
 docs/notebook/strain-solve.md ("Held line solves in dynamics") quotes its output on this project's CPU."""
 
@@ -23,6 +28,7 @@ import warp as wp
 
 import warp_cloth as wc
 from warp_cloth.lab.bench import environment, matrix_scene
+from warp_cloth.diagnostics import TriangleIntersections
 from warp_cloth.lab.bench_meshes import as_mesh_cloth
 from warp_cloth.limit_solve import lab_hooks
 
@@ -34,8 +40,9 @@ METHODS = {"jacobi": {}, "lines": {"line_solve": True, "chebyshev_rho": 0.0},
                               "line_newton_steps": 1}}
 
 
-def measure(n: int, method: str, frames: int, cap: int, device: str, cloth: str = "grid") -> dict:
-    scene = matrix_scene("sphere", n, "symplectic")
+def measure(n: int, method: str, frames: int, cap: int, device: str, cloth: str = "grid",
+            variant: str = "sphere") -> dict:
+    scene = matrix_scene(variant, n, "symplectic")
     if cloth != "grid":
         scene = as_mesh_cloth(scene, triangles=cloth == "triangles")
     scene = dataclasses.replace(scene, simulation=dataclasses.replace(
@@ -46,6 +53,8 @@ def measure(n: int, method: str, frames: int, cap: int, device: str, cloth: str 
     stretch = compression = 0.0
     most, passes, solves, capped, seconds = 0, 0.0, 0, 0, 0.0
     stable = True
+    crossings = TriangleIntersections(sim) if scene.collision is not None else None
+    closest, most_crossings = float("inf"), 0
     sim.prepare()  # compiles before the clock starts
     sim.solver_stats()
     for _ in range(frames):
@@ -65,10 +74,13 @@ def measure(n: int, method: str, frames: int, cap: int, device: str, cloth: str 
         x = sim.positions()
         strain = np.linalg.norm(x[edges[:, 1]] - x[edges[:, 0]], axis=1) / rest - 1.0
         stretch, compression = max(stretch, float(strain.max())), max(compression, float(-strain.min()))
-    return {"n": n, "cloth": cloth, "method": method, "frames": frames, "cap": cap, "stable": stable,
+        if crossings is not None:
+            closest, most_crossings = min(closest, sim.closest_contact()), max(most_crossings, crossings(sim))
+    contacts = {} if crossings is None else {"closest_contact": round(closest, 4), "most_crossings": most_crossings}
+    return {"n": n, "variant": variant, "cloth": cloth, "method": method, "frames": frames, "cap": cap, "stable": stable,
             "stretch": round(stretch, 4), "compression": round(compression, 4),
             "mean_passes": round(passes / max(solves, 1), 2), "most_passes": most, "frames_capped": capped,
-            "seconds": round(seconds, 2)}
+            "seconds": round(seconds, 2), **contacts}
 
 
 def main() -> None:
@@ -80,13 +92,14 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=48)
     parser.add_argument("--cap", type=int, default=200)
     parser.add_argument("--cloth", nargs="+", choices=["grid", "triangles", "quads"], default=["grid"])
+    parser.add_argument("--variant", choices=["sphere", "self"], default="sphere")
     args = parser.parse_args()
     wp.config.log_level = wp.LOG_ERROR
     rows = []
     for n in args.sizes:
         for cloth in args.cloth:
             for method in args.methods:
-                rows.append(measure(n, method, args.frames, args.cap, args.device, cloth))
+                rows.append(measure(n, method, args.frames, args.cap, args.device, cloth, args.variant))
                 print(rows[-1], flush=True)
                 json.dump({"environment": environment(args.device), "rows": rows}, open(args.out, "w"), indent=1)
 

@@ -114,8 +114,6 @@ def colour_lines(lines: list[np.ndarray], free: np.ndarray) -> np.ndarray:
 def cloth_lines(model: Model, scene: Scene) -> list[Family]:
     """The scene's families of lines: a grid cloth's rows, columns, diagonals and antidiagonals, a mesh
     cloth's coloured chains; the cloths' k-th families solved as one."""
-    if scene.collision is not None:
-        raise ValueError("the line solve takes cloths without particle collision only")
     springs = model.springs
     n = model.particle_count
     limited = np.isfinite(springs.limit_max)

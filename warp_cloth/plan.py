@@ -12,6 +12,7 @@ import warp as wp
 
 from warp_cloth.kernels.colliders import RigidColliders
 
+from .cloth_lines import Family
 from .device_model import DeviceModel
 from .implicit import SolveStats
 from .integrators import Integrator
@@ -85,7 +86,7 @@ class Plan:
 
 
 def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, solve: LimitSolveSettings,
-               threads: int | None = None, lines: dict | None = None) -> Plan:
+               threads: int | None = None, lines: list[Family] | None = None) -> Plan:
     """The substep, in order: moving spheres and animated mesh colliders to the substep's end (nothing before
     the colliders reads them); the wind's forces; the integrator's pass; driven pins (oscillating, on
     colliders, on keys); then, with particle collision, the contacts' start (in the integrator's pass where it
@@ -125,16 +126,18 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
             passes.append(ContactStart(start))
         passes.append(lists)
         edge_passes = [edge_separation_pass(model, state, chosen, rigid)] if state.edges is not None else []
-        if converged:
+        if converged and model.limits is not None and solve.line_solve:
+            projection = line_contact_projection(model, state, solve, chosen, rigid, edge_passes, lines)
+            passes.append(projection)
+        elif converged:
             projection = converged_projection(model, state, solve, chosen, rigid, edge_passes)
             passes.append(projection)
         else:
             passes.extend(edge_passes + projection_passes(model, state, solve, chosen, rigid))
         passes.append(contact_velocities(model, state, chosen))
     elif model.limits is not None and converged and solve.line_solve:
-        rounds = [LineSolves(model, lines, solve.line_hold_margin, solve.line_newton_steps, solve.line_segment),
-                  HoldAndCollide(model, rigid)]
-        projection = ConvergedProjection(model, state, solve, rounds, rigid, counted=1)
+        projection = ConvergedProjection(model, state, solve, line_round(model, solve, lines, rigid), rigid,
+                                         counted=1)
         passes.append(projection)
     elif model.limits is not None and converged:
         projection = ConvergedProjection(model, state, solve, [limit_pass(model, chosen, rigid, None, 1)] * 2, rigid)
@@ -165,6 +168,26 @@ def converged_projection(model: DeviceModel, state: DeviceState, solve: LimitSol
     later = projection_pair(model, state, threads, rigid, edge_passes, "sequential")
     return ConvergedProjection(model, state, solve, first, rigid, counted=counted(first), later_body=later,
                                later_counted=counted(later), switch_at=solve.joint_passes)
+
+
+def line_round(model: DeviceModel, solve: LimitSolveSettings, lines: list[Family],
+               rigid: RigidColliders | None) -> list[Pass]:
+    """A round of the lab's line solve (line_solve.py): the families of ``lines``, then the attachments and the
+    colliders, each in place."""
+    return [LineSolves(model, lines, solve.line_hold_margin, solve.line_newton_steps, solve.line_segment),
+            HoldAndCollide(model, rigid)]
+
+
+def line_contact_projection(model: DeviceModel, state: DeviceState, solve: LimitSolveSettings, threads: int,
+                            rigid: RigidColliders | None, edge_passes: list[Pass],
+                            lines: list[Family]) -> ConvergedProjection:
+    """The converged solve of particle collision with the strain limits by rounds of line solves (the lab's,
+    ``solve.line_solve``): each iteration two rounds, each a line round then the sequential projection's
+    separating pass (``edge_passes`` before it), reading the resting marks' first bit, then the other, as
+    ``projection_pair`` does; a round counts as one pass toward the cap."""
+    round_ = line_round(model, solve, lines, rigid)
+    body = [p for bit in (1, 2) for p in round_ + edge_passes + [separation_pass(model, state, threads, rigid, bit)]]
+    return ConvergedProjection(model, state, solve, body, rigid, counted=2)
 
 
 def projection_pair(model: DeviceModel, state: DeviceState, threads: int, rigid: RigidColliders | None,
