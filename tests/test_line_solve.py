@@ -1,20 +1,27 @@
 """The lab's held line solve of the strain limits (warp_cloth/line_solve.py): the lines (warp_cloth/
 cloth_lines.py) of a grid and of a mesh cloth cover every limited spring once, split at the pins, in families
-whose lines share no free particle; rounds of it inside the converged solve hold the limit; and lines solved
-in segments (kernels/line_solve_segments.py) move the particles as whole lines do."""
+whose lines share no free particle; rounds of it inside the converged solve hold the limit, with particle
+collision too; and lines solved in segments (kernels/line_solve_segments.py) move the particles as whole lines
+do."""
 
 import dataclasses
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 import warp_cloth as wc
 from warp_cloth.cloth_lines import cloth_lines, mesh_chains
+from warp_cloth.diagnostics import ContactGaps, TriangleIntersections
 from warp_cloth.lab.bench_meshes import as_mesh_cloth
 from warp_cloth.limit_solve import lab_hooks
 from warp_cloth.line_solve import LineSolves, line_segments
 from warp_cloth.model import build_model
 from warp_cloth.strain import StrainMonitor
+
+sys.path.insert(0, str(Path(__file__).parent))
+import hard_cases  # noqa: E402
 
 
 def hanging(mesh: str) -> wc.Scene:
@@ -77,6 +84,28 @@ def test_rounds_of_line_solves_hold_the_hanging_cloth_within_the_tolerance(mesh)
     stats = sim.solver_stats(since_start=True)
     assert stats.limit_residual <= 1.0
     assert monitor.report().stretch <= 1.1 * 1.005 - 1.0 + 1e-5
+
+
+def test_rounds_of_line_solves_with_self_collision_hold_the_limit_and_keep_the_cloth_from_crossing_itself():
+    scene = hard_cases.twisted()  # released from a twist onto the ground, folding onto itself
+    scene = dataclasses.replace(scene, simulation=dataclasses.replace(
+        scene.simulation, limit_solve="converged", limit_tolerance=0.005))
+    with pytest.warns(wc.UnstableStepWarning), lab_hooks(chebyshev_rho=0.0, line_solve=True):
+        sim = wc.Simulator(scene, device="cpu")
+    assert "line solves" in str(sim.plan) and "separation" in str(sim.plan)
+    monitor = StrainMonitor()
+    crossings, gaps = TriangleIntersections(sim), ContactGaps(sim)
+    monitor.begin(sim)
+    for _ in range(12):
+        sim.step()
+        monitor.write_frame(sim, sim.frame)
+        assert crossings(sim) == 0
+        assert gaps(sim) >= 1.0 - scene.collision.tolerance
+    stats = sim.solver_stats(since_start=True)
+    assert stats.limit_residual <= 1.0
+    report = monitor.report()
+    assert report.stretch <= 1.1 * 1.005 - 1.0 + 1e-5
+    assert report.compression <= 1.0 - 0.9 * 0.995 + 1e-5
 
 
 def test_line_segments_cut_each_line_at_every_size_th_spring_but_its_last():
