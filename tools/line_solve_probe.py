@@ -77,8 +77,8 @@ def measure(n: int, method: str, frames: int, cap: int, device: str, cloth: str 
         if crossings is not None:
             closest, most_crossings = min(closest, sim.closest_contact()), max(most_crossings, crossings(sim))
     contacts = {} if crossings is None else {"closest_contact": round(closest, 4), "most_crossings": most_crossings}
-    return {"n": n, "variant": variant, "cloth": cloth, "method": method, "frames": frames, "cap": cap, "stable": stable,
-            "stretch": round(stretch, 4), "compression": round(compression, 4),
+    return {"n": n, "variant": variant, "cloth": cloth, "method": method, "frames": frames, "cap": cap,
+            "stable": stable, "stretch": round(stretch, 4), "compression": round(compression, 4),
             "mean_passes": round(passes / max(solves, 1), 2), "most_passes": most, "frames_capped": capped,
             "seconds": round(seconds, 2), **contacts}
 

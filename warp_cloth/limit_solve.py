@@ -35,10 +35,11 @@ CHEBYSHEV_RHO: float | None = None
 # the sequential ones converge (docs/notebook/strain-solve.md).
 JOINT_PASSES = 200
 # rounds of line solves (warp_cloth/line_solve.py, the lines from warp_cloth/cloth_lines.py) in place of the
-# limit's Jacobi passes, on cloths without particle collision: the lab's alternative of issue 33, off by
-# default; with the springs held within LINE_HOLD_MARGIN of a limit (1: every spring) and LINE_NEWTON_STEPS
-# linearised steps a line a round (kernels/line_solve.py), a thread a line or, with LINE_SEGMENT springs a
-# segment, a thread a segment (kernels/line_solve_segments.py).
+# limit's Jacobi passes (with particle collision, each round followed by the contacts' separating passes;
+# warp_cloth/plan.py): the lab's alternative of issue 33, off by default; with the springs held within
+# LINE_HOLD_MARGIN of a limit (1: every spring) and LINE_NEWTON_STEPS linearised steps a line a round
+# (kernels/line_solve.py), a thread a line or, with LINE_SEGMENT springs a segment, a thread a segment
+# (kernels/line_solve_segments.py).
 LINE_SOLVE = False
 LINE_HOLD_MARGIN = 0.02
 LINE_NEWTON_STEPS = 2

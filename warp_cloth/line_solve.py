@@ -1,7 +1,8 @@
 """The lab's line solve of the strain limits (issue 33; kernels/line_solve.py): the families of lines that
 cloth_lines.py finds, and a round of it as the passes a converged solve repeats in place of the Jacobi limit
 pass (``limit_solve.lab_hooks(line_solve=True)``): the families, one launch each, then the attachments and
-the colliders. Off unless the lab asks for it; cloths without particle collision only."""
+the colliders (with particle collision, warp_cloth/plan.py follows it with the contacts' separating passes).
+Off unless the lab asks for it."""
 
 from __future__ import annotations
 
