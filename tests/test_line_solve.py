@@ -119,7 +119,9 @@ def test_line_segments_cut_each_line_at_every_size_th_spring_but_its_last():
     assert segments["right"].tolist() == [-1, 4, -1, 9, 12, -1]
 
 
-def test_lines_solved_in_segments_move_the_particles_as_whole_lines_do():
+@pytest.mark.parametrize("device", ["cpu", pytest.param("cuda", marks=pytest.mark.cuda)])
+def test_lines_solved_in_segments_move_the_particles_as_whole_lines_do(device):
+    # on a GPU the segments' threads run at once: a race between them would show here, not on the CPU
     scene = wc.load_scene("hanging")
     scene = dataclasses.replace(scene, simulation=dataclasses.replace(scene.simulation, limit_solve="converged"))
     rng = np.random.default_rng(3)
@@ -127,7 +129,7 @@ def test_lines_solved_in_segments_move_the_particles_as_whole_lines_do():
     for segment in (0, 2, 3, 32):
         with lab_hooks(chebyshev_rho=0.0, line_solve=True, line_hold_margin=1.0, line_newton_steps=2,
                        line_segment=segment):
-            sim = wc.Simulator(scene, device="cpu", graph=False)
+            sim = wc.Simulator(scene, device=device, graph=False)
         if segment == 0:
             start = sim.positions() + rng.normal(0.0, 0.2, sim.positions().shape) * sim.model.edge_rest.mean()
             start[sim.model.inv_mass == 0] = sim.positions()[sim.model.inv_mass == 0]
