@@ -120,7 +120,7 @@ def measure(scene: wc.Scene, gap: float, device: str) -> dict:
             "contact_distance": distance, "closest_contact": closest, "closest_contact_m": closest * distance,
             "closest_contact_of_gap": closest * distance / gap,
             "start_contact_of_gap": per_frame["closest_contact"][0] * distance / gap,
-            "limit_passes_mean": total.limit_mean_passes, "limit_passes_most": total.limit_passes,
+            "limit_passes_mean": total and total.limit_mean_passes, "limit_passes_most": total and total.limit_passes,
             "limit_passes_cap": sim.limit_solve.max_passes,
             "frames_ending_outside_tolerance": sum(r > 1.0 for r in per_frame["limit_residual"]),
             "per_frame": per_frame | {"stretch": report.per_frame[:, 1].tolist(),
@@ -136,6 +136,8 @@ def table_lines(row: dict) -> list[str]:
     """A run's line in the table (and a line saying how it ended, where it did not complete)."""
     if row["outcome"] == "refused at start":
         return [f"{row['run']:<34} refused at start: {row['message']}"]
+    if row["frames"] == 0:
+        return [f"{row['run']:<34} {row['outcome']}"]
     first = row["first_crossing_frame"]
     lines = [f"{row['run']:<34} {row['frames']:>6} {row['step_seconds']:>8.1f} {row['substeps_mean']:>8.1f} "
              f"{100 * row['stretch']:>+7.1f}% {-100 * row['compression']:>+7.1f}% "
@@ -171,6 +173,8 @@ def main() -> None:
     wp.config.log_level = wp.LOG_ERROR
     wc.set_verbose(False)
     device = args.device or ("cuda" if wp.is_cuda_available() else "cpu")
+    settings = {k: v for k, v in vars(args).items() if k not in ("json", "device")}
+    settings["cell"] = args.size / (args.n - 1)
     rows = []
     print(HEADER, "-" * len(HEADER), sep="\n")
     for text in args.radius:
@@ -182,13 +186,11 @@ def main() -> None:
                 f"{' edges' if args.edges else ''}{' no-self' if args.no_self else ''}")
         rows.append({"run": name, "radius": radius, **measure(scene, args.gap, device)})
         print(*table_lines(rows[-1]), sep="\n", flush=True)
-    settings = {k: v for k, v in vars(args).items() if k not in ("json", "device")}
-    settings["cell"] = args.size / (args.n - 1)
-    if args.json:
-        with open(args.json, "w") as out:
-            json.dump({"environment": environment(device), "settings": settings, "runs": rows}, out, indent=1)
-            out.write("\n")
-        print(f"{len(rows)} runs on {device}; written to {args.json}")
+        if args.json:  # after every run: a later one may take long or fail
+            with open(args.json, "w") as out:
+                json.dump({"environment": environment(device), "settings": settings, "runs": rows}, out, indent=1)
+                out.write("\n")
+    print(f"{len(rows)} runs on {device}" + (f"; written to {args.json}" if args.json else ""))
 
 
 if __name__ == "__main__":
