@@ -1,0 +1,197 @@
+"""Stacked sheets draped over a sphere (issue 34's case): how well the layers stay apart and the limit holds.
+
+``sheets`` square grid cloths of ``n`` x ``n`` particles, ``size`` metres square, laid horizontally ``gap``
+metres apart, each pinned at two corners of one edge, fall from ``drop`` metres above a sphere of radius
+``sphere_radius`` and drape over it, ``frames`` frames at ``fps``; the issue's own case is 5 sheets of
+128^2, 2 m, 1 cm apart, a 5% strain limit, a 0.5 m sphere, 100 frames at 60 fps. The material (density,
+springs) is the built-in drape scene's; the step is the simulator's choice unless ``--substeps`` fixes it.
+One run per contact setting: ``--radius`` in metres (the particles' sphere; "default" for the project's own
+rule, ``Collision``'s docstring), with self and cloth-cloth collision, edge contacts and friction as asked.
+
+Per run, over every frame written (frame 0 included):
+- worst edge strain, stretch and compression, of every structural and shear edge (all limited here), as
+  ``StrainMonitor`` measures it;
+- crossing triangle pairs (``TriangleIntersections``, the counter of ``warp-cloth run --check`` and
+  tools/contact_quality.py): the most in a frame, its frame, and the first frame with any;
+- the closest contact of two particles that may collide, among the pairs the simulation listed last (so
+  measuring leaves the run as it would be unmeasured): as a fraction of the contact distance, in metres
+  and as a fraction of the gap;
+- the converged limit solve's passes a substep (mean, most, the cap) and the frames whose solve ended at
+  its cap outside its tolerance;
+- wall time of the frames (kernels loaded before the clock starts), substeps a frame.
+A run the start check refuses, or that blows up, is reported as such: that is a result too.
+
+    python tools/stacked_drape.py --sheets 3 --n 32 --frames 60 --radius 0.004 default --device cpu \\
+        --json docs/results/stacked-drape-cpu.json
+
+Prints a table and writes the runs and the environment as one JSON object (docs/results/stacked-drape-*.json,
+read by docs/notebook/layers.md).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import numpy as np
+import warp as wp
+
+import warp_cloth as wc
+from warp_cloth.diagnostics import TriangleIntersections
+from warp_cloth.lab.bench import environment
+
+DRAPE_MATERIAL = {"density": 0.2, "structural": wc.SpringKind(50.0, 0.05), "shear": wc.SpringKind(50.0, 0.05),
+                  "bend": wc.SpringKind(20.0, 0.02, "compression", "compression")}  # scenes/drape.toml's
+
+
+def stacked_drape_scene(sheets: int = 5, n: int = 128, gap: float = 0.01, limit: float = 0.05, frames: int = 100,
+                        fps: float = 60.0, size: float = 2.0, sphere_radius: float = 0.5, drop: float = 0.05,
+                        radius: float | None = None, self_collision: bool = True, between_cloths: bool = True,
+                        edges: bool = False, friction: float = 0.0, substeps: int | None = None) -> wc.Scene:
+    """The stacked drape: the sphere's centre at the origin, the lowest sheet ``drop`` above its top, the
+    sheets centred over it, ``gap`` apart; ``radius`` None is the project's contact rule."""
+    base = sphere_radius + drop
+    cloths = tuple(wc.Cloth(name=f"sheet{k}", resolution=(n - 1, n - 1), size=(size, size),
+                            orientation="horizontal", origin=(-size / 2, base + k * gap, size / 2),
+                            limit=wc.Limit(limit, limit), pins=(wc.Pin(corners=("top-left", "top-right")),),
+                            **DRAPE_MATERIAL) for k in range(sheets))
+    return wc.Scene(name=f"stacked_{sheets}x{n}", cloths=cloths,
+                    spheres=(wc.Sphere(name="ball", center=(0.0, 0.0, 0.0), radius=sphere_radius),),
+                    collision=wc.Collision(self_collision=self_collision, between_cloths=between_cloths,
+                                           radius=radius, edges=edges, friction=friction),
+                    simulation=wc.Simulation(fps=fps, frames=frames, substeps=substeps))
+
+
+def contact_distance(sim: wc.Simulator) -> float:
+    """Two particles' contact distance in metres: ``separation`` times their radius (one radius for sheets of
+    one grid)."""
+    return sim.scene.collision.separation * float(np.min(sim.model.contacts.radius))
+
+
+def measure(scene: wc.Scene, gap: float, device: str) -> dict:
+    """One run of ``scene``, measured in every frame (see the module's docstring)."""
+    try:
+        sim = wc.Simulator(scene, device=device)
+    except wc.SceneError as refused:
+        return {"outcome": "refused at start", "message": str(refused)}
+    started = time.perf_counter()
+    sim.prepare()
+    prepare_seconds = time.perf_counter() - started
+    strain, crossings = wc.StrainMonitor(), TriangleIntersections(sim)
+    strain.begin(sim)
+    distance = contact_distance(sim)
+    per_frame = {"crossings": [], "closest_contact": [], "substeps": [], "limit_passes": [], "limit_residual": []}
+    stepping, outcome = 0.0, "completed"
+
+    def measure_frame(frame: int) -> None:
+        strain.write_frame(sim, frame)
+        per_frame["crossings"].append(crossings(sim))
+        per_frame["closest_contact"].append(float(sim.closest_contacts(remake=False).min()))
+
+    measure_frame(0)
+    for frame in range(1, scene.simulation.frames + 1):
+        started = time.perf_counter()
+        try:
+            sim.step()
+            wp.synchronize_device(sim.device)
+        except wc.UnstableSimulation as unstable:
+            outcome = f"unstable at frame {frame}: {unstable}"
+            break
+        stepping += time.perf_counter() - started
+        stats = sim.solver_stats()
+        per_frame["substeps"].append(sim.frame_substeps)
+        per_frame["limit_passes"].append(stats.limit_passes)
+        per_frame["limit_residual"].append(stats.limit_residual)
+        measure_frame(frame)
+    report = strain.report()
+    total = sim.solver_stats(since_start=True)
+    counts = per_frame["crossings"]
+    crossed = [f for f, c in enumerate(counts) if c > 0]
+    closest = min(per_frame["closest_contact"])
+    return {"outcome": outcome, "frames": len(counts) - 1, "particles": sim.model.particle_count,
+            "step_seconds": stepping, "prepare_seconds": prepare_seconds,
+            "substeps_mean": float(np.mean(per_frame["substeps"])) if per_frame["substeps"] else None,
+            "substeps_most": max(per_frame["substeps"], default=None),
+            "stretch": report.stretch, "stretch_frame": report.stretch_frame,
+            "compression": report.compression, "compression_frame": report.compression_frame,
+            "most_crossings": max(counts), "most_crossings_frame": int(np.argmax(counts)),
+            "first_crossing_frame": crossed[0] if crossed else None, "frames_with_crossings": len(crossed),
+            "contact_distance": distance, "closest_contact": closest, "closest_contact_m": closest * distance,
+            "closest_contact_of_gap": closest * distance / gap,
+            "start_contact_of_gap": per_frame["closest_contact"][0] * distance / gap,
+            "limit_passes_mean": total and total.limit_mean_passes, "limit_passes_most": total and total.limit_passes,
+            "limit_passes_cap": sim.limit_solve.max_passes,
+            "frames_ending_outside_tolerance": sum(r > 1.0 for r in per_frame["limit_residual"]),
+            "per_frame": per_frame | {"stretch": report.per_frame[:, 1].tolist(),
+                                      "compression": report.per_frame[:, 2].tolist()}}
+
+
+HEADER = (f"{'run':<34} {'frames':>6} {'step s':>8} {'substeps':>8} {'stretch':>8} {'compress':>8} "
+          f"{'most crossings':>15} {'first':>5} {'closest':>7} {'m':>8} {'of gap':>6} {'passes mean/most/cap':>20} "
+          f"{'capped':>6}")
+
+
+def table_lines(row: dict) -> list[str]:
+    """A run's line in the table (and a line saying how it ended, where it did not complete)."""
+    if row["outcome"] == "refused at start":
+        return [f"{row['run']:<34} refused at start: {row['message']}"]
+    if row["frames"] == 0:
+        return [f"{row['run']:<34} {row['outcome']}"]
+    first = row["first_crossing_frame"]
+    lines = [f"{row['run']:<34} {row['frames']:>6} {row['step_seconds']:>8.1f} {row['substeps_mean']:>8.1f} "
+             f"{100 * row['stretch']:>+7.1f}% {-100 * row['compression']:>+7.1f}% "
+             f"{row['most_crossings']:>7} (f {row['most_crossings_frame']:>3}) {'-' if first is None else first:>5} "
+             f"{row['closest_contact']:>7.3f} {row['closest_contact_m']:>8.5f} {row['closest_contact_of_gap']:>6.3f} "
+             f"{row['limit_passes_mean']:>7.1f}/{row['limit_passes_most']:>4}/{row['limit_passes_cap']:>5} "
+             f"{row['frames_ending_outside_tolerance']:>6}"]
+    if row["outcome"] != "completed":
+        lines.append(f"{'':<34} {row['outcome']}")
+    return lines
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--sheets", type=int, default=5)
+    parser.add_argument("--n", type=int, default=128, help="particles along a sheet's side")
+    parser.add_argument("--gap", type=float, default=0.01, help="metres between sheets")
+    parser.add_argument("--limit", type=float, default=0.05, help="strain limit, stretch and compression")
+    parser.add_argument("--frames", type=int, default=100)
+    parser.add_argument("--fps", type=float, default=60.0)
+    parser.add_argument("--size", type=float, default=2.0, help="metres, a sheet's side")
+    parser.add_argument("--sphere-radius", type=float, default=0.5)
+    parser.add_argument("--drop", type=float, default=0.05, help="metres from the sphere's top to the lowest sheet")
+    parser.add_argument("--radius", nargs="+", default=["0.004", "default"],
+                        help="particle contact radius in metres, or 'default' (the project's rule): one run each")
+    parser.add_argument("--no-self", action="store_true", help="cloth-cloth collision only")
+    parser.add_argument("--edges", action="store_true", help="edge contacts ([collision] edges = true)")
+    parser.add_argument("--friction", type=float, default=0.0)
+    parser.add_argument("--substeps", type=int, default=None, help="fixed substeps a frame (default: the simulator's)")
+    parser.add_argument("--device", default=None)
+    parser.add_argument("--json", default=None, help="where to write the runs and the environment")
+    args = parser.parse_args()
+    wp.config.log_level = wp.LOG_ERROR
+    wc.set_verbose(False)
+    device = args.device or ("cuda" if wp.is_cuda_available() else "cpu")
+    settings = {k: v for k, v in vars(args).items() if k not in ("json", "device")}
+    settings["cell"] = args.size / (args.n - 1)
+    rows = []
+    print(HEADER, "-" * len(HEADER), sep="\n")
+    for text in args.radius:
+        radius = None if text == "default" else float(text)
+        scene = stacked_drape_scene(args.sheets, args.n, args.gap, args.limit, args.frames, args.fps, args.size,
+                                    args.sphere_radius, args.drop, radius, not args.no_self, True, args.edges,
+                                    args.friction, args.substeps)
+        name = (f"{args.sheets}x{args.n}^2 r={'default' if radius is None else f'{1e3 * radius:g}mm'}"
+                f"{' edges' if args.edges else ''}{' no-self' if args.no_self else ''}")
+        rows.append({"run": name, "radius": radius, **measure(scene, args.gap, device)})
+        print(*table_lines(rows[-1]), sep="\n", flush=True)
+        if args.json:  # after every run: a later one may take long or fail
+            with open(args.json, "w") as out:
+                json.dump({"environment": environment(device), "settings": settings, "runs": rows}, out, indent=1)
+                out.write("\n")
+    print(f"{len(rows)} runs on {device}" + (f"; written to {args.json}" if args.json else ""))
+
+
+if __name__ == "__main__":
+    main()
