@@ -34,7 +34,7 @@ CLOSEST_CONTACT = 0.9
 def two_cloth_scene(limit_a: bool) -> wc.Scene:
     a = wc.Cloth(name="a", resolution=(9, 7), size=(1.0, 0.8), jitter=0.1,
                  limit=wc.Limit() if limit_a else None, pins=(wc.Pin(corners=("top-left",)),))
-    b = wc.Cloth(name="b", resolution=(8, 8), size=(0.9, 0.9), origin=(0.05, 0.02, 0.03), density=0.3,
+    b = wc.Cloth(name="b", resolution=(8, 8), size=(0.9, 0.9), origin=(0.05, 0.02, 0.12), density=0.3,
                  limit=wc.Limit())
     return wc.Scene(name="pair", cloths=(a, b), collision=wc.Collision(iterations=1))
 

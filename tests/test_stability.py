@@ -230,6 +230,23 @@ def test_coincident_particles_are_refused_with_a_clear_error():
         wc.Simulator(hard_cases.coincident(), device="cpu")
 
 
+def stacked_sheets(gap: float, radius: float) -> wc.Scene:
+    """Two horizontal 8 x 8 sheets of 0.5 m, ``gap`` apart, colliding with particles of ``radius``."""
+    cloths = tuple(wc.Cloth(name=f"sheet{k}", resolution=(7, 7), size=(0.5, 0.5), orientation="horizontal",
+                            origin=(0.0, 1.0 + k * gap, 0.0), pins=(wc.Pin(corners=("top-left", "top-right")),))
+                   for k in range(2))
+    return wc.Scene(name="stacked", cloths=cloths, collision=wc.Collision(radius=radius))
+
+
+def test_layers_that_start_inside_their_contact_distance_are_refused():
+    # 1 cm apart at a contact distance of 2.1 x 6 mm: 0.79 of it, which the first substep would turn into
+    # tens of m/s (the stacked drape of docs/notebook/layers.md); 1.3 cm apart they start outside it
+    with pytest.raises(wc.SceneError, match="cloths that start apart: .* 0.79 of their contact distance apart "
+                                            r"\(at least 1 needed"):
+        wc.Simulator(stacked_sheets(0.01, 0.006), device="cpu")
+    wc.Simulator(stacked_sheets(0.013, 0.006), device="cpu")
+
+
 def test_zero_and_vanishing_spring_lengths_are_refused():
     with pytest.raises(wc.SceneError, match="size: expected .* each > 0"):
         wc.Cloth(resolution=(4, 4), size=(0.0, 1.0))

@@ -224,7 +224,11 @@ class Simulator:
     gives it, or, after ``restore``, as the checkpoint does; warp_cloth/start_projection.py).
     """
 
-    INITIAL_OVERLAP_LIMIT = 0.5  # of the contact distance: closer starting pairs are refused
+    # of the contact distance: closer starting pairs are refused. The first substep's contacts push such a pair
+    # apart, and the push becomes velocity (overlap / step): 3 sheets 1 cm apart at a 1.26 cm contact distance
+    # (0.80 of it) were thrown apart at 27 m/s, and every frame made again with more substeps threw them
+    # faster, until a frame of 10,000 blew up (docs/notebook/layers.md).
+    INITIAL_OVERLAP_LIMIT = 1.0
     INITIAL_COLLIDER_DEPTH_LIMIT = 0.5  # of a cell: particles starting deeper in a collider are refused
     SYNC_SECONDS = 2.0  # how often ``run`` has its writers make their frames safe on disk
 
@@ -293,13 +297,15 @@ class Simulator:
             self._guard_host = wp.zeros(flags, dtype=int, device="cpu", pinned=True)
 
     def _refuse_initial_overlap(self) -> None:
-        """Cloths that start deep inside each other (or themselves) would be shot apart: refuse them."""
+        """Cloths that start inside each other's (or their own) contact distance would be shot apart: refuse
+        them."""
         ratio = self.closest_contact()
         if ratio is not None and ratio < self.INITIAL_OVERLAP_LIMIT:
             raise SceneError("cloth", f"cloths that start apart: two particles that collide start "
                                       f"{ratio:.2f} of their contact distance apart (at least "
-                                      f"{self.INITIAL_OVERLAP_LIMIT} needed); move the cloths apart or "
-                                      "leave collision out", has_got=False)
+                                      f"{self.INITIAL_OVERLAP_LIMIT:g} needed: the first substep would push them apart "
+                                      "at their overlap over a substep); move the cloths apart, make the "
+                                      "contact radius smaller or leave collision out", has_got=False)
 
     def _refuse_start_inside_colliders(self) -> None:
         """A particle that starts deeper than half a cell below the ground or inside a static sphere is thrown
