@@ -34,7 +34,7 @@ def three_worlds() -> list[wc.Scene]:
         wc.Scene(name="fall", cloths=(wc.Cloth(resolution=(10, 10), size=(1.0, 1.0), orientation="horizontal",
                                                origin=(-0.5, 0.3, 0.5), rotation=(20.0, 0.0, 0.0), **SOFT),
                                       wc.Cloth(name="second", resolution=(6, 6), size=(0.6, 0.6),
-                                               orientation="horizontal", origin=(-0.3, 0.6, 0.3), **SOFT)),
+                                               orientation="horizontal", origin=(-0.3, 0.8, 0.3), **SOFT)),
                  ground=wc.Ground(height=0.0, friction=0.8), collision=COLLISION, simulation=simulation()),
     ]
 
