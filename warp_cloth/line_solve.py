@@ -16,6 +16,7 @@ from warp_cloth.kernels.line_solve_segments import (LineSegments, finish_segment
 
 from .cloth_lines import Family
 from .device_model import DeviceModel
+from .limit_solve import LimitSolveSettings
 from .passes import attachments_of
 from .state import DeviceState
 
@@ -79,6 +80,11 @@ class LineSolves:
             tables = [line_segments(family[0], segment) for family in lines]
             self.segments = [(upload_segments(table, len(family[1]), model.device), len(table["first"]))
                              for family, table in zip(lines, tables)]
+
+    @classmethod
+    def of(cls, model: DeviceModel, lines: list[Family], solve: LimitSolveSettings) -> LineSolves:
+        """The line solves of ``lines`` as the lab's settings in ``solve`` ask."""
+        return cls(model, lines, solve.line_hold_margin, solve.line_newton_steps, solve.line_segment)
 
     def run(self, state: DeviceState) -> None:
         for f, (lines, count) in enumerate(self.families):

@@ -12,7 +12,6 @@ import warp as wp
 
 from warp_cloth.kernels.colliders import RigidColliders
 
-from .cloth_lines import Family
 from .device_model import DeviceModel
 from .implicit import SolveStats
 from .integrators import Integrator
@@ -86,7 +85,7 @@ class Plan:
 
 
 def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, solve: LimitSolveSettings,
-               threads: int | None = None, lines: list[Family] | None = None) -> Plan:
+               threads: int | None = None, lines: LineSolves | None = None) -> Plan:
     """The substep, in order: moving spheres and animated mesh colliders to the substep's end (nothing before
     the colliders reads them); the wind's forces; the integrator's pass; driven pins (oscillating, on
     colliders, on keys); then, with particle collision, the contacts' start (in the integrator's pass where it
@@ -95,8 +94,8 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
     follows a projection; with fixed passes, one edge pass before them) and the contact velocities; without
     it, the strain limit's passes or the colliders alone; the clock last, where something moves with it.
     ``solve``: how the limits and contacts are solved; ``threads``: per particle on the gathering passes
-    (None: by size); ``lines``: the cloths' families of lines where ``solve.line_solve``
-    (cloth_lines.cloth_lines)."""
+    (None: by size); ``lines``: the line solves of the cloths' lines where ``solve.line_solve``, made once
+    for every plan a simulator builds (line_solve.LineSolves)."""
     chosen = threads_per_particle(model.particle_count, model.device) if threads is None else threads
     rigid = model.colliders(state) if model.has_colliders else None
     oscillating_pins = model.pins is not None and model.pins.moving
@@ -136,7 +135,7 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
             passes.extend(edge_passes + projection_passes(model, state, solve, chosen, rigid))
         passes.append(contact_velocities(model, state, chosen))
     elif model.limits is not None and converged and solve.line_solve:
-        projection = ConvergedProjection(model, state, solve, line_round(model, solve, lines, rigid), rigid,
+        projection = ConvergedProjection(model, state, solve, line_round(model, lines, rigid), rigid,
                                          counted=1)
         passes.append(projection)
     elif model.limits is not None and converged:
@@ -170,24 +169,22 @@ def converged_projection(model: DeviceModel, state: DeviceState, solve: LimitSol
                                later_counted=counted(later), switch_at=solve.joint_passes)
 
 
-def line_round(model: DeviceModel, solve: LimitSolveSettings, lines: list[Family],
-               rigid: RigidColliders | None) -> list[Pass]:
+def line_round(model: DeviceModel, lines: LineSolves, rigid: RigidColliders | None) -> list[Pass]:
     """A round of the lab's line solve (line_solve.py): the families of ``lines``, then the attachments and the
     colliders, each in place."""
-    return [LineSolves(model, lines, solve.line_hold_margin, solve.line_newton_steps, solve.line_segment),
-            HoldAndCollide(model, rigid)]
+    return [lines, HoldAndCollide(model, rigid)]
 
 
 def line_contact_projection(model: DeviceModel, state: DeviceState, solve: LimitSolveSettings, threads: int,
                             rigid: RigidColliders | None, edge_passes: list[Pass],
-                            lines: list[Family]) -> ConvergedProjection:
+                            lines: LineSolves) -> ConvergedProjection:
     """The converged solve of particle collision with the strain limits by rounds of line solves (the lab's,
     ``solve.line_solve``): a round, counted as one pass toward the cap, is a line round and then the two
     separating passes of the contacts' own converged solve (``edge_passes`` before each), reading the resting
     marks' first bit, then the other, as ``projection_pair`` does. (Two line rounds an iteration, each
     followed by one separating pass, held the speed matrix's self cloth as well at 2.0 rounds a substep
     against 1.0-1.1 and took 14% longer at 64^2 on the CPU.)"""
-    body = line_round(model, solve, lines, rigid) + [
+    body = line_round(model, lines, rigid) + [
         p for bit in (1, 2) for p in edge_passes + [separation_pass(model, state, threads, rigid, bit)]]
     return ConvergedProjection(model, state, solve, body, rigid, counted=1)
 

@@ -32,6 +32,7 @@ from .integrators import Integrator, integrator_for
 from .pin_reach import check_pins_within_reach
 from .limit_solve import LimitSolveSettings
 from .cloth_lines import cloth_lines
+from .line_solve import LineSolves
 from .plan import Plan, build_plan
 from .scene import Scene
 from .shot_clock import ShotClock, shot_clock
@@ -261,7 +262,9 @@ class Simulator:
         self.limit_solve = LimitSolveSettings.of(
             at_substeps(self.scene, self.substeps_per_frame).simulation if auto else self.scene.simulation)
         self._threads = threads_per_particle
-        self._lines = cloth_lines(self.model, self.scene) if self.limit_solve.line_solve else None
+        # the lab's line solves (line_solve.py): their lines found and uploaded once, for every plan built
+        self._lines = LineSolves.of(self.device_model, cloth_lines(self.model, self.scene), self.limit_solve) \
+            if self.limit_solve.line_solve else None
         self.plan: Plan = build_plan(self.device_model, self.state, self.integrator, self.limit_solve,
                                      threads_per_particle, self._lines)
         # with substeps auto: their choice from frame to frame, and a copy of each frame's start to make it again
