@@ -9,7 +9,7 @@ springs from it and move their particles. The same system as one thread a line s
 
 import warp as wp
 
-from .line_solve import ClothLines, move_by_multipliers, spring_equation
+from .line_solve import ClothLines, spring_equation
 
 
 @wp.struct
@@ -20,8 +20,8 @@ class LineSegments:
     right: wp.array(dtype=int)  # the separator's slot after it (-1: it ends its line)
     separator_start: wp.array(dtype=int)  # (lines + 1,) line l's separators are separator[start[l]:start[l + 1]]
     separator: wp.array(dtype=int)  # their slots, in order along the line
-    diagonal: wp.array(dtype=wp.float64)  # per slot: scratch, the system's entries
-    lower: wp.array(dtype=wp.float64)  # per slot: the coupling with the slot before (0 at a line's first)
+    diagonal: wp.array(dtype=wp.float64)  # per slot, set at separators: scratch, the system's entries
+    lower: wp.array(dtype=wp.float64)  # at separators and segments' first slots: the coupling with the slot before
     right_side: wp.array(dtype=wp.float64)
     solution: wp.array(dtype=wp.float64)  # per slot: the segment's solution for the line's right side, then dlambda
     from_left: wp.array(dtype=wp.float64)  # per slot: its solution for the left separator's coupling
@@ -30,58 +30,56 @@ class LineSegments:
 
 
 @wp.kernel
-def segment_equations(lines: ClothLines, segments: LineSegments, inv_mass: wp.array(dtype=float),
-                      hold_margin: float, x: wp.array(dtype=wp.vec3)):
-    """Segment s's springs' entries (and its right separator's), their directions into ``lines.normal``."""
-    s = wp.tid()
-    first = segments.first[s]
-    last = segments.end[s]
-    if segments.right[s] >= 0:
-        last = last + 1
-    normal_before = wp.vec3(0.0)
-    if segments.left[s] >= 0:
-        normal_before, unused_diagonal, unused_right = spring_equation(lines, inv_mass, hold_margin, x, first - 1)
-    for k in range(first, last):
-        normal, diagonal, right = spring_equation(lines, inv_mass, hold_margin, x, k)
-        segments.lower[k] = wp.float64(-inv_mass[lines.particle[k]] * wp.dot(normal_before, normal))
-        segments.diagonal[k] = diagonal
-        segments.right_side[k] = right
-        lines.normal[k] = normal
-        normal_before = normal
-
-
-@wp.kernel
-def solve_segments(segments: LineSegments):
-    """Segment s's springs eliminated for the line's right side and a unit coupling to each separator."""
+def eliminate_segments(lines: ClothLines, segments: LineSegments, inv_mass: wp.array(dtype=float),
+                       hold_margin: float, x: wp.array(dtype=wp.vec3)):
+    """Segment s's springs' equations, eliminated for the line's right side and a unit coupling to each
+    separator; its right separator's equation (and the springs' directions into ``lines.normal``) kept for
+    the separators' solve and the finish. One pass builds and eliminates: a separate launch for the
+    equations cost as much again on an H100 (docs/notebook/strain-solve.md)."""
     s = wp.tid()
     first = segments.first[s]
     end = segments.end[s]
+    has_left = segments.left[s] >= 0
+    has_right = segments.right[s] >= 0
+    normal_before = wp.vec3(0.0)
+    if has_left:
+        normal_before, unused_diagonal, unused_right = spring_equation(lines, inv_mass, hold_margin, x, first - 1)
     pivot_before = wp.float64(1.0)
     solution_before = wp.float64(0.0)
     left_before = wp.float64(0.0)
     right_before = wp.float64(0.0)
     for k in range(first, end):
+        normal, diagonal, right = spring_equation(lines, inv_mass, hold_margin, x, k)
+        lines.normal[k] = normal
+        coupling = wp.float64(-inv_mass[lines.particle[k]] * wp.dot(normal_before, normal))
         lower = wp.float64(0.0)
         upper_before = wp.float64(0.0)
-        if k > first:
-            lower = segments.lower[k]
-            upper_before = lower / pivot_before
-            segments.upper[k - 1] = upper_before
-        diagonal = segments.diagonal[k]
-        pivot = wp.max(diagonal - lower * upper_before, wp.float64(1.0e-9) * diagonal)
         to_left = wp.float64(0.0)
         if k == first:
-            to_left = segments.lower[first]
+            to_left = coupling  # with the left separator (0 where there is none)
+            segments.lower[k] = coupling
+        else:
+            lower = coupling
+            upper_before = lower / pivot_before
+            segments.upper[k - 1] = upper_before
         to_right = wp.float64(0.0)
-        if k == end - 1 and segments.right[s] >= 0:
-            to_right = segments.lower[end]
-        solution_before = (segments.right_side[k] - lower * solution_before) / pivot
+        if k == end - 1 and has_right:
+            separator_normal, separator_diagonal, separator_right = spring_equation(lines, inv_mass, hold_margin,
+                                                                                    x, end)
+            to_right = wp.float64(-inv_mass[lines.particle[end]] * wp.dot(normal, separator_normal))
+            lines.normal[end] = separator_normal
+            segments.lower[end] = to_right
+            segments.diagonal[end] = separator_diagonal
+            segments.right_side[end] = separator_right
+        pivot = wp.max(diagonal - lower * upper_before, wp.float64(1.0e-9) * diagonal)
+        solution_before = (right - lower * solution_before) / pivot
         left_before = (to_left - lower * left_before) / pivot
         right_before = (to_right - lower * right_before) / pivot
         segments.solution[k] = solution_before
         segments.from_left[k] = left_before
         segments.from_right[k] = right_before
         pivot_before = pivot
+        normal_before = normal
     for step in range(1, end - first):
         k = end - 1 - step
         upper = segments.upper[k]
@@ -123,25 +121,37 @@ def solve_separators(segments: LineSegments):
 @wp.kernel
 def finish_segments(lines: ClothLines, segments: LineSegments, inv_mass: wp.array(dtype=float), h: float,
                     x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3)):
-    """Segment s's springs' dlambda from its separators' (in place of its solution: only this thread reads
-    those, its neighbours read the separators'), then its particles moved: from its first slot's to its
-    right separator's first particle, or to its line's last."""
+    """Segment s's springs' dlambda from its separators', and its particles moved by W J^T dlambda (their
+    velocities by the move over h): from its first slot's to its right separator's first particle, or to its
+    line's last. Each dlambda is used where it is made, never stored: only the separators' are read across
+    segments."""
     s = wp.tid()
     first = segments.first[s]
     end = segments.end[s]
     left = segments.left[s]
     right = segments.right[s]
     from_left = wp.float64(0.0)
+    before = wp.float64(0.0)  # the dlambda of the spring before the particle (slot k - 1)
+    normal_before = wp.vec3(0.0)
     if left >= 0:
         from_left = segments.solution[left]
+        before = from_left
+        normal_before = lines.normal[left]
     from_right = wp.float64(0.0)
-    last = end
     if right >= 0:
         from_right = segments.solution[right]
-        last = right
-    for k in range(first, end):
-        segments.solution[k] = segments.solution[k] - from_left * segments.from_left[k] \
-            - from_right * segments.from_right[k]
-    for k in range(first, last + 1):
-        move_by_multipliers(lines, segments.solution, inv_mass, h, k, k < end or right >= 0, k > first or left >= 0,
-                            x, v)
+    for k in range(first, end + 1):
+        after = from_right  # the separator's, or 0 after a line's last particle
+        normal = wp.vec3(0.0)
+        if k < end:
+            after = segments.solution[k] - from_left * segments.from_left[k] - from_right * segments.from_right[k]
+        if k < end or right >= 0:
+            normal = lines.normal[k]
+        p = lines.particle[k]
+        w = inv_mass[p]
+        if w > 0.0:
+            move = w * (float(before) * normal_before - float(after) * normal)
+            x[p] = x[p] + move
+            v[p] = v[p] + move / h
+        before = after
+        normal_before = normal

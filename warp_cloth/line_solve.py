@@ -11,8 +11,8 @@ import warp as wp
 
 from warp_cloth.kernels.colliders import RigidColliders
 from warp_cloth.kernels.line_solve import ClothLines, hold_and_collide, solve_lines
-from warp_cloth.kernels.line_solve_segments import (LineSegments, finish_segments, segment_equations,
-                                                    solve_segments, solve_separators)
+from warp_cloth.kernels.line_solve_segments import (LineSegments, eliminate_segments, finish_segments,
+                                                    solve_separators)
 
 from .cloth_lines import Family
 from .device_model import DeviceModel
@@ -95,9 +95,8 @@ class LineSolves:
                 continue
             segments, pieces = self.segments[f]
             for _ in range(self.newton_steps):
-                wp.launch(segment_equations, dim=pieces, inputs=[lines, segments, self.model.inv_mass,
-                                                                 self.hold_margin, state.x], device=state.device)
-                wp.launch(solve_segments, dim=pieces, inputs=[segments], device=state.device)
+                wp.launch(eliminate_segments, dim=pieces, inputs=[lines, segments, self.model.inv_mass,
+                                                                  self.hold_margin, state.x], device=state.device)
                 wp.launch(solve_separators, dim=count, inputs=[segments], device=state.device)
                 wp.launch(finish_segments, dim=pieces, inputs=[lines, segments, self.model.inv_mass, self.model.h],
                           outputs=[state.x, state.v], device=state.device)
