@@ -133,16 +133,20 @@ def eliminate_segments(lines: ClothLines, segments: LineSegments, inv_mass: wp.a
         left_before = (to_left - lower * left_before) / pivot
         right_before = (to_right - lower * right_before) / pivot
         segments.solution[k] = solution_before
-        segments.from_left[k] = left_before
-        segments.from_right[k] = right_before
+        if left >= 0:  # a side with no separator has no coupling to solve for (a whole line has neither)
+            segments.from_left[k] = left_before
+        if separator >= 0:
+            segments.from_right[k] = right_before
         pivot_before = pivot
         normal_before = normal
     for back in range(1, length):
         k = base + (length - 1 - back) * step
         upper = segments.upper[k]
         segments.solution[k] = segments.solution[k] - upper * segments.solution[k + step]
-        segments.from_left[k] = segments.from_left[k] - upper * segments.from_left[k + step]
-        segments.from_right[k] = segments.from_right[k] - upper * segments.from_right[k + step]
+        if left >= 0:
+            segments.from_left[k] = segments.from_left[k] - upper * segments.from_left[k + step]
+        if separator >= 0:
+            segments.from_right[k] = segments.from_right[k] - upper * segments.from_right[k + step]
 
 
 @wp.kernel
@@ -205,7 +209,11 @@ def finish_segments(lines: ClothLines, segments: LineSegments, inv_mass: wp.arra
         after = from_right  # the separator's, or 0 after a line's last particle
         normal = wp.vec3(0.0)
         if j < length:
-            after = segments.solution[k] - from_left * segments.from_left[k] - from_right * segments.from_right[k]
+            after = segments.solution[k]
+            if left >= 0:
+                after = after - from_left * segments.from_left[k]
+            if right >= 0:
+                after = after - from_right * segments.from_right[k]
         if j < length or right >= 0:
             normal = lines.normal[k]
         p = lines.particle[k]
