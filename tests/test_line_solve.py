@@ -1,8 +1,8 @@
 """The lab's held line solve of the strain limits (warp_cloth/line_solve.py): the lines (warp_cloth/
 cloth_lines.py) of a grid and of a mesh cloth cover every limited spring once, split at the pins, in families
 whose lines share no free particle; rounds of it inside the converged solve hold the limit, with particle
-collision too; and lines solved in segments (kernels/line_solve_segments.py) move the particles as whole lines
-do."""
+collision too; and lines solved in segments (kernels/line_solve.py), their arrays stored contiguous or
+interleaved (warp_cloth/line_solve.py), move the particles as whole lines do."""
 
 import dataclasses
 import sys
