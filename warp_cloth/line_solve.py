@@ -24,7 +24,8 @@ from .state import DeviceState
 
 # Springs a segment on CUDA, where a thread a line leaves a family's few hundred threads each walking a whole
 # line: on an H100 the 1024^2 sphere cloth took 841, 788, 507 and 563 ms a frame with segments of 8, 16, 32
-# and 64 (docs/notebook/strain-solve.md). The CPU runs a launch's threads one after another: whole lines.
+# and 64, stored contiguous (docs/notebook/strain-solve.md; not yet measured interleaved). The CPU runs a
+# launch's threads one after another: whole lines.
 CUDA_SEGMENT = 32
 
 
@@ -69,7 +70,7 @@ class SlotLayout:
 def slot_layout(segments: dict[str, np.ndarray], interleaved: bool) -> SlotLayout:
     """The layout of the slots of ``segments`` (line_segments'). Contiguous (the CPU's, where a thread walks
     segment after segment): as the lines give them, a segment's base its first slot, step 1. Interleaved
-    (CUDA's): base[s] = s, step the number of segments, so that at each step a warp's threads read
+    (CUDA's): base[s] = s, step the number of segments, so that at each j a warp's threads read
     consecutive addresses (contiguous, they read addresses a segment apart, and the 1024^2 cloth's kernels
     waited on memory); segments x (the longest + 1) values, the shorter segments' last ones unused."""
     first, end = segments["first"], segments["end"]
