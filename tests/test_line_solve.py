@@ -1,8 +1,8 @@
 """The lab's held line solve of the strain limits (warp_cloth/line_solve.py): the lines (warp_cloth/
 cloth_lines.py) of a grid and of a mesh cloth cover every limited spring once, split at the pins, in families
 whose lines share no free particle; rounds of it inside the converged solve hold the limit, with particle
-collision too; and lines solved in segments (kernels/line_solve_segments.py) move the particles as whole lines
-do."""
+collision too; and lines solved in segments (kernels/line_solve.py), their arrays stored contiguous or
+interleaved (warp_cloth/line_solve.py), move the particles as whole lines do."""
 
 import dataclasses
 import sys
@@ -16,7 +16,7 @@ from warp_cloth.cloth_lines import cloth_lines, mesh_chains
 from warp_cloth.diagnostics import ContactGaps, TriangleIntersections
 from warp_cloth.lab.bench_meshes import as_mesh_cloth
 from warp_cloth.limit_solve import lab_hooks
-from warp_cloth.line_solve import LineSolves, line_segments
+from warp_cloth.line_solve import LineSolves, line_segments, longest_line, slot_layout
 from warp_cloth.model import build_model
 from warp_cloth.strain import StrainMonitor
 
@@ -119,26 +119,51 @@ def test_line_segments_cut_each_line_at_every_size_th_spring_but_its_last():
     assert segments["right"].tolist() == [-1, 4, -1, 9, 12, -1]
 
 
+def test_the_interleaved_layout_stores_each_segments_j_th_slot_at_its_segment_plus_j_times_the_segments():
+    segments = line_segments(np.array([0, 2, 7, 17]), 3)  # lines of 1, 4 and 9 springs; segments of 2 to 4 slots
+    contiguous = slot_layout(segments, interleaved=False)
+    assert contiguous.storage.tolist() == list(range(17)) and contiguous.step == 1 and contiguous.size == 17
+    interleaved = slot_layout(segments, interleaved=True)
+    assert interleaved.base.tolist() == list(range(6)) and interleaved.step == 6 and interleaved.size == 6 * 4
+    assert interleaved.storage.tolist() == [0, 6, 1, 7, 13, 2, 8, 3, 9, 15, 4, 10, 16, 5, 11, 17, 23]
+
+
+@pytest.mark.parametrize("device", ["cpu", pytest.param("cuda", marks=pytest.mark.cuda)])
+def test_the_device_chooses_whole_contiguous_lines_on_the_cpu_and_interleaved_segments_of_32_on_cuda(device):
+    with lab_hooks(line_solve=True):
+        sim = wc.Simulator(wc.load_scene("hanging"), device=device, graph=False)
+    line_solves = sim.plan.projection.body[0]
+    assert isinstance(line_solves, LineSolves)
+    longest = longest_line(cloth_lines(sim.model, sim.scene))
+    assert (line_solves.segment, line_solves.interleaved) == ((32, True) if device == "cuda" else (longest, False))
+    # a segment a line: whole lines, or on CUDA the hanging cloth's lines of 10 springs at most
+    assert all(family.segment_count == family.line_count for family in line_solves.families)
+
+
 @pytest.mark.parametrize("device", ["cpu", pytest.param("cuda", marks=pytest.mark.cuda)])
 def test_lines_solved_in_segments_move_the_particles_as_whole_lines_do(device):
     # on a GPU the segments' threads run at once: a race between them would show here, not on the CPU
-    scene = wc.load_scene("hanging")
-    scene = dataclasses.replace(scene, simulation=dataclasses.replace(scene.simulation, limit_solve="converged"))
+    scene = wc.load_scene("hanging")  # its cloth at 40 x 36 cells: rows of 40 springs cut by segments of 32
+    scene = dataclasses.replace(scene, cloths=(dataclasses.replace(scene.cloths[0], resolution=(40, 36)),),
+                                simulation=dataclasses.replace(scene.simulation, limit_solve="converged"))
+    whole = longest_line(cloth_lines(build_model(scene), scene))
     rng = np.random.default_rng(3)
     moved = {}
-    for segment in (0, 2, 3, 32):
+    for segment, interleaved in [(whole, False), (whole, True)] + [(s, i) for s in (2, 3, 32) for i in (False, True)]:
         with lab_hooks(chebyshev_rho=0.0, line_solve=True, line_hold_margin=1.0, line_newton_steps=2,
-                       line_segment=segment):
+                       line_segment=segment, line_interleaved=interleaved):
             sim = wc.Simulator(scene, device=device, graph=False)
-        if segment == 0:
+        if not moved:
             start = sim.positions() + rng.normal(0.0, 0.2, sim.positions().shape) * sim.model.edge_rest.mean()
             start[sim.model.inv_mass == 0] = sim.positions()[sim.model.inv_mass == 0]
         sim.state.x.assign(start.astype(np.float32))
         line_solves = sim.plan.projection.body[0]
-        assert isinstance(line_solves, LineSolves) and (line_solves.segments is None) == (segment == 0)
+        assert isinstance(line_solves, LineSolves)
+        assert (line_solves.segment, line_solves.interleaved) == (segment, interleaved)
         line_solves.run(sim.state)
-        moved[segment] = sim.positions() - start
-    scale = np.abs(moved[0]).max()
+        moved[segment, interleaved] = sim.positions() - start
+    scale = np.abs(moved[whole, False]).max()
     assert scale > 0.1 * sim.model.edge_rest.mean()  # the lines moved
-    for segment in (2, 3, 32):
-        assert np.abs(moved[segment] - moved[0]).max() <= 1e-6 * scale
+    assert whole > 32 and all(family.segment_count > family.line_count for family in line_solves.families)
+    for key, positions in moved.items():
+        assert np.abs(positions - moved[whole, False]).max() <= 1e-6 * scale, key

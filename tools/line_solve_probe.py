@@ -1,6 +1,8 @@
 """The converged limit solve by rounds of line solves (``lab_hooks(line_solve=True)``, plain or with
-Chebyshev's acceleration; ``lines-segments``: the same a thread a segment of 32 springs; ``lines-held-all``:
-every spring of a line held and one linearised step a round, as before the 256^2 stall was explained) against
+Chebyshev's acceleration, a thread a whole line on any device; ``lines-segments``: the same a thread a segment
+of 32 springs, each in the device's layout (CUDA: interleaved; CPU: contiguous); ``lines-segments-contiguous``
+and ``-interleaved``: either layout on any device; ``lines-held-all``: every spring of a line held and one
+linearised step a round, as before the 256^2 stall was explained) against
 the default (Jacobi passes in pairs, Chebyshev with its estimated radius), back to back on the speed matrix's
 sphere cloth (symplectic, 10 substeps a frame): the worst edge strain over every frame (stretch and
 compression, structural and shear), passes (for the line solve, rounds) a substep on average and at most,
@@ -32,12 +34,17 @@ from warp_cloth.diagnostics import TriangleIntersections
 from warp_cloth.lab.bench_meshes import as_mesh_cloth
 from warp_cloth.limit_solve import lab_hooks
 
+WHOLE_LINES = 1 << 30  # a segment longer than any line (the layout keeps only the longest's slots)
 # method: the hooks its simulator is built with
-METHODS = {"jacobi": {}, "lines": {"line_solve": True, "chebyshev_rho": 0.0},
-           "lines+chebyshev": {"line_solve": True},
+METHODS = {"jacobi": {}, "lines": {"line_solve": True, "chebyshev_rho": 0.0, "line_segment": WHOLE_LINES},
+           "lines+chebyshev": {"line_solve": True, "line_segment": WHOLE_LINES},
            "lines-segments": {"line_solve": True, "chebyshev_rho": 0.0, "line_segment": 32},
+           "lines-segments-contiguous": {"line_solve": True, "chebyshev_rho": 0.0, "line_segment": 32,
+                                         "line_interleaved": False},
+           "lines-segments-interleaved": {"line_solve": True, "chebyshev_rho": 0.0, "line_segment": 32,
+                                          "line_interleaved": True},
            "lines-held-all": {"line_solve": True, "chebyshev_rho": 0.0, "line_hold_margin": 1.0,
-                              "line_newton_steps": 1}}
+                              "line_newton_steps": 1, "line_segment": WHOLE_LINES}}
 
 
 def measure(n: int, method: str, frames: int, cap: int, device: str, cloth: str = "grid",

@@ -38,27 +38,37 @@ JOINT_PASSES = 200
 # limit's Jacobi passes (with particle collision, each round followed by the contacts' separating passes;
 # warp_cloth/plan.py): the lab's alternative of issue 33, off by default; with the springs held within
 # LINE_HOLD_MARGIN of a limit (1: every spring) and LINE_NEWTON_STEPS linearised steps a line a round
-# (kernels/line_solve.py), a thread a line or, with LINE_SEGMENT springs a segment, a thread a segment
-# (kernels/line_solve_segments.py).
+# (kernels/line_solve.py), a thread a segment of LINE_SEGMENT springs (at least the longest line: whole
+# lines), the per-slot arrays stored interleaved where LINE_INTERLEAVED, else contiguous; None leaves either
+# to the device where the simulator builds the solves (line_solve.LineSolves.of: CUDA segments of 32,
+# interleaved; the CPU whole lines, contiguous).
 LINE_SOLVE = False
 LINE_HOLD_MARGIN = 0.02
 LINE_NEWTON_STEPS = 2
-LINE_SEGMENT = 0
+LINE_SEGMENT: int | None = None
+LINE_INTERLEAVED: bool | None = None
 
 
 @contextmanager
 def lab_hooks(chebyshev_rho: float | None = None, joint_passes: int = JOINT_PASSES, line_solve: bool = False,
               line_hold_margin: float = LINE_HOLD_MARGIN, line_newton_steps: int = LINE_NEWTON_STEPS,
-              line_segment: int = LINE_SEGMENT) -> Iterator[None]:
-    """Simulators built inside take these hooks' values (the lab's and tests', never a scene's)."""
+              line_segment: int | None = LINE_SEGMENT,
+              line_interleaved: bool | None = LINE_INTERLEAVED) -> Iterator[None]:
+    """Simulators built inside take these hooks' values (the lab's and tests', never a scene's); the line
+    solve's segment and layout, where None, are the device's (CUDA: segments of 32, interleaved; CPU: whole
+    lines, contiguous)."""
     global CHEBYSHEV_RHO, JOINT_PASSES, LINE_SOLVE, LINE_HOLD_MARGIN, LINE_NEWTON_STEPS, LINE_SEGMENT
-    before = CHEBYSHEV_RHO, JOINT_PASSES, LINE_SOLVE, LINE_HOLD_MARGIN, LINE_NEWTON_STEPS, LINE_SEGMENT
-    CHEBYSHEV_RHO, JOINT_PASSES, LINE_SOLVE, LINE_HOLD_MARGIN, LINE_NEWTON_STEPS, LINE_SEGMENT = \
-        chebyshev_rho, joint_passes, line_solve, line_hold_margin, line_newton_steps, line_segment
+    global LINE_INTERLEAVED
+    before = (CHEBYSHEV_RHO, JOINT_PASSES, LINE_SOLVE, LINE_HOLD_MARGIN, LINE_NEWTON_STEPS, LINE_SEGMENT,
+              LINE_INTERLEAVED)
+    (CHEBYSHEV_RHO, JOINT_PASSES, LINE_SOLVE, LINE_HOLD_MARGIN, LINE_NEWTON_STEPS, LINE_SEGMENT,
+     LINE_INTERLEAVED) = (chebyshev_rho, joint_passes, line_solve, line_hold_margin, line_newton_steps,
+                          line_segment, line_interleaved)
     try:
         yield
     finally:
-        CHEBYSHEV_RHO, JOINT_PASSES, LINE_SOLVE, LINE_HOLD_MARGIN, LINE_NEWTON_STEPS, LINE_SEGMENT = before
+        (CHEBYSHEV_RHO, JOINT_PASSES, LINE_SOLVE, LINE_HOLD_MARGIN, LINE_NEWTON_STEPS, LINE_SEGMENT,
+         LINE_INTERLEAVED) = before
 
 
 @dataclass(frozen=True)
@@ -76,7 +86,8 @@ class LimitSolveSettings:
     line_solve: bool = False
     line_hold_margin: float = LINE_HOLD_MARGIN
     line_newton_steps: int = LINE_NEWTON_STEPS
-    line_segment: int = LINE_SEGMENT
+    line_segment: int | None = LINE_SEGMENT
+    line_interleaved: bool | None = LINE_INTERLEAVED
 
     @classmethod
     def of(cls, simulation: Simulation) -> LimitSolveSettings:
@@ -84,7 +95,7 @@ class LimitSolveSettings:
         return cls(simulation.limit_solve == "converged", simulation.limit_iterations, simulation.limit_tolerance,
                    simulation.limit_max_passes, CHEBYSHEV_RHO, JOINT_PASSES,
                    LINE_SOLVE and simulation.limit_solve == "converged", LINE_HOLD_MARGIN, LINE_NEWTON_STEPS,
-                   LINE_SEGMENT)
+                   LINE_SEGMENT, LINE_INTERLEAVED)
 
 
 def residual_args(model: DeviceModel, state: DeviceState, settings: LimitSolveSettings, colliders: RigidColliders,

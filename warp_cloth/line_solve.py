@@ -1,18 +1,20 @@
 """The lab's line solve of the strain limits (issue 33; kernels/line_solve.py): the families of lines that
 cloth_lines.py finds, and a round of it as the passes a converged solve repeats in place of the Jacobi limit
-pass (``limit_solve.lab_hooks(line_solve=True)``): the families, one launch each, then the attachments and
-the colliders (with particle collision, warp_cloth/plan.py follows it with the contacts' separating passes).
-Off unless the lab asks for it."""
+pass (``limit_solve.lab_hooks(line_solve=True)``): the families, their lines cut into segments a thread
+each and stored in the layout this module chooses for the device, then the attachments and the colliders
+(with particle collision, warp_cloth/plan.py follows it with the contacts' separating passes). Off unless
+the lab asks for it."""
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 import warp as wp
 
 from warp_cloth.kernels.colliders import RigidColliders
-from warp_cloth.kernels.line_solve import ClothLines, hold_and_collide, solve_lines
-from warp_cloth.kernels.line_solve_segments import (LineSegments, eliminate_segments, finish_segments,
-                                                    solve_separators)
+from warp_cloth.kernels.line_solve import (ClothLines, LineSegments, eliminate_segments, finish_segments,
+                                           hold_and_collide, solve_separators)
 
 from .cloth_lines import Family
 from .device_model import DeviceModel
@@ -20,22 +22,22 @@ from .limit_solve import LimitSolveSettings
 from .passes import attachments_of
 from .state import DeviceState
 
-def upload_lines(starts: np.ndarray, particles: np.ndarray, lo: np.ndarray, hi: np.ndarray, device) -> ClothLines:
-    lines = ClothLines()
-    lines.start = wp.array(starts, dtype=int, device=device)
-    lines.particle = wp.array(particles, dtype=int, device=device)
-    lines.min_length = wp.array(lo, dtype=float, device=device)
-    lines.max_length = wp.array(hi, dtype=float, device=device)
-    lines.normal = wp.zeros(len(particles), dtype=wp.vec3, device=device)
-    lines.upper = wp.zeros(len(particles), dtype=wp.float64, device=device)
-    lines.multiplier = wp.zeros(len(particles), dtype=wp.float64, device=device)
-    return lines
+# Springs a segment on CUDA, where a thread a line leaves a family's few hundred threads each walking a whole
+# line: on an H100 the 1024^2 sphere cloth took 841, 788, 507 and 563 ms a frame with segments of 8, 16, 32
+# and 64, stored contiguous (docs/notebook/strain-solve.md; not yet measured interleaved). The CPU runs a
+# launch's threads one after another: whole lines.
+CUDA_SEGMENT = 32
+
+
+def longest_line(lines: list[Family]) -> int:
+    """The springs of the longest line of ``lines``: a segment size from which lines are solved whole."""
+    return max(int(np.diff(starts).max()) - 1 for starts, *_ in lines)
 
 
 def line_segments(starts: np.ndarray, size: int) -> dict[str, np.ndarray]:
     """The lines' (``starts`` as a family of cloth_lines.py's gives them) separators, every ``size``-th spring
-    of a line but its last, and the segments between them (kernels/line_solve_segments.py): per segment its
-    first slot, one past its last, and the separators' slots before and after it (-1: none); per line its
+    of a line but its last, and the segments between them (kernels/line_solve.py): per segment its first
+    slot, one past its last, and the separators' slots before and after it (-1: none); per line its
     separators."""
     first, end, left, right, separator_start, separator = [], [], [], [], [0], []
     for begin, stop in zip(starts[:-1].tolist(), starts[1:].tolist()):
@@ -54,52 +56,125 @@ def line_segments(starts: np.ndarray, size: int) -> dict[str, np.ndarray]:
                 separator_start=as_int(separator_start), separator=as_int(separator))
 
 
-def upload_segments(segments: dict[str, np.ndarray], slots: int, device) -> LineSegments:
+@dataclass(frozen=True)
+class SlotLayout:
+    """Where a family's per-slot values are stored: segment s's j-th slot (j = 0 .. its springs, its last
+    being its right separator's slot or its line's last particle) at ``base[s] + j * step``; ``storage``: each
+    slot's storage index, in the order the lines give them; ``size``: the values stored."""
+    base: np.ndarray
+    step: int
+    storage: np.ndarray
+    size: int
+
+
+def slot_layout(segments: dict[str, np.ndarray], interleaved: bool) -> SlotLayout:
+    """The layout of the slots of ``segments`` (line_segments'). Contiguous (the CPU's, where a thread walks
+    segment after segment): as the lines give them, a segment's base its first slot, step 1. Interleaved
+    (CUDA's): base[s] = s, step the number of segments, so that at each j a warp's threads read
+    consecutive addresses (contiguous, they read addresses a segment apart, and the 1024^2 cloth's kernels
+    waited on memory); segments x (the longest + 1) values, the shorter segments' last ones unused."""
+    first, end = segments["first"], segments["end"]
+    count = end - first + 1  # each segment's slots
+    segment = np.repeat(np.arange(len(first)), count)
+    j = np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
+    if interleaved:
+        base, step, size = np.arange(len(first)), len(first), len(first) * int(count.max())
+    else:
+        base, step, size = first, 1, int(count.sum())
+    return SlotLayout(base.astype(np.int32), step, (base[segment] + j * step).astype(np.int32), size)
+
+
+def in_storage(values: np.ndarray, layout: SlotLayout) -> np.ndarray:
+    """Per-slot ``values`` at their storage indices (0 in the holes, which nothing reads)."""
+    stored = np.zeros(layout.size, dtype=values.dtype)
+    stored[layout.storage] = values
+    return stored
+
+
+def storage_index(slots: np.ndarray, layout: SlotLayout) -> np.ndarray:
+    """The storage indices of ``slots`` (-1 stays -1: none)."""
+    return np.where(slots >= 0, layout.storage[slots], -1).astype(np.int32)
+
+
+def upload_family(family: Family, size: int, interleaved: bool, device) -> tuple[ClothLines, LineSegments]:
+    """A family's lines cut into segments of ``size`` springs, every per-slot array and every slot index in
+    the layout ``interleaved`` chooses (slot_layout)."""
+    starts, particles, lo, hi = family
+    segments = line_segments(starts, size)
+    layout = slot_layout(segments, interleaved)
+    indices = lambda values: wp.array(values, dtype=int, device=device)  # noqa: E731
+    lines = ClothLines()
+    lines.particle = indices(in_storage(particles, layout))
+    lines.min_length = wp.array(in_storage(lo, layout), dtype=float, device=device)
+    lines.max_length = wp.array(in_storage(hi, layout), dtype=float, device=device)
+    lines.normal = wp.zeros(layout.size, dtype=wp.vec3, device=device)
     uploaded = LineSegments()
-    for name, values in segments.items():
-        setattr(uploaded, name, wp.array(values, dtype=int, device=device))
+    uploaded.base = indices(layout.base)
+    uploaded.length = indices(segments["end"] - segments["first"])
+    uploaded.step = layout.step
+    right, separator = segments["right"], segments["separator"]
+    uploaded.left = indices(storage_index(segments["left"], layout))
+    uploaded.right = indices(storage_index(right, layout))
+    uploaded.after_right = indices(storage_index(np.where(right >= 0, right + 1, -1), layout))
+    uploaded.separator_start = indices(segments["separator_start"])
+    uploaded.separator = indices(storage_index(separator, layout))
+    uploaded.before_separator = indices(storage_index(separator - 1, layout))
+    uploaded.after_separator = indices(storage_index(separator + 1, layout))
     for name in ("diagonal", "lower", "right_side", "solution", "from_left", "from_right", "upper"):
-        setattr(uploaded, name, wp.zeros(slots, dtype=wp.float64, device=device))
-    return uploaded
+        setattr(uploaded, name, wp.zeros(layout.size, dtype=wp.float64, device=device))
+    return lines, uploaded
+
+
+@dataclass
+class FamilySolve:
+    """A family's arrays as the kernels take them, and its launches' threads."""
+    lines: ClothLines
+    segments: LineSegments
+    segment_count: int
+    line_count: int
 
 
 class LineSolves:
-    """The families' line solves, one family after another, moving the positions in place: springs
-    within ``hold_margin`` of a limit held, ``newton_steps`` linearised steps a line (kernels/line_solve.py);
-    a thread a line, or with ``segment`` springs a segment (0: whole lines) a thread a segment
-    (kernels/line_solve_segments.py)."""
+    """The families' line solves, one family after another, moving the positions in place: springs within
+    ``hold_margin`` of a limit held, ``newton_steps`` linearised steps a line (kernels/line_solve.py), each
+    line cut into segments of ``segment`` springs (one, where it is at least the longest line), a thread a
+    segment, every per-slot array stored ``interleaved`` or contiguous (slot_layout)."""
 
     def __init__(self, model: DeviceModel, lines: list[Family], hold_margin: float, newton_steps: int,
-                 segment: int = 0) -> None:
+                 segment: int, interleaved: bool) -> None:
+        if segment < 2:
+            raise ValueError(f"line segments of {segment} springs: at least 2")
         self.model = model
         self.name = f"line solves ({len(lines)} families)"
         self.hold_margin, self.newton_steps = hold_margin, newton_steps
-        self.families = [(upload_lines(*family, model.device), len(family[0]) - 1) for family in lines]
-        self.segments = None
-        if segment:
-            tables = [line_segments(family[0], segment) for family in lines]
-            self.segments = [(upload_segments(table, len(family[1]), model.device), len(table["first"]))
-                             for family, table in zip(lines, tables)]
+        self.segment, self.interleaved = segment, interleaved
+        self.families = []
+        for family in lines:
+            uploaded, segments = upload_family(family, segment, interleaved, model.device)
+            self.families.append(FamilySolve(uploaded, segments, segments.base.shape[0], len(family[0]) - 1))
 
     @classmethod
     def of(cls, model: DeviceModel, lines: list[Family], solve: LimitSolveSettings) -> LineSolves:
-        """The line solves of ``lines`` as the lab's settings in ``solve`` ask."""
-        return cls(model, lines, solve.line_hold_margin, solve.line_newton_steps, solve.line_segment)
+        """The line solves of ``lines`` as the lab's settings in ``solve`` ask, or where they leave it to the
+        device (None): on CUDA segments of CUDA_SEGMENT springs, interleaved; on the CPU whole lines,
+        contiguous."""
+        cuda = model.device.is_cuda
+        segment = solve.line_segment
+        if segment is None:
+            segment = CUDA_SEGMENT if cuda else max(longest_line(lines), 2)
+        interleaved = cuda if solve.line_interleaved is None else solve.line_interleaved
+        return cls(model, lines, solve.line_hold_margin, solve.line_newton_steps, segment, interleaved)
 
     def run(self, state: DeviceState) -> None:
-        for f, (lines, count) in enumerate(self.families):
-            if self.segments is None:
-                wp.launch(solve_lines, dim=count,
-                          inputs=[lines, self.model.inv_mass, self.hold_margin, self.newton_steps, self.model.h],
-                          outputs=[state.x, state.v], device=state.device)
-                continue
-            segments, pieces = self.segments[f]
+        inv_mass, device = self.model.inv_mass, state.device
+        for family in self.families:
             for _ in range(self.newton_steps):
-                wp.launch(eliminate_segments, dim=pieces, inputs=[lines, segments, self.model.inv_mass,
-                                                                  self.hold_margin, state.x], device=state.device)
-                wp.launch(solve_separators, dim=count, inputs=[segments], device=state.device)
-                wp.launch(finish_segments, dim=pieces, inputs=[lines, segments, self.model.inv_mass, self.model.h],
-                          outputs=[state.x, state.v], device=state.device)
+                wp.launch(eliminate_segments, dim=family.segment_count,
+                          inputs=[family.lines, family.segments, inv_mass, self.hold_margin, state.x], device=device)
+                wp.launch(solve_separators, dim=family.line_count, inputs=[family.segments], device=device)
+                wp.launch(finish_segments, dim=family.segment_count,
+                          inputs=[family.lines, family.segments, inv_mass, self.model.h],
+                          outputs=[state.x, state.v], device=device)
 
 
 class HoldAndCollide:
