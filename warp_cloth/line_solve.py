@@ -23,9 +23,9 @@ from .passes import attachments_of
 from .state import DeviceState
 
 # Springs a segment on CUDA, where a thread a line leaves a family's few hundred threads each walking a whole
-# line: on an H100 the 1024^2 sphere cloth took 841, 788, 507 and 563 ms a frame with segments of 8, 16, 32
-# and 64, stored contiguous (docs/notebook/strain-solve.md; not yet measured interleaved). The CPU runs a
-# launch's threads one after another: whole lines.
+# line: on an H100 the 1024^2 sphere cloth took 300 and 291 ms a frame with segments of 16 and 32 (stored
+# interleaved, ordered across lines; contiguous, 8 to 64 took 507 ms at best: docs/notebook/strain-solve.md).
+# The CPU runs a launch's threads one after another: whole lines.
 CUDA_SEGMENT = 32
 
 
@@ -68,11 +68,12 @@ class SlotLayout:
 
 
 def slot_layout(segments: dict[str, np.ndarray], interleaved: bool) -> SlotLayout:
-    """The layout of the slots of ``segments`` (line_segments'). Contiguous (the CPU's, where a thread walks
-    segment after segment): as the lines give them, a segment's base its first slot, step 1. Interleaved
-    (CUDA's): base[s] = s, step the number of segments, so that at each j a warp's threads read
-    consecutive addresses (contiguous, they read addresses a segment apart, and the 1024^2 cloth's kernels
-    waited on memory); segments x (the longest + 1) values, the shorter segments' last ones unused."""
+    """The layout of the slots of ``segments`` (line_segments', in any order of segments). Contiguous (the
+    CPU's, where a thread walks segment after segment): as the lines give them, a segment's base its first
+    slot, step 1. Interleaved (CUDA's): base[s] = s, step the number of segments, so that at each j a warp's
+    threads read consecutive addresses (contiguous, they read addresses a segment apart, and the 1024^2
+    cloth's kernels waited on memory); segments x (the longest + 1) values, the shorter segments' last ones
+    unused."""
     first, end = segments["first"], segments["end"]
     count = end - first + 1  # each segment's slots
     segment = np.repeat(np.arange(len(first)), count)
@@ -81,7 +82,22 @@ def slot_layout(segments: dict[str, np.ndarray], interleaved: bool) -> SlotLayou
         base, step, size = np.arange(len(first)), len(first), len(first) * int(count.max())
     else:
         base, step, size = first, 1, int(count.sum())
-    return SlotLayout(base.astype(np.int32), step, (base[segment] + j * step).astype(np.int32), size)
+    storage = np.empty(int(count.sum()), dtype=np.int32)
+    storage[first[segment] + j] = base[segment] + j * step
+    return SlotLayout(base.astype(np.int32), step, storage, size)
+
+
+def across_lines(segments: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """``segments`` with their per-segment arrays reordered so that neighbouring threads take the same
+    segment of neighbouring lines (every line's first segment, then every second one, ...): on a grid the
+    particles of a column's, or a diagonal's, neighbour lie beside its own, so a warp's reads of positions
+    coalesce as the slots' do interleaved."""
+    line = np.cumsum(segments["left"] < 0) - 1
+    first_of_line = np.flatnonzero(segments["left"] < 0)
+    index_in_line = np.arange(len(line)) - first_of_line[line]
+    order = np.lexsort((line, index_in_line))
+    return {name: values[order] if name in ("first", "end", "left", "right") else values
+            for name, values in segments.items()}
 
 
 def in_storage(values: np.ndarray, layout: SlotLayout) -> np.ndarray:
@@ -101,6 +117,8 @@ def upload_family(family: Family, size: int, interleaved: bool, device) -> tuple
     the layout ``interleaved`` chooses (slot_layout)."""
     starts, particles, lo, hi = family
     segments = line_segments(starts, size)
+    if interleaved:
+        segments = across_lines(segments)
     layout = slot_layout(segments, interleaved)
     indices = lambda values: wp.array(values, dtype=int, device=device)  # noqa: E731
     lines = ClothLines()
