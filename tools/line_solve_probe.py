@@ -90,9 +90,10 @@ def cap_of_frame(sim: wc.Simulator) -> int:
 def measure_run(scene: wc.Scene, method: str, frames: int, device: str) -> dict:
     """``frames`` frames of ``scene`` under ``method``'s hooks: the worst strain of a limited spring over
     every frame (the start's included), the solve's passes (rounds) a substep, frames with a solve at the
-    cap, substeps a frame, the wall time of the frames (kernels loaded before), and with particle
-    collision the closest contact and the most crossing triangle pairs at a frame's end, and the machine's
-    load (the 1-minute average as the run starts: other work on a shared CPU slows it). A scene the
+    cap, substeps a frame, the wall time of the frames (kernels loaded before) and the process's CPU time in
+    them (on a CPU shared with other work, steadier than the wall time; the machine's load, the 1-minute
+    average as the run starts, says how shared), and with particle collision the closest contact and the
+    most crossing triangle pairs at a frame's end. A scene the
     simulator refuses, or a run that blows up, is a row too."""
     load = round(os.getloadavg()[0], 2)
     try:
@@ -102,7 +103,7 @@ def measure_run(scene: wc.Scene, method: str, frames: int, device: str) -> dict:
         return {"stable": None, "refused": str(exc), "load_average": load}
     pairs, rest, bend_limited = limited_springs(sim.model)
     stretch = compression = 0.0
-    most, passes, solves, capped, residual, seconds = 0, 0.0, 0, 0, 0.0, 0.0
+    most, passes, solves, capped, residual, seconds, cpu_seconds = 0, 0.0, 0, 0, 0.0, 0.0, 0.0
     substeps: list[int] = []
     stable, failure = True, None
     crossings = TriangleIntersections(sim) if scene.collision is not None else None
@@ -123,7 +124,7 @@ def measure_run(scene: wc.Scene, method: str, frames: int, device: str) -> dict:
     made_again = 0  # substeps of frames made again with more (substeps auto)
     for _ in range(frames):
         substeps_before = sim.substeps_run
-        started = time.perf_counter()
+        started, cpu_started = time.perf_counter(), time.process_time()
         try:
             sim.step()
         except wc.UnstableSimulation as exc:
@@ -131,6 +132,7 @@ def measure_run(scene: wc.Scene, method: str, frames: int, device: str) -> dict:
             break
         wp.synchronize_device(sim.device)
         seconds += time.perf_counter() - started
+        cpu_seconds += time.process_time() - cpu_started
         substeps.append(sim.frame_substeps)
         made_again += sim.substeps_run - substeps_before - sim.frame_substeps
         stats = sim.solver_stats()
@@ -149,7 +151,7 @@ def measure_run(scene: wc.Scene, method: str, frames: int, device: str) -> dict:
             "worst_residual": round(residual, 3), "auto_substeps": sim.auto is not None,
             "substeps": {"min": min(substeps, default=None), "median": statistics.median(substeps) if substeps
                          else None, "max": max(substeps, default=None), "made_again": made_again},
-            "seconds": round(seconds, 2), "load_average": load, **contacts}
+            "seconds": round(seconds, 2), "cpu_seconds": round(cpu_seconds, 2), "load_average": load, **contacts}
 
 
 def main() -> None:
