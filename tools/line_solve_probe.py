@@ -14,12 +14,13 @@ a frame's end (warp_cloth/diagnostics.py, as tools/contact_quality.py and ``warp
 them). ``--scenes``: built-in scenes instead, each as ``warp-cloth run NAME`` loads it (its own step, substeps
 auto where it sets none, and cap), which add the substeps a frame (min, median, max; frames made again) and
 count a limited spring's strain only (a cloth's structural and shear springs where it has a limit; bend
-springs never are, which each row checks); ``--scene-frames NAME=N`` runs that scene for N frames instead.
+springs never are, which each row checks); ``--scene-frames NAME=N`` runs that scene for N frames instead;
+``--repeats R`` runs a scene's methods in turn R times and keeps each one's least wall and CPU times.
 
     python tools/line_solve_probe.py OUT.json [--sizes 32 64 128] [--methods jacobi lines ...] [--frames 48]
         [--cloth grid triangles quads] [--variant sphere self]
     python tools/line_solve_probe.py OUT.json --scenes NAME ... [--methods ...] [--frames 48]
-        [--scene-frames seed_default=12]
+        [--scene-frames seed_default=12] [--repeats 3]
 
 docs/notebook/strain-solve.md ("Held line solves in dynamics", "Line solves on the built-in scenes") quotes its
 output on this project's CPU."""
@@ -154,6 +155,18 @@ def measure_run(scene: wc.Scene, method: str, frames: int, device: str) -> dict:
             "seconds": round(seconds, 2), "cpu_seconds": round(cpu_seconds, 2), "load_average": load, **contacts}
 
 
+def fastest(runs: tuple[dict, ...]) -> dict:
+    """One row of repeated runs of a method (their motion the same: the CPU's runs are deterministic): the
+    least wall and CPU times, with every run's."""
+    row = dict(runs[0])
+    if len(runs) > 1 and runs[0].get("refused") is None:
+        for key in ("seconds", "cpu_seconds"):
+            row[key] = min(r[key] for r in runs)
+            row[f"{key}_each"] = [r[key] for r in runs]
+        row["load_average_each"] = [r["load_average"] for r in runs]
+    return row
+
+
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("out")
@@ -167,6 +180,8 @@ def main() -> None:
     parser.add_argument("--scenes", nargs="+", metavar="NAME", help="built-in scenes instead of the matrix cloth")
     parser.add_argument("--scene-frames", nargs="+", default=[], metavar="NAME=N",
                         help="with --scenes: frames for the scenes named, instead of --frames")
+    parser.add_argument("--repeats", type=int, default=1,
+                        help="with --scenes: each scene's methods run in turn this many times; the least times kept")
     args = parser.parse_args()
     wp.config.log_level = wp.LOG_ERROR
     rows = []
@@ -179,8 +194,10 @@ def main() -> None:
     if args.scenes:
         frames_of = {name: int(n) for name, n in (item.split("=") for item in args.scene_frames)}
         for name in args.scenes:
-            for method in args.methods:
-                keep(measure_scene(name, method, frames_of.get(name, args.frames), args.device))
+            runs = [[measure_scene(name, method, frames_of.get(name, args.frames), args.device)
+                     for method in args.methods] for _ in range(args.repeats)]  # the methods in turn, repeated
+            for method_runs in zip(*runs):
+                keep(fastest(method_runs))
         return
     for n in args.sizes:
         for cloth in args.cloth:
