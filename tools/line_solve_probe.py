@@ -181,7 +181,7 @@ def main() -> None:
     parser.add_argument("--scene-frames", nargs="+", default=[], metavar="NAME=N",
                         help="with --scenes: frames for the scenes named, instead of --frames")
     parser.add_argument("--repeats", type=int, default=1,
-                        help="with --scenes: each scene's methods run in turn this many times; the least times kept")
+                        help="with --scenes: each scene's methods run in turn R times; the least times kept")
     args = parser.parse_args()
     wp.config.log_level = wp.LOG_ERROR
     rows = []
