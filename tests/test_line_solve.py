@@ -86,6 +86,17 @@ def test_rounds_of_line_solves_hold_the_hanging_cloth_within_the_tolerance(mesh)
     assert monitor.report().stretch <= 1.1 * 1.005 - 1.0 + 1e-5
 
 
+def test_a_scene_without_strain_limits_runs_under_the_line_solves_hooks_as_without_them():
+    scene = wc.load_scene("swing")  # springs only: no limit, so no lines and no limit solve
+    runs = []
+    for hooks in ({}, {"line_solve": True}):
+        with lab_hooks(**hooks):
+            sim = wc.Simulator(scene, device="cpu")
+        sim.run(2)
+        runs.append(sim.positions())
+    assert np.array_equal(*runs)
+
+
 def test_rounds_of_line_solves_with_self_collision_hold_the_limit_and_keep_the_cloth_from_crossing_itself():
     scene = hard_cases.twisted()  # released from a twist onto the ground, folding onto itself
     scene = dataclasses.replace(scene, simulation=dataclasses.replace(

@@ -13,16 +13,25 @@ particle collision, whose converged solve projects the contacts with the limits:
 sequentially; with line rounds, each round's separating pass after it, warp_cloth/plan.py), which adds the
 closest contact (a fraction of the contact distance, 1.0: no overlap) and the most crossing triangle pairs at
 a frame's end (warp_cloth/diagnostics.py, as tools/contact_quality.py and ``warp-cloth run --check`` count
-them).
+them). ``--scenes``: built-in scenes instead, each as ``warp-cloth run NAME`` loads it (its own step, substeps
+auto where it sets none, and cap), which add the substeps a frame (min, median, max; frames made again) and
+count a limited spring's strain only (a cloth's structural and shear springs where it has a limit; bend
+springs never are, which each row checks); ``--scene-frames NAME=N`` runs that scene for N frames instead;
+``--repeats R`` runs a scene's methods in turn R times and keeps each one's least wall and CPU times.
 
     python tools/line_solve_probe.py OUT.json [--sizes 32 64 128] [--methods jacobi lines ...] [--frames 48]
         [--cloth grid triangles quads] [--variant sphere self]
+    python tools/line_solve_probe.py OUT.json --scenes NAME ... [--methods ...] [--frames 48]
+        [--scene-frames seed_default=12] [--repeats 3]
 
-docs/notebook/strain-solve.md ("Held line solves in dynamics") quotes its output on this project's CPU."""
+docs/notebook/strain-solve.md ("Held line solves in dynamics", "Line solves on the built-in scenes") quotes its
+output on this project's CPU."""
 
 import argparse
 import dataclasses
 import json
+import os
+import statistics
 import time
 
 import numpy as np
@@ -32,7 +41,9 @@ import warp_cloth as wc
 from warp_cloth.lab.bench import environment, matrix_scene
 from warp_cloth.diagnostics import TriangleIntersections
 from warp_cloth.lab.bench_meshes import as_mesh_cloth
+from warp_cloth.cloth_mesh import BEND
 from warp_cloth.limit_solve import lab_hooks
+from warp_cloth.stability import at_substeps
 
 WHOLE_LINES = 1 << 30  # a segment longer than any line (the layout keeps only the longest's slots)
 # method: the hooks its simulator is built with
@@ -49,45 +60,118 @@ METHODS = {"jacobi": {}, "lines": {"line_solve": True, "chebyshev_rho": 0.0, "li
 
 def measure(n: int, method: str, frames: int, cap: int, device: str, cloth: str = "grid",
             variant: str = "sphere") -> dict:
+    """The speed matrix's cloth at ``n``^2 (``variant``, as a grid or a ``cloth`` mesh) at ``cap`` rounds."""
     scene = matrix_scene(variant, n, "symplectic")
     if cloth != "grid":
         scene = as_mesh_cloth(scene, triangles=cloth == "triangles")
     scene = dataclasses.replace(scene, simulation=dataclasses.replace(
         scene.simulation, limit_solve="converged", limit_max_passes=cap))
-    with lab_hooks(**METHODS[method]):
-        sim = wc.Simulator(scene, device=device)
-    edges, rest = sim.model.edges, sim.model.edge_rest
+    return {"n": n, "variant": variant, "cloth": cloth, "method": method, "frames": frames, "cap": cap,
+            **measure_run(scene, method, frames, device)}
+
+
+def measure_scene(name: str, method: str, frames: int, device: str) -> dict:
+    """A built-in scene as ``warp-cloth run NAME --frames FRAMES`` loads it, with its own step and cap."""
+    scene = wc.load_scene(name)
+    scene = dataclasses.replace(scene, simulation=dataclasses.replace(scene.simulation, frames=frames))
+    return {"scene": name, "method": method, "frames": frames, **measure_run(scene, method, frames, device)}
+
+
+def limited_springs(model) -> tuple[np.ndarray, np.ndarray, bool]:
+    """The springs a strain limit bounds (structural and shear where a cloth has a limit), their rest
+    lengths, and whether any of them is a bend spring."""
+    springs = model.springs
+    if springs is None:
+        return np.zeros((0, 2), dtype=np.int32), np.zeros(0, dtype=np.float32), False
+    limited = np.isfinite(springs.limit_max)
+    return springs.pairs[limited], springs.rest[limited], bool(np.any(springs.kind[limited] == BEND))
+
+
+def cap_of_frame(sim: wc.Simulator) -> int:
+    """The cap on the limit solve's passes (rounds) of the frame just kept (with substeps auto, fitted to
+    that frame's substeps, as the simulator fits it)."""
+    if sim.auto is None:
+        return sim.limit_solve.max_passes
+    return at_substeps(sim.scene, sim.frame_substeps).simulation.limit_max_passes
+
+
+def measure_run(scene: wc.Scene, method: str, frames: int, device: str) -> dict:
+    """``frames`` frames of ``scene`` under ``method``'s hooks: the worst strain of a limited spring over
+    every frame (the start's included), the solve's passes (rounds) a substep, frames with a solve at the
+    cap, substeps a frame, the wall time of the frames (kernels loaded before) and the process's CPU time in
+    them (on a CPU shared with other work, steadier than the wall time; the machine's load, the 1-minute
+    average as the run starts, says how shared), and with particle collision the closest contact and the
+    most crossing triangle pairs at a frame's end. A scene the
+    simulator refuses, or a run that blows up, is a row too."""
+    load = round(os.getloadavg()[0], 2)
+    try:
+        with lab_hooks(**METHODS[method]):
+            sim = wc.Simulator(scene, device=device)
+    except wc.SceneError as exc:
+        return {"stable": None, "refused": str(exc), "load_average": load}
+    pairs, rest, bend_limited = limited_springs(sim.model)
     stretch = compression = 0.0
-    most, passes, solves, capped, seconds = 0, 0.0, 0, 0, 0.0
-    stable = True
+    most, passes, solves, capped, residual, seconds, cpu_seconds = 0, 0.0, 0, 0, 0.0, 0.0, 0.0
+    substeps: list[int] = []
+    stable, failure = True, None
     crossings = TriangleIntersections(sim) if scene.collision is not None else None
     closest, most_crossings = float("inf"), 0
+
+    def measure_frame() -> None:
+        nonlocal stretch, compression, closest, most_crossings
+        x = sim.positions()
+        if len(pairs):
+            strain = np.linalg.norm(x[pairs[:, 1]] - x[pairs[:, 0]], axis=1) / rest - 1.0
+            stretch, compression = max(stretch, float(strain.max())), max(compression, float(-strain.min()))
+        if crossings is not None:
+            closest, most_crossings = min(closest, sim.closest_contact()), max(most_crossings, crossings(sim))
+
     sim.prepare()  # compiles before the clock starts
     sim.solver_stats()
+    measure_frame()
+    made_again = 0  # substeps of frames made again with more (substeps auto)
     for _ in range(frames):
-        started = time.perf_counter()
+        substeps_before = sim.substeps_run
+        started, cpu_started = time.perf_counter(), time.process_time()
         try:
             sim.step()
-        except wc.UnstableSimulation:
-            stable = False
+        except wc.UnstableSimulation as exc:
+            stable, failure = False, str(exc)
             break
         wp.synchronize_device(sim.device)
         seconds += time.perf_counter() - started
+        cpu_seconds += time.process_time() - cpu_started
+        substeps.append(sim.frame_substeps)
+        made_again += sim.substeps_run - substeps_before - sim.frame_substeps
         stats = sim.solver_stats()
-        most = max(most, stats.limit_passes)
-        passes += stats.limit_mean_passes * stats.limit_solves
-        solves += stats.limit_solves
-        capped += stats.limit_passes >= cap
-        x = sim.positions()
-        strain = np.linalg.norm(x[edges[:, 1]] - x[edges[:, 0]], axis=1) / rest - 1.0
-        stretch, compression = max(stretch, float(strain.max())), max(compression, float(-strain.min()))
-        if crossings is not None:
-            closest, most_crossings = min(closest, sim.closest_contact()), max(most_crossings, crossings(sim))
+        if stats is not None and stats.limit_solves:
+            most = max(most, stats.limit_passes)
+            passes += stats.limit_mean_passes * stats.limit_solves
+            solves += stats.limit_solves
+            capped += stats.limit_passes >= cap_of_frame(sim)
+            residual = max(residual, stats.limit_residual)
+        measure_frame()
     contacts = {} if crossings is None else {"closest_contact": round(closest, 4), "most_crossings": most_crossings}
-    return {"n": n, "variant": variant, "cloth": cloth, "method": method, "frames": frames, "cap": cap,
-            "stable": stable, "stretch": round(stretch, 4), "compression": round(compression, 4),
+    return {"stable": stable, **({"failure": failure} if failure else {}), "frames_run": len(substeps),
+            "limited_springs": len(pairs), "bend_limited": bend_limited,
+            "stretch": round(stretch, 4), "compression": round(compression, 4),
             "mean_passes": round(passes / max(solves, 1), 2), "most_passes": most, "frames_capped": capped,
-            "seconds": round(seconds, 2), **contacts}
+            "worst_residual": round(residual, 3), "auto_substeps": sim.auto is not None,
+            "substeps": {"min": min(substeps, default=None), "median": statistics.median(substeps) if substeps
+                         else None, "max": max(substeps, default=None), "made_again": made_again},
+            "seconds": round(seconds, 2), "cpu_seconds": round(cpu_seconds, 2), "load_average": load, **contacts}
+
+
+def fastest(runs: tuple[dict, ...]) -> dict:
+    """One row of repeated runs of a method (their motion the same: the CPU's runs are deterministic): the
+    least wall and CPU times, with every run's."""
+    row = dict(runs[0])
+    if len(runs) > 1 and runs[0].get("refused") is None:
+        for key in ("seconds", "cpu_seconds"):
+            row[key] = min(r[key] for r in runs)
+            row[f"{key}_each"] = [r[key] for r in runs]
+        row["load_average_each"] = [r["load_average"] for r in runs]
+    return row
 
 
 def main() -> None:
@@ -100,15 +184,32 @@ def main() -> None:
     parser.add_argument("--cap", type=int, default=200)
     parser.add_argument("--cloth", nargs="+", choices=["grid", "triangles", "quads"], default=["grid"])
     parser.add_argument("--variant", choices=["sphere", "self"], default="sphere")
+    parser.add_argument("--scenes", nargs="+", metavar="NAME", help="built-in scenes instead of the matrix cloth")
+    parser.add_argument("--scene-frames", nargs="+", default=[], metavar="NAME=N",
+                        help="with --scenes: frames for the scenes named, instead of --frames")
+    parser.add_argument("--repeats", type=int, default=1,
+                        help="with --scenes: each scene's methods run in turn R times; the least times kept")
     args = parser.parse_args()
     wp.config.log_level = wp.LOG_ERROR
     rows = []
+
+    def keep(row: dict) -> None:
+        rows.append(row)
+        print(row, flush=True)
+        json.dump({"environment": environment(args.device), "rows": rows}, open(args.out, "w"), indent=1)
+
+    if args.scenes:
+        frames_of = {name: int(n) for name, n in (item.split("=") for item in args.scene_frames)}
+        for name in args.scenes:
+            runs = [[measure_scene(name, method, frames_of.get(name, args.frames), args.device)
+                     for method in args.methods] for _ in range(args.repeats)]  # the methods in turn, repeated
+            for method_runs in zip(*runs):
+                keep(fastest(method_runs))
+        return
     for n in args.sizes:
         for cloth in args.cloth:
             for method in args.methods:
-                rows.append(measure(n, method, args.frames, args.cap, args.device, cloth, args.variant))
-                print(rows[-1], flush=True)
-                json.dump({"environment": environment(args.device), "rows": rows}, open(args.out, "w"), indent=1)
+                keep(measure(n, method, args.frames, args.cap, args.device, cloth, args.variant))
 
 
 if __name__ == "__main__":

@@ -263,8 +263,9 @@ class Simulator:
             at_substeps(self.scene, self.substeps_per_frame).simulation if auto else self.scene.simulation)
         self._threads = threads_per_particle
         # the lab's line solves (line_solve.py): their lines found and uploaded once, for every plan built
+        # (none without strain limits, where the plan has no limit solve to make of them)
         self._lines = LineSolves.of(self.device_model, cloth_lines(self.model, self.scene), self.limit_solve) \
-            if self.limit_solve.line_solve else None
+            if self.limit_solve.line_solve and self.model.limits is not None else None
         self.plan: Plan = build_plan(self.device_model, self.state, self.integrator, self.limit_solve,
                                      threads_per_particle, self._lines)
         # with substeps auto: their choice from frame to frame, and a copy of each frame's start to make it again
