@@ -14,20 +14,22 @@ resolution (``derive_springs``; a spring's force is k (l/L - 1), k in N, see ker
 Masses. Each particle owns an equal share of each of its faces' area: m = density x that area
 (``cloth_mesh.lumped_masses``), so the cloth weighs density x its area exactly.
 
-Stretch. A membrane of stiffness E carries the tension E eps per unit width; a spring standing for a strip of
-it of area A along its length L carries k eps with k = E A / L. Each face shares its area among its sides:
-a quad gives each side half of it, a triangle each side all of it (Van Gelder 1998), so that on a grid a
-spring along u between two rows of cells stands for a cell, k = E_u dy, and the springs across any cut sum
-to E_u times its length. The sides pull but do not push, as do the quads' diagonals: pulled along u, the
-sheet narrows until its diagonals go slack (as woven cloth does) and only the springs along u carry the
-pull, T = E_u eps. A side at angle t to the warp takes the fabric's modulus in its direction,
-1/E(t) = c^4/E_u + s^4/E_v + c^2 s^2/G (c = cos t, s = sin t, Poisson's coupling left out): E_u or E_v along
-the threads, about 4 G on the bias.
-
-Shear. A quad's diagonal, of length d across a cell of area A (on a rectangle, sin t cos t = A / d^2),
-is stretched by gamma sin t cos t at a shear angle gamma while the other one goes slack; its energy
-1/2 k d (gamma A / d^2)^2 equals the membrane's 1/2 G gamma^2 A for k = G d^3 / A. Triangles have no
-diagonal: their sides carry the shear, each with its E(t).
+Stretch and shear. A membrane of stiffness E carries the tension E eps per unit width; a spring standing for
+a strip of it of area A along its length L carries k eps with k = E A / L. Each face shares its area among
+its sides, a quad half of it to each, a triangle all of it (Van Gelder 1998), so that a grid's springs across
+any cut stand for the cells they cross. The sides and diagonals pull and push, as a membrane does.
+A quad's two diagonals (length d, across a cell of area A) carry its shear: at a shear angle gamma one is
+stretched and the other shortened by gamma sin t cos t (on a rectangle, sin t cos t = A / d^2); their energy
+equals the membrane's 1/2 G gamma^2 A for k = G d^3 / (2 A). They also stiffen the cell along u by G c^2/s^2
+(c/s the cell's side ratio) and couple u to v by G, so its sides stand for a stiffness a_u (and a_v) chosen
+so that a strip free to narrow carries E_u: a_u - G^2 / a_v = E_u and a_v - G^2 / a_u = E_v, that is
+a_u = E_u (1 + sqrt(1 + 4 G^2 / (E_u E_v))) / 2, a_v = a_u E_v / E_u, less G c^2/s^2 (a cell too long for
+that, of a fabric whose G nears its E, a knit's, gets no less than zero: stiffer than its material along u).
+A triangle has no diagonal: its sides carry stretch and shear, each side at angle t to the warp with
+the modulus 1/E(t) = c^4/E_u + s^4/E_v + c^2 s^2 (1/G - 1/E_u - 1/E_v) (c = cos t, s = sin t; at most the
+largest of E_u, E_v, 4 G), E_u and E_v along the threads and 4 G on the bias, so that a grid of right
+triangles is pulled and sheared exactly as the material says (its diagonals turning freely, as a
+pantograph's). A quad's side takes c^2 a_u + s^2 a_v.
 
 Bending. A bend spring spans two edges of length L/2 across a hinge; bent to a curvature kappa along it,
 an unstretched row shortens it by the strain eps = L^2 kappa^2 / 32 (the chord of two edges turned
@@ -45,9 +47,9 @@ Damping. Each spring's dashpot is ``damping`` seconds of its elastic response: b
 Strain limits. A limited spring at angle t to the warp may stretch c^2 s_u + s^2 s_v and likewise shorten.
 
 Directions. Angles are measured at rest in each face's frame, from the 3D direction in which its UV's u grows
-(on a grid, the first direction). A mesh without UVs has no warp: every side takes the mean of the two
-stretch stiffnesses, every bend spring the mean bending, every limit the mean (isotropic), and the shear of
-a triangle mesh is then its sides', stiffer than a fabric's: give a garment's mesh UVs.
+(on a grid, the first direction). A mesh without UVs has no warp: it is made isotropic, every side taking
+the mean of the warp's and the weft's stiffness (a triangle's (E_u + E_v) / 2, so that its shear is then
+its sides', far stiffer than a fabric's: give a garment's mesh UVs), every bend spring and limit the mean.
 """
 
 from __future__ import annotations
@@ -72,6 +74,9 @@ _KES_SLOPE = KES_CURVATURES[0] ** 2 + KES_CURVATURES[0] * KES_CURVATURES[1] + KE
 _RANGES = {"density": (1e-6, 1e3, "kg/m^2"), "stretch": (1e-3, 1e8, "N/m"), "shear": (1e-3, 1e8, "N/m"),
            "bending": (1e-12, 10.0, "N m"), "damping": (0.0, 1.0, "s"), "friction": (0.0, 10.0, "")}
 _REQUIRED = ("density", "stretch", "shear", "bending")
+# In which regime a material's springs act, elastic part and dashpot (the kernels' regimes, model.regime_flags):
+# sides and diagonals both ways, as a membrane does; bend springs only when shortened, as the seed's.
+REGIMES = {STRUCTURAL: ("both", "both"), SHEAR: ("both", "both"), BEND: ("compression", "compression")}
 
 
 @dataclass(frozen=True)
@@ -151,25 +156,17 @@ def derive_springs(material: Material, rest_points: np.ndarray, mesh: ClothMesh)
     as its rest lengths have it (a grid flat, a mesh as modelled)."""
     pairs, kinds, rests = mesh.springs, mesh.spring_kind, mesh.rest_lengths
     counts, indices = mesh.face_counts, mesh.face_indices
-    warp = _warp_share(rest_points, counts, indices, mesh.uvs, pairs)  # cos^2 of each spring's angle to the warp
-    unknown = np.isnan(warp)
-    warp = np.where(unknown, 0.5, warp)  # no direction: the mean of warp and weft
-    stretch_u, stretch_v = along(material.stretch)
-    bend_u, bend_v = along(material.bending)
+    tensors = _warp_tensors(rest_points, counts, indices, mesh.uvs)
+    warp = np.nan_to_num(_warp_share(tensors, rest_points, pairs), nan=0.5)  # no direction: warp and weft's mean
     stiffness = np.zeros(len(pairs))
-
     sides = kinds == STRUCTURAL
-    c2 = warp[sides]
-    modulus = np.where(unknown[sides], 0.5 * (stretch_u + stretch_v),
-                       1.0 / (c2 * c2 / stretch_u + (1 - c2) ** 2 / stretch_v + c2 * (1 - c2) / material.shear))
-    stiffness[sides] = modulus * _side_areas(rest_points, counts, indices, pairs[sides]) / rests[sides]
-
+    stiffness[sides] = _side_stiffness(material, tensors, rest_points, counts, indices, pairs[sides])
     diagonals = kinds == SHEAR
-    stiffness[diagonals] = material.shear * rests[diagonals] ** 3 / _quad_areas(rest_points, counts, indices,
-                                                                                pairs[diagonals])
+    stiffness[diagonals] = material.shear * rests[diagonals] ** 3 / (
+        2.0 * _quad_areas(rest_points, counts, indices, pairs[diagonals]))
     bends = kinds == BEND
-    c2 = warp[bends]
-    bending = c2 * bend_u + (1 - c2) * bend_v
+    bend_u, bend_v = along(material.bending)
+    bending = warp[bends] * bend_u + (1 - warp[bends]) * bend_v
     stiffness[bends] = 512.0 * bending * _bend_areas(rest_points, counts, indices, pairs[bends]) / (
         rests[bends] ** 5 * _KES_SLOPE)
 
@@ -183,6 +180,29 @@ def derive_springs(material: Material, rest_points: np.ndarray, mesh: ClothMesh)
     return DerivedSprings(stiffness, material.damping * stiffness / rests, stretch_limit, compression_limit)
 
 
+def _side_stiffness(material: Material, tensors, points, counts, indices, wanted) -> np.ndarray:
+    """Each side's stiffness, summed over the faces beside it (see the module's docstring)."""
+    e_u, e_v = along(material.stretch)
+    g = material.shear
+    a_u = 0.5 * e_u * (1.0 + np.sqrt(1.0 + 4.0 * g * g / (e_u * e_v)))  # a quad cell's C_uu that leaves E_u
+    a_v = a_u * e_v / e_u
+    edges = face_edges(counts, indices)
+    length = np.linalg.norm(points[edges[:, 1]] - points[edges[:, 0]], axis=1)
+    starts = np.repeat(face_starts(counts), counts)
+    position, corners = np.arange(len(indices)) - starts, np.repeat(counts, counts)
+    across = 0.5 * (length[starts + (position - 1) % corners] + length[starts + (position + 1) % corners])
+    area = np.repeat(face_areas(points, counts, indices), counts)
+    c2 = _warp_share(tensors, points, edges)
+    known = ~np.isnan(c2)
+    c2 = np.where(known, c2, 0.5)
+    in_quad = np.where(known, c2 * a_u + (1 - c2) * a_v, 0.5 * (a_u + a_v)) - g * (length / across) ** 2
+    compliance = c2 * c2 / e_u + (1 - c2) ** 2 / e_v + c2 * (1 - c2) * (1.0 / g - 1.0 / e_u - 1.0 / e_v)
+    compliance = np.maximum(compliance, 1.0 / max(e_u, e_v, 4.0 * g))
+    in_triangle = np.where(known, 1.0 / compliance, 0.5 * (e_u + e_v))
+    share = np.where(corners == 4, 0.5 * area * np.maximum(in_quad, 0.0), area * in_triangle) / length
+    return _summed_by_pair(edges, share, wanted, len(points))
+
+
 def _keys(pairs: np.ndarray, n: int) -> np.ndarray:
     return np.minimum(pairs[:, 0], pairs[:, 1]).astype(np.int64) * n + np.maximum(pairs[:, 0], pairs[:, 1])
 
@@ -192,12 +212,6 @@ def _summed_by_pair(pairs: np.ndarray, values: np.ndarray, wanted: np.ndarray, n
     keys, owner = np.unique(_keys(pairs, n), return_inverse=True)
     sums = np.bincount(owner, weights=values, minlength=len(keys))
     return sums[np.searchsorted(keys, _keys(wanted, n))]
-
-
-def _side_areas(points, counts, indices, wanted) -> np.ndarray:
-    """The area each side stands for: half of each quad's beside it, all of each triangle's."""
-    share = face_areas(points, counts, indices) * np.where(counts == 4, 0.5, 1.0)
-    return _summed_by_pair(face_edges(counts, indices), np.repeat(share, counts), wanted, len(points))
 
 
 def _quad_areas(points, counts, indices, wanted) -> np.ndarray:
@@ -216,24 +230,32 @@ def _bend_areas(points, counts, indices, bends) -> np.ndarray:
     return 2.0 * (share[bends[:, 0]] + share[bends[:, 1]])
 
 
-def _warp_share(points, counts, indices, uvs, pairs) -> np.ndarray:
-    """cos^2 of each spring's angle to the warp at rest: each face's direction of growing u (from its first
-    triangle's UVs), summed at each particle as u u^T (so that UV islands mirrored across a seam agree), taken
-    at the spring's two ends. NaN where there is none (no UVs, or degenerate ones)."""
+def _warp_tensors(points, counts, indices, uvs) -> np.ndarray | None:
+    """(n, 3, 3) at each particle, the sum of u u^T over its faces, u the 3D direction in which the face's UV
+    u grows (from its first triangle): summed as u u^T so that UV islands mirrored across a seam agree.
+    None without UVs."""
     if uvs is None:
-        return np.full(len(pairs), np.nan)
+        return None
     starts = face_starts(counts)
     corner_uvs = uvs if len(uvs) == len(indices) else uvs[indices]  # a grid's are per particle
     a, b, c = indices[starts], indices[starts + 1], indices[starts + 2]
     e1, e2 = points[b] - points[a], points[c] - points[a]
     t1, t2 = corner_uvs[starts + 1] - corner_uvs[starts], corner_uvs[starts + 2] - corner_uvs[starts]
     det = t1[:, 0] * t2[:, 1] - t2[:, 0] * t1[:, 1]
-    grows = (e1 * t2[:, 1:2] - e2 * t1[:, 1:2]) / np.where(np.abs(det) > 0, det, np.inf)[:, None]
+    grows = (e1 * t2[:, 1:2] - e2 * t1[:, 1:2]) / np.where(det != 0, det, np.inf)[:, None]
     length = np.linalg.norm(grows, axis=1, keepdims=True)
-    grows = np.where(length > 0, grows / np.where(length > 0, length, 1.0), 0.0)
-    per_particle = np.zeros((len(points), 3, 3))
-    np.add.at(per_particle, indices, np.repeat(grows[:, :, None] * grows[:, None, :], counts, axis=0))
-    ends = per_particle[pairs[:, 0]] + per_particle[pairs[:, 1]]
+    grows = grows / np.where(length > 0, length, 1.0)  # degenerate UVs: zero, no direction
+    tensors = np.zeros((len(points), 3, 3))
+    np.add.at(tensors, indices, np.repeat(grows[:, :, None] * grows[:, None, :], counts, axis=0))
+    return tensors
+
+
+def _warp_share(tensors, points, pairs) -> np.ndarray:
+    """cos^2 of each pair's angle to the warp at rest, from its two ends' tensors; NaN where there is no
+    direction (no UVs, or degenerate ones)."""
+    if tensors is None:
+        return np.full(len(pairs), np.nan)
+    ends = tensors[pairs[:, 0]] + tensors[pairs[:, 1]]
     edge = points[pairs[:, 1]] - points[pairs[:, 0]]
     along_warp = np.einsum("si,sij,sj->s", edge, ends, edge)
     total = np.trace(ends, axis1=1, axis2=2) * np.einsum("si,si->s", edge, edge)

@@ -20,7 +20,8 @@ from .cloth_mesh import BEND, SHEAR, STRUCTURAL, ClothMesh, enclosing_radii, res
 from .mesh_cloth import build_mesh_cloth
 from .mesh_io import load_transform_motion, unique_pairs
 from .pin_selection import select_pins
-from .scene import Cloth, Scene, SpringKind, TransformKey
+from .materials import REGIMES as MATERIAL_REGIMES
+from .scene import Cloth, Scene, SpringRegime, TransformKey
 from .shot_clock import shot_clock
 from .spring_paths import nearest_along_edges
 
@@ -31,12 +32,12 @@ FLAG_DAMPING_TENSION = int(spring_kernels.DAMPING_TENSION)
 FLAG_DAMPING_COMPRESSION = int(spring_kernels.DAMPING_COMPRESSION)
 
 
-def regime_flags(kind: SpringKind) -> int:
-    """The kernel's regime bits for a spring kind (see ``kernels/springs.py``)."""
+def regime_flags(acts: SpringRegime, damping_acts: SpringRegime) -> int:
+    """The kernel's regime bits for a spring's elastic part and dashpot (see ``kernels/springs.py``)."""
     elastic = {"tension": FLAG_ELASTIC_TENSION, "compression": FLAG_ELASTIC_COMPRESSION,
-               "both": FLAG_ELASTIC_TENSION | FLAG_ELASTIC_COMPRESSION}[kind.acts]
+               "both": FLAG_ELASTIC_TENSION | FLAG_ELASTIC_COMPRESSION}[acts]
     damping = {"tension": FLAG_DAMPING_TENSION, "compression": FLAG_DAMPING_COMPRESSION,
-               "both": FLAG_DAMPING_TENSION | FLAG_DAMPING_COMPRESSION}[kind.damping_acts]
+               "both": FLAG_DAMPING_TENSION | FLAG_DAMPING_COMPRESSION}[damping_acts]
     return elastic | damping
 
 
@@ -281,7 +282,8 @@ def _springs(scene: Scene, meshes, offsets, n: int) -> Springs | None:
             parts["rest"].append(rest)
             parts["k"].append(np.full(count, kind.stiffness) if derived is None else derived.stiffness[sel])
             parts["b"].append(np.full(count, kind.damping) if derived is None else derived.damping[sel])
-            parts["flags"].append(np.full(count, regime_flags(kind), dtype=np.int32))
+            regimes = (kind.acts, kind.damping_acts) if derived is None else MATERIAL_REGIMES[kind_id]
+            parts["flags"].append(np.full(count, regime_flags(*regimes), dtype=np.int32))
             parts["kind"].append(np.full(count, kind_id, dtype=np.int32))
             limit = cloth.strain_limit
             if limit is None or kind_id not in (STRUCTURAL, SHEAR):
