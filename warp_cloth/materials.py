@@ -37,9 +37,9 @@ kappa L/2 apart), so its energy 1/2 k L eps^2 per area A it stands for gives the
 M = k L^5 kappa^3 / (512 A). Springs that only push back when shortened cannot give M = B kappa at every
 curvature; k makes the slope of M over 0.5 to 1.5 1/cm, the range in which the Kawabata tester (KES-FB2)
 measures B, equal B: k = 512 B A / (L^5 S), S = k1^2 + k1 k2 + k2^2 of that range's ends. Then
-M = B kappa^3 / S whatever the resolution. The bend springs share the cloth's area twice (once a
-direction): a spring stands for A = 2 (a_i / n_i + a_j / n_j), a its ends' areas, n their bend springs
-(on a grid, a cell). Along a direction at angle t to the warp, B = c^2 B_u + s^2 B_v.
+M = B kappa^3 / S whatever the resolution. A spring stands for the mean of its ends' areas (on a grid a
+cell, half of one along the border; on a grid of triangles, whose bend springs run three ways, the three
+together bend an eighth stiffer than B). Along a direction at angle t to the warp, B = c^2 B_u + s^2 B_v.
 
 Damping. Each spring's dashpot is ``damping`` seconds of its elastic response: b = damping x k / L
 (stiffness-proportional, Rayleigh's), a strain rate then pulls as that much strain would.
@@ -224,10 +224,10 @@ def _quad_areas(points, counts, indices, wanted) -> np.ndarray:
 
 
 def _bend_areas(points, counts, indices, bends) -> np.ndarray:
-    """The area each bend spring stands for, 2 (a_i / n_i + a_j / n_j): the cloth's area twice over."""
+    """The area each bend spring stands for: the mean of its ends' areas (on a grid, a cell; half of one
+    along the border)."""
     area = lumped_masses(points, counts, indices, 1.0)
-    share = area / np.maximum(np.bincount(bends.ravel(), minlength=len(points)), 1)
-    return 2.0 * (share[bends[:, 0]] + share[bends[:, 1]])
+    return 0.5 * (area[bends[:, 0]] + area[bends[:, 1]])
 
 
 def _warp_tensors(points, counts, indices, uvs) -> np.ndarray | None:
