@@ -201,6 +201,8 @@ class Model:
     wind_faces: WindFaces | None = None
     pin_animations: tuple[PinAnimation, ...] = ()
     worlds: Worlds | None = None  # None: the scene is one world (``Worlds.of_scene``)
+    friction: np.ndarray | None = None  # (n,) float32 each particle's cloth's material's coefficient, 0 where it
+    # sets none; None: no cloth's material sets one
 
     @property
     def particle_world(self) -> np.ndarray:
@@ -255,7 +257,15 @@ def build_model(scene: Scene, worlds: Worlds | None = None) -> Model:
     return Model(meshes, tuple(offsets), positions, velocities, masses, inv_mass, cloth_id, springs, limits,
                  pins, _spheres(scene, begins), _contacts(scene, meshes), edges, edge_rest, edge_kind,
                  _mesh_colliders(scene, begins), _wind_faces(meshes, offsets) if scene.wind is not None else None,
-                 pin_animations, worlds)
+                 pin_animations, worlds, _friction(scene, meshes))
+
+
+def _friction(scene: Scene, meshes) -> np.ndarray | None:
+    """Each particle's cloth's friction coefficient, where some cloth's material sets one."""
+    coefficients = [c.material.friction if c.material is not None else None for c in scene.cloths]
+    if all(f is None for f in coefficients):
+        return None
+    return np.concatenate([np.full(len(g.positions), f or 0.0, dtype=np.float32) for f, g in zip(coefficients, meshes)])
 
 
 def _edges(meshes, offsets) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
