@@ -858,7 +858,8 @@ class Scene:
         if self.collision is None or not self.collision.edges:
             return
         for c, cloth in enumerate(self.cloths):
-            _require(cloth.strain_limit is not None, "collision.edges", f"false, or a strain limit on every cloth (cloth[{c}] "
+            _require(cloth.strain_limit is not None, "collision.edges",
+                     f"false, or a strain limit on every cloth (cloth[{c}] "
                      "has none: edge contacts size their search by how far the limit lets an edge stretch)", True)
 
     def _check_pin_targets(self) -> None:
@@ -895,5 +896,5 @@ class Scene:
         cloth = self.cloths[c]
         weight = heaviest * math.hypot(*self.simulation.gravity)
         key, value = cloth.mass_key()
-        _require(weight <= FLOAT32_MAX, f"cloth[{c}].{key}", f"a mass whose weight (mass x |gravity| = {weight:.3g} N) is finite in "
-                                             "float32", value)
+        _require(weight <= FLOAT32_MAX, f"cloth[{c}].{key}",
+                 f"a mass whose weight (mass x |gravity| = {weight:.3g} N) is finite in float32", value)
