@@ -4,7 +4,8 @@ A particle inside is put back on the surface, and, as for every position correct
 changes by that correction over h (so a particle that sank in during the substep stops, and one hit by a
 moving sphere takes the sphere's normal speed). What is still approaching the collider after that is
 removed, and friction takes tangential speed relative to the collider in proportion to the normal speed
-taken away (Coulomb), so a cloth sliding on the ground decelerates at mu g.
+taken away (Coulomb), so a cloth sliding on the ground decelerates at mu g. The coefficient is the
+collider's, or the particle's cloth's (its material's) where that is larger.
 
 All of a scene's colliders travel in one ``RigidColliders`` and act through ``collide_particle``, which
 runs each kind of the particle's world (see warp_cloth/model.py's ``Worlds``) in turn on one particle alone, so that the passes that move particles can end with them
@@ -40,6 +41,7 @@ class RigidColliders:
     mesh_thickness: wp.array(dtype=float)
     mesh_friction: wp.array(dtype=float)
     mesh_reach: float  # how far past its thickness a mesh looks for particles (behind its faces too)
+    cloth_friction: wp.array(dtype=float)  # (n,) each particle's cloth's coefficient, or empty: none
 
 
 @wp.func
@@ -60,19 +62,22 @@ def contact_velocity(v: wp.vec3, collider_velocity: wp.vec3, normal: wp.vec3, pu
 
 
 @wp.func
-def collide_ground(w: int, p: wp.vec3, vel: wp.vec3, hit: int, colliders: RigidColliders, h: float):
+def collide_ground(w: int, p: wp.vec3, vel: wp.vec3, hit: int, colliders: RigidColliders, h: float,
+                   cloth_friction: float):
     height = colliders.ground_height[w]
     if colliders.ground[w] != 0 and p[1] < height:
         depth = height - p[1]
         p = wp.vec3(p[0], height, p[2])
         up = wp.vec3(0.0, 1.0, 0.0)
-        vel = contact_velocity(vel + up * (depth / h), wp.vec3(0.0), up, depth / h, colliders.ground_friction[w])
+        vel = contact_velocity(vel + up * (depth / h), wp.vec3(0.0), up, depth / h,
+                               wp.max(colliders.ground_friction[w], cloth_friction))
         hit = 1
     return p, vel, hit
 
 
 @wp.func
-def collide_spheres(w: int, p: wp.vec3, vel: wp.vec3, hit: int, colliders: RigidColliders, h: float):
+def collide_spheres(w: int, p: wp.vec3, vel: wp.vec3, hit: int, colliders: RigidColliders, h: float,
+                    cloth_friction: float):
     for s in range(colliders.sphere_start[w], colliders.sphere_start[w + 1]):
         d = p - colliders.center[s]
         dist = wp.length(d)
@@ -85,13 +90,14 @@ def collide_spheres(w: int, p: wp.vec3, vel: wp.vec3, hit: int, colliders: Rigid
             surface_velocity = colliders.velocity[s] + wp.cross(colliders.angular_velocity[s],
                                                                 colliders.radius[s] * normal)
             vel = contact_velocity(vel + normal * (depth / h), surface_velocity, normal, depth / h,
-                                   colliders.friction[s])
+                                   wp.max(colliders.friction[s], cloth_friction))
             hit = 1
     return p, vel, hit
 
 
 @wp.func
-def collide_meshes(w: int, p: wp.vec3, vel: wp.vec3, hit: int, colliders: RigidColliders, h: float):
+def collide_meshes(w: int, p: wp.vec3, vel: wp.vec3, hit: int, colliders: RigidColliders, h: float,
+                   cloth_friction: float):
     """Each mesh keeps the particle ``thickness`` off the side its nearest face faces: a particle closer,
     or behind that face (inside a closed mesh), is put at that distance along the direction from the
     nearest surface point (a face's normal, or out from an edge or corner); friction acts against the
@@ -112,7 +118,7 @@ def collide_meshes(w: int, p: wp.vec3, vel: wp.vec3, hit: int, colliders: RigidC
                 p = closest + thickness * normal
                 surface_velocity = wp.mesh_eval_velocity(mesh, query.face, query.u, query.v)
                 vel = contact_velocity(vel + normal * (depth / h), surface_velocity, normal, depth / h,
-                                       colliders.mesh_friction[m])
+                                       wp.max(colliders.mesh_friction[m], cloth_friction))
                 hit = 1
     return p, vel, hit
 
@@ -125,9 +131,12 @@ def collide_particle(i: int, p: wp.vec3, vel: wp.vec3, colliders: RigidColliders
     if colliders.world.shape[0] == 0:  # no colliders
         return p, vel, hit
     w = colliders.world[i]
-    p, vel, hit = collide_ground(w, p, vel, hit, colliders, h)
-    p, vel, hit = collide_spheres(w, p, vel, hit, colliders, h)
-    p, vel, hit = collide_meshes(w, p, vel, hit, colliders, h)
+    cloth_friction = float(0.0)
+    if colliders.cloth_friction.shape[0] > 0:
+        cloth_friction = colliders.cloth_friction[i]
+    p, vel, hit = collide_ground(w, p, vel, hit, colliders, h, cloth_friction)
+    p, vel, hit = collide_spheres(w, p, vel, hit, colliders, h, cloth_friction)
+    p, vel, hit = collide_meshes(w, p, vel, hit, colliders, h, cloth_friction)
     return p, vel, hit
 
 

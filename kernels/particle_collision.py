@@ -33,6 +33,7 @@ class Contacts:
     max_neighbors: int
     resting: wp.array(dtype=int)  # (n,) or empty without rigid colliders: see colliders.py
     pushed: wp.array(dtype=float)  # (n,) how far the passes of this substep pushed each particle
+    friction: wp.array(dtype=float)  # (n,) each particle's cloth's coefficient (its material's), or empty: none
 
 
 @wp.struct
@@ -270,8 +271,11 @@ def inelastic_change(contacts: Contacts, i: int, j: int, xi: wp.vec3, vi: wp.vec
     tangential = relative - vn * n
     speed = wp.length(tangential)
     taken = wp.vec3(0.0)
+    coefficient = friction
+    if contacts.friction.shape[0] > 0:  # the larger of the collision table's and the two cloths' mean
+        coefficient = wp.max(friction, 0.5 * (contacts.friction[i] + contacts.friction[j]))
     if speed > 0.0:
-        taken = share * tangential * wp.min(1.0, friction * stopped / speed)
+        taken = share * tangential * wp.min(1.0, coefficient * stopped / speed)
     return share * (target - vn) * n, taken, 1
 
 

@@ -14,6 +14,7 @@ import importlib.metadata
 from typing import TYPE_CHECKING
 
 from .errors import SceneError, UnstableSimulation
+from .materials import Material
 from .scene import (Box, Cloth, Collision, Ground, ImplicitSolver, Limit, MeshCollider, MeshSource, Oscillation,
                     Output, Pin, Scene, Simulation, Sphere, SpringKind, TransformKey, Wind, WindKey)
 
@@ -45,7 +46,8 @@ except importlib.metadata.PackageNotFoundError:  # a source tree on sys.path, ne
     __version__ = "0+unknown"
 
 __all__ = [
-    "Batch", "Box", "CheckpointWriter", "Cloth", "Collision", "Ground", "ImplicitSolver", "Limit", "MeshCollider",
+    "Batch", "Box", "CheckpointWriter", "Cloth", "Collision", "Ground", "ImplicitSolver", "Limit", "Material",
+    "MeshCollider",
     "MeshSource", "MetricsWriter",
     "Oscillation", "Output",
     "Pin", "PolyWriter", "RunSummary", "Scene", "SceneError", "Simulation", "Simulator", "Sphere", "SpringKind",

@@ -82,6 +82,8 @@ def _checked(value: Any, hint: Any, key: str) -> Any:
             return None if value is None else _checked(value, options[0], key)
         # several kinds (a whole number or a name): the value's own kind says which it must be
         chosen = next((o for o in options if get_origin(o) is Literal), None) if isinstance(value, str) else None
+        if isinstance(value, (list, tuple)):  # one number or a list of them: the list's option
+            chosen = next((o for o in options if get_origin(o) is tuple), None)
         if chosen is None:
             chosen = next((o for o in options if get_origin(o) is not Literal), options[0])
         try:

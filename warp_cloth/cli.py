@@ -91,6 +91,13 @@ def _parser() -> argparse.ArgumentParser:
     plan_step.add_argument("--dt", type=float, help="time step in seconds (rounded to a whole number of substeps)")
     plan.add_argument("--integrator", choices=INTEGRATORS, help="time integrator")
 
+    materials = commands.add_parser("materials", help="list the fabric presets a cloth's material may name",
+                                    description="List the fabric presets a cloth's material may name "
+                                                "(material = \"NAME\"), with their SI values and where they come "
+                                                "from.")
+    materials.add_argument("--json", metavar="PATH", help="also write them as JSON to PATH ('-': to standard output, "
+                                                          "instead of the table)")
+
     commands.add_parser("bench", help="time whole runs, print a table and write JSON (see 'bench --help')",
                         add_help=False)
     commands.add_parser("study", help="what accuracy costs in time: error against a reference and wall time "
@@ -187,6 +194,53 @@ def _cmd_scenes() -> int:
     for name in names:
         print(f"{name:<{width}}  {load_scene(name).description}")
     return 0
+
+
+def _cmd_materials(args: argparse.Namespace) -> int:
+    """The presets as a table, and as JSON where asked: numbers only, nothing of Warp loaded."""
+    import json
+
+    from .fabric_presets import PRESETS
+    from .materials import Material
+
+    presets = [{"name": name, "fabric": data.fabric, **Material(preset=name).values(), "source": data.source}
+               for name, data in PRESETS.items()]
+    for preset in presets:
+        del preset["preset"]
+    if args.json is not None:
+        document = json.dumps({"units": MATERIAL_UNITS, "presets": presets}, indent=2) + "\n"
+        if args.json == "-":
+            sys.stdout.write(document)
+            return 0
+        try:
+            Path(args.json).write_text(document)
+        except OSError as exc:
+            raise SceneError("--json", f"a file that can be written ({exc.strerror})", args.json,
+                             "command line") from None
+    rows = [("preset", "kg/m^2", "stretch N/m", "shear N/m", "bending uN m", "limits", "fabric")]
+    for p in presets:
+        limits = "-" if p["stretch_limit"] is None and p["compression_limit"] is None else \
+            f"+{p['stretch_limit']} / -{p['compression_limit']}"
+        rows.append((p["name"], f"{p['density']:.3f}", _pair(p["stretch"], "{:.0f}"), f"{p['shear']:.1f}",
+                     _pair([1e6 * b for b in p["bending"]], "{:.1f}"), limits, p["fabric"]))
+    widths = [max(len(row[k]) for row in rows) for k in range(len(rows[0]) - 1)]
+    for row in rows:
+        print("  ".join(f"{cell:<{w}}" for cell, w in zip(row, widths)) + "  " + row[-1])
+    print("\nstretch and bending: warp / weft (the cloth's u / v); limits: stretch / compression fractions")
+    print("sources:")
+    for p in presets:
+        print(f"  {p['name']}: {p['source']}")
+    return 0
+
+
+# The units of a material's values, as ``warp-cloth materials --json`` says them.
+MATERIAL_UNITS = {"density": "kg/m^2", "stretch": "N/m, [warp, weft]", "shear": "N/m (per radian)",
+                  "bending": "N m, [warp, weft]", "damping": "s", "friction": "coefficient",
+                  "stretch_limit": "fraction", "compression_limit": "fraction"}
+
+
+def _pair(values, form: str) -> str:
+    return " / ".join(form.format(v) for v in values)
 
 
 def _limit_solve(sim) -> str:
@@ -555,6 +609,8 @@ def _main(argv: list[str] | None) -> int:
             return _cmd_scenes()
         if args.command == "plan":
             return _cmd_plan(args)
+        if args.command == "materials":
+            return _cmd_materials(args)
         return _cmd_run(args)
     except SceneError as exc:
         print(f"warp-cloth: error: {exc}", file=sys.stderr)

@@ -7,12 +7,14 @@ upper neighbours, shear on both diagonals of each quad, bend two apart along row
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 
 from .cloth_mesh import BEND, SHEAR, STRUCTURAL, ClothMesh
 from .errors import SceneError
+from .materials import derive_springs
 from .scene import Cloth, Pin
 
 
@@ -62,15 +64,18 @@ def build_grid(cloth: Cloth) -> ClothMesh:
     nx, ny = cloth.resolution
     dx, dy = cloth.size[0] / nx, cloth.size[1] / ny
     gx, gy = _grid_coordinates(cloth)
-    positions = grid_positions(cloth)
     springs, kinds, rests = _grid_springs(nx, ny, dx, dy)
     idx = lambda x, y: x + (nx + 1) * y  # noqa: E731
     qx, qy = np.meshgrid(np.arange(nx), np.arange(ny), indexing="xy")
     qx, qy = qx.ravel(), qy.ravel()
     quads = np.stack([idx(qx, qy), idx(qx + 1, qy), idx(qx + 1, qy + 1), idx(qx, qy + 1)], axis=1)
     uvs = np.stack([gx / nx, gy / ny], axis=1)
-    return ClothMesh(positions, _masses(cloth, gx, gy, dx, dy), springs, kinds, rests,
+    mesh = ClothMesh(grid_positions(cloth), _masses(cloth, gx, gy, dx, dy), springs, kinds, rests,
                      np.full(len(quads), 4, dtype=np.int64), quads.ravel().astype(np.int64), uvs)
+    if cloth.material is None:
+        return mesh
+    flat = np.stack([gx * dx, gy * dy, np.zeros(len(gx))], axis=1)  # the rest the springs' lengths are of
+    return dataclasses.replace(mesh, derived=derive_springs(cloth.material, flat, mesh))
 
 
 def _grid_springs(nx: int, ny: int, dx: float, dy: float):
@@ -110,7 +115,7 @@ def _masses(cloth: Cloth, gx: np.ndarray, gy: np.ndarray, dx: float, dy: float) 
     nx, ny = cloth.resolution
     wx = np.where((gx == 0) | (gx == nx), 0.5, 1.0)
     wy = np.where((gy == 0) | (gy == ny), 0.5, 1.0)
-    return cloth.density * dx * dy * wx * wy
+    return cloth.areal_density * dx * dy * wx * wy
 
 
 def pinned_indices(cloth: Cloth, pin: Pin, positions: np.ndarray | None, key: str) -> np.ndarray:

@@ -20,6 +20,16 @@ SPRING_KINDS = ("structural", "shear", "bend")
 
 
 @dataclass(frozen=True)
+class DerivedSprings:
+    """Per spring of a cloth made of a material (materials.derive_springs), in its ``ClothMesh``'s order."""
+
+    stiffness: np.ndarray  # (s,) N, the force per unit strain
+    damping: np.ndarray  # (s,) N s/m
+    stretch_limit: np.ndarray | None  # (s,) fraction of the rest length; None: the material sets none
+    compression_limit: np.ndarray | None
+
+
+@dataclass(frozen=True)
 class ClothMesh:
     positions: np.ndarray  # (n, 3) float64
     masses: np.ndarray  # (n,)
@@ -29,6 +39,7 @@ class ClothMesh:
     face_counts: np.ndarray  # (f,) 3 or 4
     face_indices: np.ndarray  # (sum of face_counts,) each face's particles, counter-clockwise seen from its front
     uvs: np.ndarray | None  # (n, 2) per particle (a grid), or (sum of face_counts, 2) per face corner, or None
+    derived: DerivedSprings | None = None  # a material's springs; None: the cloth's spring kinds' numbers
 
     @property
     def triangles(self) -> np.ndarray:

@@ -124,6 +124,7 @@ class DeviceModel:
         if model.pins is not None and (model.pins.target >= 0).any():
             self.pin_targets = self._pin_targets(model)
         self.contacts = None if model.contacts is None else self._contacts(model, scene.collision)
+        self.cloth_friction = upload(model.friction if model.friction is not None else np.zeros(0), float, device)
         self.no_marks = wp.zeros(0, dtype=int, device=device)  # for passes whose colliders mark no one
         self._no_colliders = no_colliders(device)
 
@@ -231,7 +232,7 @@ class DeviceModel:
         """No particle collision: for checks of scenes without it (never read)."""
         contacts, empty_int, empty_float = Contacts(), wp.zeros(0, dtype=int, device=self.device), \
             wp.zeros(0, dtype=float, device=self.device)
-        contacts.radius = contacts.pushed = empty_float
+        contacts.radius = contacts.pushed = contacts.friction = empty_float
         contacts.neighbors = contacts.counts = contacts.resting = empty_int
         contacts.separation, contacts.max_neighbors = 1.0, 1
         return contacts
@@ -267,7 +268,7 @@ class DeviceModel:
     def colliders(self, state: DeviceState) -> RigidColliders:
         """The scene's rigid colliders as the kernels take them, moving ones where the state has them."""
         colliders = RigidColliders()
-        colliders.world = self.particle_world
+        colliders.world, colliders.cloth_friction = self.particle_world, self.cloth_friction
         for kind in self.collider_kinds.values():
             kind.fill(colliders, state)
         return colliders
@@ -280,6 +281,7 @@ def no_colliders(device) -> RigidColliders:
     """No collider: for the passes that do not end with them."""
     colliders = RigidColliders()
     colliders.world = wp.zeros(0, dtype=int, device=device)
+    colliders.cloth_friction = wp.zeros(0, dtype=float, device=device)
     for kind in KINDS:
         kind.fill_none(colliders, device)
     return colliders

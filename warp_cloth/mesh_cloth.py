@@ -3,10 +3,13 @@ the cloth's ``rotation`` and ``origin``, springs from its faces (cloth_mesh.py),
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from .cloth_grid import rotation_matrix
 from .cloth_mesh import ClothMesh, lumped_masses, mesh_springs
+from .materials import derive_springs
 from .scene import Cloth
 
 
@@ -22,6 +25,9 @@ def build_mesh_cloth(cloth: Cloth) -> ClothMesh:
     springs, kinds, rests = mesh_springs(surface.points, surface.face_counts, surface.face_indices)
     uniform = cloth.particle_mass()
     masses = np.full(len(positions), uniform) if uniform is not None else \
-        lumped_masses(surface.points, surface.face_counts, surface.face_indices, cloth.density)
-    return ClothMesh(positions, masses, springs, kinds, rests, surface.face_counts, surface.face_indices,
+        lumped_masses(surface.points, surface.face_counts, surface.face_indices, cloth.areal_density)
+    mesh = ClothMesh(positions, masses, springs, kinds, rests, surface.face_counts, surface.face_indices,
                      surface.uvs)
+    if cloth.material is None:
+        return mesh
+    return dataclasses.replace(mesh, derived=derive_springs(cloth.material, surface.points, mesh))

@@ -20,7 +20,8 @@ from .cloth_mesh import BEND, SHEAR, STRUCTURAL, ClothMesh, enclosing_radii, res
 from .mesh_cloth import build_mesh_cloth
 from .mesh_io import load_transform_motion, unique_pairs
 from .pin_selection import select_pins
-from .scene import Cloth, Scene, SpringKind, TransformKey
+from .materials import REGIMES as MATERIAL_REGIMES
+from .scene import Cloth, Scene, SpringRegime, TransformKey
 from .shot_clock import shot_clock
 from .spring_paths import nearest_along_edges
 
@@ -31,12 +32,12 @@ FLAG_DAMPING_TENSION = int(spring_kernels.DAMPING_TENSION)
 FLAG_DAMPING_COMPRESSION = int(spring_kernels.DAMPING_COMPRESSION)
 
 
-def regime_flags(kind: SpringKind) -> int:
-    """The kernel's regime bits for a spring kind (see ``kernels/springs.py``)."""
+def regime_flags(acts: SpringRegime, damping_acts: SpringRegime) -> int:
+    """The kernel's regime bits for a spring's elastic part and dashpot (see ``kernels/springs.py``)."""
     elastic = {"tension": FLAG_ELASTIC_TENSION, "compression": FLAG_ELASTIC_COMPRESSION,
-               "both": FLAG_ELASTIC_TENSION | FLAG_ELASTIC_COMPRESSION}[kind.acts]
+               "both": FLAG_ELASTIC_TENSION | FLAG_ELASTIC_COMPRESSION}[acts]
     damping = {"tension": FLAG_DAMPING_TENSION, "compression": FLAG_DAMPING_COMPRESSION,
-               "both": FLAG_DAMPING_TENSION | FLAG_DAMPING_COMPRESSION}[kind.damping_acts]
+               "both": FLAG_DAMPING_TENSION | FLAG_DAMPING_COMPRESSION}[damping_acts]
     return elastic | damping
 
 
@@ -200,6 +201,8 @@ class Model:
     wind_faces: WindFaces | None = None
     pin_animations: tuple[PinAnimation, ...] = ()
     worlds: Worlds | None = None  # None: the scene is one world (``Worlds.of_scene``)
+    friction: np.ndarray | None = None  # (n,) float32 each particle's cloth's material's coefficient, 0 where it
+    # sets none; None: no cloth's material sets one
 
     @property
     def particle_world(self) -> np.ndarray:
@@ -254,7 +257,15 @@ def build_model(scene: Scene, worlds: Worlds | None = None) -> Model:
     return Model(meshes, tuple(offsets), positions, velocities, masses, inv_mass, cloth_id, springs, limits,
                  pins, _spheres(scene, begins), _contacts(scene, meshes), edges, edge_rest, edge_kind,
                  _mesh_colliders(scene, begins), _wind_faces(meshes, offsets) if scene.wind is not None else None,
-                 pin_animations, worlds)
+                 pin_animations, worlds, _friction(scene, meshes))
+
+
+def _friction(scene: Scene, meshes) -> np.ndarray | None:
+    """Each particle's cloth's friction coefficient, where some cloth's material sets one."""
+    coefficients = [c.material.friction if c.material is not None else None for c in scene.cloths]
+    if all(f is None for f in coefficients):
+        return None
+    return np.concatenate([np.full(len(g.positions), f or 0.0, dtype=np.float32) for f, g in zip(coefficients, meshes)])
 
 
 def _edges(meshes, offsets) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -276,15 +287,26 @@ def _springs(scene: Scene, meshes, offsets, n: int) -> Springs | None:
             sel = mesh.spring_kind == kind_id
             count = int(sel.sum())
             rest = mesh.rest_lengths[sel]
+            derived = mesh.derived
             parts["pairs"].append(mesh.springs[sel] + offsets[c])
             parts["rest"].append(rest)
-            parts["k"].append(np.full(count, kind.stiffness))
-            parts["b"].append(np.full(count, kind.damping))
-            parts["flags"].append(np.full(count, regime_flags(kind), dtype=np.int32))
+            parts["k"].append(np.full(count, kind.stiffness) if derived is None else derived.stiffness[sel])
+            parts["b"].append(np.full(count, kind.damping) if derived is None else derived.damping[sel])
+            regimes = (kind.acts, kind.damping_acts) if derived is None else MATERIAL_REGIMES[kind_id]
+            parts["flags"].append(np.full(count, regime_flags(*regimes), dtype=np.int32))
             parts["kind"].append(np.full(count, kind_id, dtype=np.int32))
-            limited = cloth.limit is not None and kind_id in (STRUCTURAL, SHEAR)
-            parts["lo"].append(rest * (1.0 - cloth.limit.compression) if limited else np.zeros(count))
-            parts["hi"].append(rest * (1.0 + cloth.limit.stretch) if limited else np.full(count, np.inf))
+            limit = cloth.strain_limit
+            if limit is None or kind_id not in (STRUCTURAL, SHEAR):
+                parts["lo"].append(np.zeros(count))
+                parts["hi"].append(np.full(count, np.inf))
+                continue
+            stretch, compression = limit.stretch, limit.compression  # a material's: each spring's by its direction
+            if derived is not None and derived.stretch_limit is not None:
+                stretch = derived.stretch_limit[sel]
+            if derived is not None and derived.compression_limit is not None:
+                compression = derived.compression_limit[sel]
+            parts["lo"].append(rest * (1.0 - compression))
+            parts["hi"].append(rest * (1.0 + stretch))
     if not parts["pairs"]:
         return None
     pairs = np.concatenate(parts["pairs"])
@@ -317,7 +339,7 @@ def _attachments(scene: Scene, meshes, offsets: list[int],
     length = np.zeros(n, dtype=np.float32)
     attached = False
     for c, (cloth, chosen_per_pin) in enumerate(zip(scene.cloths, selections)):
-        if cloth.limit is None or not cloth.limit.attachments or not chosen_per_pin:
+        if cloth.strain_limit is None or not cloth.strain_limit.attachments or not chosen_per_pin:
             continue
         attached = True
         count = offsets[c + 1] - offsets[c]
@@ -337,7 +359,7 @@ def _attachments(scene: Scene, meshes, offsets: list[int],
         free &= nearest >= 0  # a piece of the mesh with no pin of its own is not attached
         sl = slice(offsets[c], offsets[c + 1])
         pin_of[sl] = np.where(free, nearest + offsets[c], -1)
-        length[sl] = np.where(free, (1.0 + cloth.limit.stretch) * distance, 0.0)
+        length[sl] = np.where(free, (1.0 + cloth.strain_limit.stretch) * distance, 0.0)
     if not attached:
         return np.zeros(0, dtype=np.int32), np.zeros(0, dtype=np.float32)
     return pin_of, length
@@ -487,7 +509,7 @@ def collision_radii(cloth: Cloth, mesh: ClothMesh, radius_override: float | None
     a face; on a square grid a quarter of the rest diagonal, the face's centre two radii from its corners."""
     if radius_override is not None:
         return np.full(len(mesh.positions), radius_override)
-    stretch = cloth.limit.stretch if cloth.limit is not None else 0.0
+    stretch = cloth.strain_limit.stretch if cloth.strain_limit is not None else 0.0
     return 0.5 * (1.0 + stretch) * enclosing_radii(mesh.positions, mesh.face_counts, mesh.face_indices)
 
 
@@ -497,11 +519,11 @@ def needs_adjacent_exclusion(cloth: Cloth, positions: np.ndarray, pairs: np.ndar
     ``rest_adjacent_pairs``) farther apart than their contact distance: with the seed's rule and a 10%
     limit, grid neighbours stay >= 0.9 of a cell apart while contact needs 0.82 of a (square) cell, so they
     never touch and need no exclusion."""
-    if cloth.limit is None:
+    if cloth.strain_limit is None:
         return True
     rest = np.linalg.norm(positions[pairs[:, 0]] - positions[pairs[:, 1]], axis=1)
     contact = separation * 0.5 * (radii[pairs[:, 0]] + radii[pairs[:, 1]])
-    return bool(np.any((1.0 - cloth.limit.compression) * rest <= contact))
+    return bool(np.any((1.0 - cloth.strain_limit.compression) * rest <= contact))
 
 
 def long_triangle_edges(cloth: Cloth, mesh: ClothMesh, radii: np.ndarray,
@@ -515,7 +537,7 @@ def long_triangle_edges(cloth: Cloth, mesh: ClothMesh, radii: np.ndarray,
     sides = np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
     pairs = unique_pairs(sides, len(mesh.positions))[0]
     a, b = pairs[:, 0], pairs[:, 1]
-    length = (1.0 + cloth.limit.stretch) * np.linalg.norm(mesh.positions[a] - mesh.positions[b], axis=1)
+    length = (1.0 + cloth.strain_limit.stretch) * np.linalg.norm(mesh.positions[a] - mesh.positions[b], axis=1)
     long = length > np.sqrt(2.0) * separation * 0.5 * (radii[a] + radii[b])
     return pairs[long], length[long]
 

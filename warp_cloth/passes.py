@@ -49,6 +49,7 @@ def contacts_args(model: DeviceModel, state: DeviceState) -> Contacts:
     contacts.neighbors, contacts.counts = state.contacts.neighbors, state.contacts.counts
     contacts.max_neighbors = settings.max_neighbors
     contacts.resting, contacts.pushed = state.contacts.resting, state.contacts.pushed
+    contacts.friction = model.cloth_friction
     return contacts
 
 

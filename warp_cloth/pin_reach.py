@@ -25,7 +25,7 @@ def check_pins_within_reach(scene: Scene, model: Model) -> None:
     clock = shot_clock(scene)
     times = np.linspace(clock.first_time, clock.end_time, SAMPLES)
     for c, cloth in enumerate(scene.cloths):
-        if cloth.limit is None:
+        if cloth.strain_limit is None:
             continue
         rows = np.nonzero((pins.index >= model.offsets[c]) & (pins.index < model.offsets[c + 1]))[0]
         if len(rows) > MOST_PINS:
@@ -41,14 +41,14 @@ def check_pins_within_reach(scene: Scene, model: Model) -> None:
             p, q = a[start:start + PAIRS_AT_ONCE], b[start:start + PAIRS_AT_ONCE]
             across = np.linalg.norm(rest[p] - rest[q], axis=1)
             apart = np.linalg.norm((rest[p] - rest[q])[:, None, :] + offsets[p] - offsets[q], axis=2)
-            allowed = (1.0 + cloth.limit.stretch) * across
+            allowed = (1.0 + cloth.strain_limit.stretch) * across
             excess = apart.max(axis=1) - allowed
             worst = int(np.argmax(excess))
             if excess[worst] > 1e-6 * max(allowed[worst], 1e-12):
                 k = int(np.argmax(apart[worst]))
                 i, j = pins.index[rows[p[worst]]] - model.offsets[c], pins.index[rows[q[worst]]] - model.offsets[c]
                 raise SceneError(f"cloth[{c}].pins", f"pins that '{cloth.name}' can follow within its "
-                                 f"{100 * cloth.limit.stretch:.3g}% stretch limit: particles {i} and {j} move "
+                                 f"{100 * cloth.strain_limit.stretch:.3g}% stretch limit: particles {i} and {j} move "
                                  f"{apart[worst, k]:.3g} m apart at t = {times[k]:.3g} s, across "
                                  f"{across[worst]:.3g} m of cloth (at most {allowed[worst]:.3g} m); move them less "
                                  "or along other axes", has_got=False)

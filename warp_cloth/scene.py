@@ -15,6 +15,7 @@ from typing import Literal
 
 from .checks import FLOAT32_MAX, check_fields, check_file_name, check_float32, check_identifier
 from .errors import SceneError
+from .materials import Material, along
 
 Vec3 = tuple[float, float, float]
 
@@ -253,6 +254,11 @@ class Cloth:
     modelled, rotated by ``rotation`` about the mesh's own origin and moved by ``origin``; the grid's keys
     (resolution, size, orientation, jitter, twist) do not apply to it, nor do pins by corners or edges.
     ``density`` gives each particle a share of its faces' area.
+
+    A ``material`` (materials.py: a preset's name or a table of SI values) gives the cloth its masses and
+    springs, the same at any resolution; such a cloth sets none of ``mass``, ``density``, ``structural``,
+    ``shear`` and ``bend`` (the seed's numbers, which change meaning with resolution), nor a ``limit`` where
+    its material sets strain limits.
     """
 
     name: str = "cloth"
@@ -274,6 +280,7 @@ class Cloth:
     pins: tuple[Pin, ...] = ()
     color: Vec3 = (0.75, 0.32, 0.22)
     mesh: MeshSource | None = None
+    material: Material | None = None
 
     GRID_KEYS = ("resolution", "size", "orientation", "jitter", "twist", "seed")
 
@@ -292,6 +299,8 @@ class Cloth:
             _positive(self.density, "density")
         _require(not (self.mass is not None and self.density is not None), "density",
                  "either mass (per particle) or density (kg/m^2), not both", self.density)
+        if self.material is not None:
+            self._check_material_alone()
         if self.mesh is not None:
             self._check_mesh_settings()
         else:
@@ -299,6 +308,19 @@ class Cloth:
             self.check_placement(self.shortest_edge(), max(self.size))
         if not self.masses_from_mesh:
             self.check_masses(*self.mass_range())
+
+    def _check_material_alone(self) -> None:
+        """A material gives the masses, the springs and (where it sets them) the strain limits: no raw ones
+        beside it. A spring kind counts as set where it is not the seed's default object itself."""
+        for key in ("mass", "density"):
+            _require(getattr(self, key) is None, key, f"no {key} on a cloth with a material (its density is the "
+                     "material's: material.density)", getattr(self, key))
+        for key, seed in (("structural", SEED_STRUCTURAL), ("shear", SEED_SHEAR), ("bend", SEED_BEND)):
+            _require(getattr(self, key) is seed, key, f"no {key} springs on a cloth with a material (its springs "
+                     "come from the material; leave the material out to set springs)", has_got=False)
+        _require(self.limit is None or not self.material.has_limits, "limit",
+                 "no limit on a cloth whose material sets strain limits (material.stretch_limit, "
+                 "material.compression_limit): one or the other", has_got=False)
 
     def _check_mesh_settings(self) -> None:
         for key in self.GRID_KEYS:
@@ -358,13 +380,37 @@ class Cloth:
     def masses_from_mesh(self) -> bool:
         """Whether the particles' masses come from the mesh's faces (``density`` on a mesh cloth): then only
         ``geometry_checks.validate`` knows them."""
-        return self.mesh is not None and self.density is not None
+        return self.mesh is not None and self.areal_density is not None
+
+    @property
+    def areal_density(self) -> float | None:
+        """The cloth's kg/m^2, its material's or its ``density``; None: a mass per particle."""
+        return self.material.density if self.material is not None else self.density
+
+    @property
+    def strain_limit(self) -> Limit | None:
+        """The strain limit the cloth is held to: its ``limit``, or its material's (the largest of its
+        directions' fractions; each spring's own by its direction: materials.derive_springs)."""
+        if self.material is None or not self.material.has_limits:
+            return self.limit
+        stretch, compression = self.material.stretch_limit, self.material.compression_limit
+        return Limit(max(along(stretch)) if stretch is not None else Limit.stretch,
+                     max(along(compression)) if compression is not None else Limit.compression)
+
+    def mass_key(self) -> tuple[str, float | None]:
+        """The key that sets the particles' masses, and its value."""
+        if self.material is not None:
+            return "material.density", self.material.density
+        return ("density", self.density) if self.density is not None else ("mass", self.mass)
 
     def check_masses(self, lightest: float, heaviest: float) -> None:
-        """Every particle's mass (then its inverse too) and stiffness / mass, as the device holds them in float32."""
-        key, value = ("density", self.density) if self.density is not None else ("mass", self.mass)
+        """Every particle's mass (then its inverse too) and stiffness / mass, as the device holds them in float32.
+        A material's ranges keep its springs' stiffness / mass finite (materials._RANGES)."""
+        key, value = self.mass_key()
         check_float32(lightest, "the lightest particle's mass", key, value)
         check_float32(heaviest, "the heaviest particle's mass", key, value)
+        if self.material is not None:
+            return
         for kind in ("structural", "shear", "bend"):
             spring = getattr(self, kind)
             field = "damping" if spring.damping > spring.stiffness else "stiffness"
@@ -381,10 +427,10 @@ class Cloth:
             from .cloth_mesh import lumped_masses
 
             surface = self.surface()
-            masses = lumped_masses(surface.points, surface.face_counts, surface.face_indices, self.density)
+            masses = lumped_masses(surface.points, surface.face_counts, surface.face_indices, self.areal_density)
             return float(masses.min()), float(masses.max())
         cell_area = self.size[0] / self.resolution[0] * self.size[1] / self.resolution[1]
-        return self.density * cell_area / 4.0, self.density * cell_area
+        return self.areal_density * cell_area / 4.0, self.areal_density * cell_area
 
     @property
     def particle_count(self) -> int:
@@ -393,8 +439,9 @@ class Cloth:
         return (self.resolution[0] + 1) * (self.resolution[1] + 1)
 
     def particle_mass(self) -> float | None:
-        """The uniform per-particle mass, or None when ``density`` lumps area per particle."""
-        if self.density is not None:
+        """The uniform per-particle mass, or None when a density (the cloth's or its material's) lumps area per
+        particle."""
+        if self.areal_density is not None:
             return None
         return 0.025 if self.mass is None else self.mass
 
@@ -811,7 +858,8 @@ class Scene:
         if self.collision is None or not self.collision.edges:
             return
         for c, cloth in enumerate(self.cloths):
-            _require(cloth.limit is not None, "collision.edges", f"false, or a strain limit on every cloth (cloth[{c}] "
+            _require(cloth.strain_limit is not None, "collision.edges",
+                     f"false, or a strain limit on every cloth (cloth[{c}] "
                      "has none: edge contacts size their search by how far the limit lets an edge stretch)", True)
 
     def _check_pin_targets(self) -> None:
@@ -847,7 +895,6 @@ class Scene:
         """Cloth ``c``'s heaviest particle (``heaviest`` kg) of a weight finite in float32, as the device holds it."""
         cloth = self.cloths[c]
         weight = heaviest * math.hypot(*self.simulation.gravity)
-        key, value = (f"cloth[{c}].density", cloth.density) if cloth.density is not None else \
-            (f"cloth[{c}].mass", cloth.mass)
-        _require(weight <= FLOAT32_MAX, key, f"a mass whose weight (mass x |gravity| = {weight:.3g} N) is finite in "
-                                             "float32", value)
+        key, value = cloth.mass_key()
+        _require(weight <= FLOAT32_MAX, f"cloth[{c}].{key}",
+                 f"a mass whose weight (mass x |gravity| = {weight:.3g} N) is finite in float32", value)

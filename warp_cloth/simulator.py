@@ -167,7 +167,7 @@ def frame_work(scene: Scene, substeps: int) -> tuple[int, dict[str, int]]:
     them with their values."""
     sim = scene.simulation
     factors = {"simulation.dt" if sim.dt is not None else "simulation.substeps": substeps}
-    limited = any(c.limit for c in scene.cloths)
+    limited = any(c.strain_limit for c in scene.cloths)
     converged = sim.limit_solve == "converged" and (limited or scene.collision is not None)
     iterations = {"simulation.limit_iterations": sim.limit_iterations if limited and not converged else 0,
                   "simulation.limit_max_passes": sim.limit_max_passes if converged else 0,
