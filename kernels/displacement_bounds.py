@@ -4,9 +4,10 @@ distance, at most r, of a vertex-triangle or edge-edge pair sharing no vertex th
 (primitive_distances.py), and gamma < 1/2. Then no pair of triangles sharing no vertex that are apart at the
 start crosses at the end:
 
-Two triangles sharing no vertex are as far apart as their closest vertex-triangle or edge-edge pair. A point
-of a primitive is an average of its vertices, so it moves no farther than they do: a pair d apart ends at
-least d - 2 gamma min(d, r) > 0 apart. The triangles stay apart, so they cannot cross.
+On the straight path from start to end a point of a primitive, an average of its vertices, moves no farther
+than they do: a vertex-triangle or edge-edge pair d apart stays d - 2 gamma min(d, r) > 0 apart all along. Two
+triangles sharing no vertex, while apart, are as far apart as their closest such pair: apart at the start,
+they never touch on the path (their distance would reach 0 where such a pair's did), so cannot cross at its end.
 
 That is exact arithmetic. A pair that the solve keeps pressing together closes to (1 - 2 gamma) of its gap a
 substep, so in some twenty substeps to the rounding of float32 positions (2.4e-7 m at 2 m from the origin),

@@ -3,8 +3,9 @@ creates a crossing, as in Offset Geometric Contact (Chen et al. 2025). At a subs
 bound is measured (kernels/primitive_distances.py: the nearest vertex-triangle and edge-edge pairs sharing no
 vertex, within the query radius, through a spatial hash of the particles); after the integrator and the solves
 each particle's displacement from the start is clamped to its bound and its velocity made the clamped
-displacement over the substep, before the contact velocities (kernels/displacement_bounds.py, whose docstring
-proves that no pair of triangles apart at the start then crosses). With ``rounds`` above 1, the bounds are
+displacement over the substep, before the contact velocities where the scene has them
+(kernels/displacement_bounds.py, whose docstring proves that no pair of triangles apart at the start then
+crosses). With ``rounds`` above 1, the bounds are
 measured again where a clamp left the particles and the rest of each step clamped to them, so that a step may
 go farther than the start's bounds allow and still never cross.
 
@@ -79,7 +80,9 @@ def mesh_primitives(model: Model) -> tuple[np.ndarray, np.ndarray]:
 
 
 class DisplacementBounds:
-    """The bounds' arrays and their two passes (``measure`` and ``clamp``), made once per simulator."""
+    """The bounds' arrays and their two passes (``measure`` and ``clamp``), made once per simulator. A particle
+    that does not fit its hash bucket is counted in ``overflow`` and its pairs go unmeasured (the tools report
+    it: the guarantee needs none)."""
 
     def __init__(self, model: Model, device_model: DeviceModel, settings: BoundSettings) -> None:
         self.settings = settings
