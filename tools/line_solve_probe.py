@@ -18,9 +18,11 @@ auto where it sets none, and cap), which add the substeps a frame (min, median, 
 count a limited spring's strain only (a cloth's structural and shear springs where it has a limit; bend
 springs never are, which each row checks); ``--scene-frames NAME=N`` runs that scene for N frames instead;
 ``--repeats R`` runs a scene's methods in turn R times and keeps each one's least wall and CPU times.
+``--bounds``: each matrix run also with the lab's displacement bounds (warp_cloth/displacement_bounds.py;
+``off``, ``on`` or ``radius=R,gamma=G,rounds=K``), which adds the particles they held short a substep.
 
     python tools/line_solve_probe.py OUT.json [--sizes 32 64 128] [--methods jacobi lines ...] [--frames 48]
-        [--cloth grid triangles quads] [--variant sphere self]
+        [--cloth grid triangles quads] [--variant sphere self] [--bounds off on ...]
     python tools/line_solve_probe.py OUT.json --scenes NAME ... [--methods ...] [--frames 48]
         [--scene-frames seed_default=12] [--repeats 3]
 
@@ -40,6 +42,8 @@ import warp as wp
 import warp_cloth as wc
 from warp_cloth.lab.bench import environment, matrix_scene
 from warp_cloth.diagnostics import TriangleIntersections
+from warp_cloth.displacement_bounds import BoundSettings
+from warp_cloth.displacement_bounds import lab_hooks as bound_hooks
 from warp_cloth.lab.bench_meshes import as_mesh_cloth
 from warp_cloth.cloth_mesh import BEND
 from warp_cloth.limit_solve import lab_hooks
@@ -59,15 +63,16 @@ METHODS = {"jacobi": {}, "lines": {"line_solve": True, "chebyshev_rho": 0.0, "li
 
 
 def measure(n: int, method: str, frames: int, cap: int, device: str, cloth: str = "grid",
-            variant: str = "sphere") -> dict:
-    """The speed matrix's cloth at ``n``^2 (``variant``, as a grid or a ``cloth`` mesh) at ``cap`` rounds."""
+            variant: str = "sphere", bounds: str = "off") -> dict:
+    """The speed matrix's cloth at ``n``^2 (``variant``, as a grid or a ``cloth`` mesh) at ``cap`` rounds, with
+    the displacement ``bounds`` (BoundSettings.parse's)."""
     scene = matrix_scene(variant, n, "symplectic")
     if cloth != "grid":
         scene = as_mesh_cloth(scene, triangles=cloth == "triangles")
     scene = dataclasses.replace(scene, simulation=dataclasses.replace(
         scene.simulation, limit_solve="converged", limit_max_passes=cap))
     return {"n": n, "variant": variant, "cloth": cloth, "method": method, "frames": frames, "cap": cap,
-            **measure_run(scene, method, frames, device)}
+            **measure_run(scene, method, frames, device, bounds)}
 
 
 def measure_scene(name: str, method: str, frames: int, device: str) -> dict:
@@ -95,17 +100,17 @@ def cap_of_frame(sim: wc.Simulator) -> int:
     return at_substeps(sim.scene, sim.frame_substeps).simulation.limit_max_passes
 
 
-def measure_run(scene: wc.Scene, method: str, frames: int, device: str) -> dict:
+def measure_run(scene: wc.Scene, method: str, frames: int, device: str, bounds: str = "off") -> dict:
     """``frames`` frames of ``scene`` under ``method``'s hooks: the worst strain of a limited spring over
     every frame (the start's included), the solve's passes (rounds) a substep, frames with a solve at the
     cap, substeps a frame, the wall time of the frames (kernels loaded before) and the process's CPU time in
     them (on a CPU shared with other work, steadier than the wall time; the machine's load, the 1-minute
     average as the run starts, says how shared), and with particle collision the closest contact and the
-    most crossing triangle pairs at a frame's end. A scene the
-    simulator refuses, or a run that blows up, is a row too."""
+    most crossing triangle pairs at a frame's end; with ``bounds`` on, the particles they held short a
+    substep on average. A scene the simulator refuses, or a run that blows up, is a row too."""
     load = round(os.getloadavg()[0], 2)
     try:
-        with lab_hooks(**METHODS[method]):
+        with lab_hooks(**METHODS[method]), bound_hooks(BoundSettings.parse(bounds)):
             sim = wc.Simulator(scene, device=device)
     except wc.SceneError as exc:
         return {"stable": None, "refused": str(exc), "load_average": load}
@@ -115,7 +120,7 @@ def measure_run(scene: wc.Scene, method: str, frames: int, device: str) -> dict:
     substeps: list[int] = []
     stable, failure = True, None
     crossings = TriangleIntersections(sim) if scene.collision is not None else None
-    closest, most_crossings = float("inf"), 0
+    closest, most_crossings, held_short = float("inf"), 0, 0
 
     def measure_frame() -> None:
         nonlocal stretch, compression, closest, most_crossings
@@ -150,8 +155,12 @@ def measure_run(scene: wc.Scene, method: str, frames: int, device: str) -> dict:
             solves += stats.limit_solves
             capped += stats.limit_passes >= cap_of_frame(sim)
             residual = max(residual, stats.limit_residual)
+        if sim.plan.bounds is not None:
+            held_short += sim.plan.bounds.read_stats()[0][-1]
         measure_frame()
     contacts = {} if crossings is None else {"closest_contact": round(closest, 4), "most_crossings": most_crossings}
+    if sim.plan.bounds is not None:
+        contacts |= {"bounds": bounds, "held_short_a_substep": round(held_short / max(solves, 1), 1)}
     return {"stable": stable, **({"failure": failure} if failure else {}), "frames_run": len(substeps),
             "limited_springs": len(pairs), "bend_limited": bend_limited,
             "stretch": round(stretch, 4), "compression": round(compression, 4),
@@ -187,6 +196,7 @@ def main() -> None:
     parser.add_argument("--scenes", nargs="+", metavar="NAME", help="built-in scenes instead of the matrix cloth")
     parser.add_argument("--scene-frames", nargs="+", default=[], metavar="NAME=N",
                         help="with --scenes: frames for the scenes named, instead of --frames")
+    parser.add_argument("--bounds", nargs="+", default=["off"], help="the matrix runs' displacement bounds")
     parser.add_argument("--repeats", type=int, default=1,
                         help="with --scenes: each scene's methods run in turn R times; the least times kept")
     args = parser.parse_args()
@@ -208,8 +218,8 @@ def main() -> None:
         return
     for n in args.sizes:
         for cloth in args.cloth:
-            for method in args.methods:
-                keep(measure(n, method, args.frames, args.cap, args.device, cloth, args.variant))
+            for method, bounds in ((m, b) for m in args.methods for b in args.bounds):
+                keep(measure(n, method, args.frames, args.cap, args.device, cloth, args.variant, bounds))
 
 
 if __name__ == "__main__":

@@ -18,8 +18,16 @@ Per run, over every frame written (frame 0 included):
   and as a fraction of the gap;
 - the converged limit solve's passes a substep (mean, most, the cap) and the frames whose solve ended at
   its cap outside its tolerance;
-- wall time of the frames (kernels loaded before the clock starts), substeps a frame.
+- wall time of the frames (kernels loaded before the clock starts), substeps a frame;
+- the closest surfaces: the least distance of a vertex-triangle or edge-edge pair sharing no vertex, at most
+  the gap (kernels/primitive_distances.py), over every frame (of triangles that cross, no such pair need
+  touch: an edge through a face's middle).
 A run the start check refuses, or that blows up, is reported as such: that is a result too.
+
+``--bounds`` runs each contact setting once per spec: ``off``, or the lab's displacement bounds
+(warp_cloth/displacement_bounds.py) as ``on`` or comma-separated ``radius=``, ``gamma=``, ``rounds=`` (say
+``radius=0.02,rounds=3``); a bounded run adds the particles held short a substep (first and last round),
+the distance given up, and the bounds' hash overflow.
 
     python tools/stacked_drape.py --sheets 3 --n 32 --frames 60 --radius 0.004 default --device cpu \\
         --json docs/results/stacked-drape-cpu.json
@@ -39,6 +47,7 @@ import warp as wp
 
 import warp_cloth as wc
 from warp_cloth.diagnostics import TriangleIntersections
+from warp_cloth.displacement_bounds import BoundSettings, DisplacementBounds, lab_hooks
 from warp_cloth.lab.bench import environment
 
 DRAPE_MATERIAL = {"density": 0.2, "structural": wc.SpringKind(50.0, 0.05), "shear": wc.SpringKind(50.0, 0.05),
@@ -69,25 +78,30 @@ def contact_distance(sim: wc.Simulator) -> float:
     return sim.scene.collision.separation * float(np.min(sim.model.contacts.radius))
 
 
-def measure(scene: wc.Scene, gap: float, device: str) -> dict:
+def measure(scene: wc.Scene, gap: float, device: str, bounds: BoundSettings | None = None) -> dict:
     """One run of ``scene``, measured in every frame (see the module's docstring)."""
     try:
-        sim = wc.Simulator(scene, device=device)
+        with lab_hooks(bounds):
+            sim = wc.Simulator(scene, device=device)
     except wc.SceneError as refused:
         return {"outcome": "refused at start", "message": str(refused)}
+    surfaces = DisplacementBounds(sim.model, sim.device_model, BoundSettings(radius=gap))
     started = time.perf_counter()
     sim.prepare()
     prepare_seconds = time.perf_counter() - started
     strain, crossings = wc.StrainMonitor(), TriangleIntersections(sim)
     strain.begin(sim)
     distance = contact_distance(sim)
-    per_frame = {"crossings": [], "closest_contact": [], "substeps": [], "limit_passes": [], "limit_residual": []}
+    per_frame = {"crossings": [], "closest_contact": [], "substeps": [], "limit_passes": [], "limit_residual": [],
+                 "closest_surfaces": [], "held_short_first": [], "held_short_last": [], "held_back_m": []}
     stepping, outcome = 0.0, "completed"
 
     def measure_frame(frame: int) -> None:
         strain.write_frame(sim, frame)
         per_frame["crossings"].append(crossings(sim))
         per_frame["closest_contact"].append(float(sim.closest_contacts(remake=False).min()))
+        surfaces.measure_at(sim.state.x)
+        per_frame["closest_surfaces"].append(float(surfaces.nearest.numpy().min()))
 
     measure_frame(0)
     for frame in range(1, scene.simulation.frames + 1):
@@ -103,6 +117,11 @@ def measure(scene: wc.Scene, gap: float, device: str) -> dict:
         per_frame["substeps"].append(sim.frame_substeps)
         per_frame["limit_passes"].append(stats.limit_passes)
         per_frame["limit_residual"].append(stats.limit_residual)
+        if sim.plan.bounds is not None:
+            held_short, held_back, _ = sim.plan.bounds.read_stats()
+            per_frame["held_short_first"].append(held_short[0] / sim.frame_substeps)
+            per_frame["held_short_last"].append(held_short[-1] / sim.frame_substeps)
+            per_frame["held_back_m"].append(held_back)
         measure_frame(frame)
     report = strain.report()
     total = sim.solver_stats(since_start=True)
@@ -123,30 +142,39 @@ def measure(scene: wc.Scene, gap: float, device: str) -> dict:
             "limit_passes_mean": total and total.limit_mean_passes, "limit_passes_most": total and total.limit_passes,
             "limit_passes_cap": sim.limit_solve.max_passes,
             "frames_ending_outside_tolerance": sum(r > 1.0 for r in per_frame["limit_residual"]),
+            "closest_surfaces_m": min(per_frame["closest_surfaces"]),
+            "bounds": None if bounds is None else vars(bounds),
+            "held_short_mean": float(np.mean(per_frame["held_short_first"])) if per_frame["held_short_first"] else None,
+            "held_short_last_mean": float(np.mean(per_frame["held_short_last"]))
+            if per_frame["held_short_last"] else None,
+            "held_back_m": float(np.sum(per_frame["held_back_m"])) if per_frame["held_back_m"] else None,
+            "bounds_overflow": None if sim.plan.bounds is None else int(sim.plan.bounds.overflow.numpy()[0]),
+            "surfaces_overflow": int(surfaces.overflow.numpy()[0]),
             "per_frame": per_frame | {"stretch": report.per_frame[:, 1].tolist(),
                                       "compression": report.per_frame[:, 2].tolist()}}
 
 
-HEADER = (f"{'run':<34} {'frames':>6} {'step s':>8} {'substeps':>8} {'stretch':>8} {'compress':>8} "
+HEADER = (f"{'run':<44} {'frames':>6} {'step s':>8} {'substeps':>8} {'stretch':>8} {'compress':>8} "
           f"{'most crossings':>15} {'first':>5} {'closest':>7} {'m':>8} {'of gap':>6} {'passes mean/most/cap':>20} "
-          f"{'capped':>6}")
+          f"{'capped':>6} {'surfaces m':>10} {'held short':>10}")
 
 
 def table_lines(row: dict) -> list[str]:
     """A run's line in the table (and a line saying how it ended, where it did not complete)."""
     if row["outcome"] == "refused at start":
-        return [f"{row['run']:<34} refused at start: {row['message']}"]
+        return [f"{row['run']:<44} refused at start: {row['message']}"]
     if row["frames"] == 0:
-        return [f"{row['run']:<34} {row['outcome']}"]
+        return [f"{row['run']:<44} {row['outcome']}"]
     first = row["first_crossing_frame"]
-    lines = [f"{row['run']:<34} {row['frames']:>6} {row['step_seconds']:>8.1f} {row['substeps_mean']:>8.1f} "
+    lines = [f"{row['run']:<44} {row['frames']:>6} {row['step_seconds']:>8.1f} {row['substeps_mean']:>8.1f} "
              f"{100 * row['stretch']:>+7.1f}% {-100 * row['compression']:>+7.1f}% "
              f"{row['most_crossings']:>7} (f {row['most_crossings_frame']:>3}) {'-' if first is None else first:>5} "
              f"{row['closest_contact']:>7.3f} {row['closest_contact_m']:>8.5f} {row['closest_contact_of_gap']:>6.3f} "
              f"{row['limit_passes_mean']:>7.1f}/{row['limit_passes_most']:>4}/{row['limit_passes_cap']:>5} "
-             f"{row['frames_ending_outside_tolerance']:>6}"]
+             f"{row['frames_ending_outside_tolerance']:>6} {row['closest_surfaces_m']:>10.5f} "
+             f"{'-' if row['held_short_mean'] is None else format(row['held_short_mean'], '.1f'):>10}"]
     if row["outcome"] != "completed":
-        lines.append(f"{'':<34} {row['outcome']}")
+        lines.append(f"{'':<44} {row['outcome']}")
     return lines
 
 
@@ -167,6 +195,8 @@ def main() -> None:
     parser.add_argument("--edges", action="store_true", help="edge contacts ([collision] edges = true)")
     parser.add_argument("--friction", type=float, default=0.0)
     parser.add_argument("--substeps", type=int, default=None, help="fixed substeps a frame (default: the simulator's)")
+    parser.add_argument("--bounds", nargs="+", default=["off"],
+                        help="the lab's displacement bounds: off, on, or radius=R,gamma=G,rounds=K; one run each")
     parser.add_argument("--device", default=None)
     parser.add_argument("--json", default=None, help="where to write the runs and the environment")
     args = parser.parse_args()
@@ -177,14 +207,15 @@ def main() -> None:
     settings["cell"] = args.size / (args.n - 1)
     rows = []
     print(HEADER, "-" * len(HEADER), sep="\n")
-    for text in args.radius:
+    for text, spec in ((t, b) for t in args.radius for b in args.bounds):
         radius = None if text == "default" else float(text)
         scene = stacked_drape_scene(args.sheets, args.n, args.gap, args.limit, args.frames, args.fps, args.size,
                                     args.sphere_radius, args.drop, radius, not args.no_self, True, args.edges,
                                     args.friction, args.substeps)
         name = (f"{args.sheets}x{args.n}^2 r={'default' if radius is None else f'{1e3 * radius:g}mm'}"
-                f"{' edges' if args.edges else ''}{' no-self' if args.no_self else ''}")
-        rows.append({"run": name, "radius": radius, **measure(scene, args.gap, device)})
+                f"{' edges' if args.edges else ''}{' no-self' if args.no_self else ''}"
+                f"{'' if spec == 'off' else ' bounds ' + spec}")
+        rows.append({"run": name, "radius": radius, **measure(scene, args.gap, device, BoundSettings.parse(spec))})
         print(*table_lines(rows[-1]), sep="\n", flush=True)
         if args.json:  # after every run: a later one may take long or fail
             with open(args.json, "w") as out:

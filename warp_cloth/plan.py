@@ -13,6 +13,7 @@ import warp as wp
 from warp_cloth.kernels.colliders import RigidColliders
 
 from .device_model import DeviceModel
+from .displacement_bounds import DisplacementBounds
 from .implicit import SolveStats
 from .integrators import Integrator
 from .limit_solve import ConvergedProjection, LimitSolveSettings
@@ -54,6 +55,7 @@ class Plan:
     lists: NeighbourLists | None  # particle collision's candidate lists
     projection: ConvergedProjection | None  # the converged limit solve, for its figures
     start: StartProjection | None  # what the simulator projects a fresh run's start with, where cloths are limited
+    bounds: DisplacementBounds | None = None  # the lab's displacement bounds, for their figures
 
     def carried(self) -> dict[str, wp.array]:
         """The plan's arrays that a substep reads before writing them (the converged solve's estimated
@@ -85,7 +87,8 @@ class Plan:
 
 
 def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, solve: LimitSolveSettings,
-               threads: int | None = None, lines: LineSolves | None = None) -> Plan:
+               threads: int | None = None, lines: LineSolves | None = None,
+               bounds: DisplacementBounds | None = None) -> Plan:
     """The substep, in order: moving spheres and animated mesh colliders to the substep's end (nothing before
     the colliders reads them); the wind's forces; the integrator's pass; driven pins (oscillating, on
     colliders, on keys); then, with particle collision, the contacts' start (in the integrator's pass where it
@@ -95,13 +98,15 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
     it, the strain limit's passes or the colliders alone; the clock last, where something moves with it.
     ``solve``: how the limits and contacts are solved; ``threads``: per particle on the gathering passes
     (None: by size); ``lines``: the line solves of the cloths' lines where ``solve.line_solve``, made once
-    for every plan a simulator builds (line_solve.LineSolves)."""
+    for every plan a simulator builds (line_solve.LineSolves); ``bounds``: the lab's displacement bounds
+    (displacement_bounds.py, made once per simulator), measured first and clamping the step after the solves
+    (before the contact velocities)."""
     chosen = threads_per_particle(model.particle_count, model.device) if threads is None else threads
     rigid = model.colliders(state) if model.has_colliders else None
     oscillating_pins = model.pins is not None and model.pins.moving
     driven_pins = oscillating_pins or bool(model.pin_targets) or bool(model.keyed_pins)
     converged = solve.converged
-    passes: list[Pass] = []
+    passes: list[Pass] = [bounds.measure] if bounds is not None else []
     passes.extend(model.collider_motion)
     lists = start = projection = None
     if model.contacts is not None:
@@ -133,6 +138,8 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
             passes.append(projection)
         else:
             passes.extend(edge_passes + projection_passes(model, state, solve, chosen, rigid))
+        if bounds is not None:
+            passes.append(bounds.clamp)
         passes.append(contact_velocities(model, state, chosen))
     elif model.limits is not None and converged and solve.line_solve:
         projection = ConvergedProjection(model, state, solve, line_round(model, lines, rigid), rigid,
@@ -147,12 +154,14 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
                       for k in range(solve.iterations))
     elif rigid is not None:
         passes.append(Collide(model, rigid))
+    if bounds is not None and start is None:
+        passes.append(bounds.clamp)
     if driven_pins or model.collider_motion or \
             (model.wind is not None and (model.wind.turbulence > 0 or model.wind.key_time.shape[0] > 1)):
         passes.append(AdvanceClock())
     start_projection = StartProjection(model, state, solve, chosen, rigid) if model.limits is not None else None
     return Plan(tuple(passes), model.h, chosen, step if isinstance(step, SolvingPass) else None, lists, projection,
-                start_projection)
+                start_projection, bounds)
 
 
 def converged_projection(model: DeviceModel, state: DeviceState, solve: LimitSolveSettings, threads: int,

@@ -1,0 +1,208 @@
+"""The lab's displacement bounds (issue 34's groundwork, off by default; ``lab_hooks``): a step that never
+creates a crossing, as in Offset Geometric Contact (Chen et al. 2025). At a substep's start every vertex's
+bound is measured (kernels/primitive_distances.py: the nearest vertex-triangle and edge-edge pairs sharing no
+vertex, within the query radius, through a spatial hash of the particles); after the integrator and the solves
+each particle's displacement from the start is clamped to its bound and its velocity made the clamped
+displacement over the substep, before the contact velocities where the scene has them
+(kernels/displacement_bounds.py, whose docstring proves that no pair of triangles apart at the start then
+crosses). With ``rounds`` above 1, the bounds are
+measured again where a clamp left the particles and the rest of each step clamped to them, so that a step may
+go farther than the start's bounds allow and still never cross.
+
+The simulator makes one ``DisplacementBounds`` where the hooks ask for it, and hands it to every plan it builds
+(warp_cloth/plan.py: its ``measure`` pass first, its ``clamp`` pass after the solves)."""
+
+from __future__ import annotations
+
+from contextlib import contextmanager
+from dataclasses import dataclass
+from typing import Iterator
+
+import numpy as np
+import warp as wp
+
+from warp_cloth.kernels import displacement_bounds, primitive_distances, spatial_hash
+from warp_cloth.kernels.primitive_distances import DistanceHash, Primitives
+
+from .adjacency import Adjacency
+from .device_model import DeviceModel
+from .mesh_io import unique_pairs
+from .model import Model
+from .state import DeviceState, hash_table_size
+
+
+@dataclass(frozen=True)
+class BoundSettings:
+    """``radius``: the query radius r in metres (no bound exceeds gamma r); ``gamma``: below 1/2; ``rounds``:
+    clamps a substep, each after bounds measured where the last left the particles (1: the start's alone)."""
+    radius: float = 0.01
+    gamma: float = 0.45
+    rounds: int = 1
+
+    def __post_init__(self) -> None:
+        if not (0.0 < self.gamma < 0.5 and self.radius > 0.0 and self.rounds >= 1):
+            raise ValueError(f"displacement bounds need 0 < gamma < 1/2, a radius above 0 and a round, got {self}")
+
+    @classmethod
+    def parse(cls, spec: str) -> BoundSettings | None:
+        """A tool's spec: ``off`` (None), ``on`` (the defaults) or comma-separated ``radius=``, ``gamma=``,
+        ``rounds=``."""
+        if spec == "off":
+            return None
+        values = {} if spec == "on" else dict(item.split("=") for item in spec.split(","))
+        return cls(**{k: (int if k == "rounds" else float)(v) for k, v in values.items()})
+
+
+# The lab's hook, not a scene key: simulators built while it is set clamp their steps to these bounds.
+BOUNDS: BoundSettings | None = None
+
+
+@contextmanager
+def lab_hooks(bounds: BoundSettings | None = None) -> Iterator[None]:
+    """Simulators built inside take these hooks' values (the lab's and tests', never a scene's)."""
+    global BOUNDS
+    before = BOUNDS
+    BOUNDS = bounds
+    try:
+        yield
+    finally:
+        BOUNDS = before
+
+
+BUCKET_CAPACITY = 64  # particles a bucket of the bounds' hash holds: its cells are wider than an edge is long
+
+
+def mesh_primitives(model: Model) -> tuple[np.ndarray, np.ndarray]:
+    """Every cloth's triangles, (t, 3), and their edges once each, (m, 2), in the model's particle numbers."""
+    triangles = np.concatenate([g.triangles + model.offsets[c] for c, g in enumerate(model.cloths)]).astype(np.int32)
+    sides = np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
+    return triangles, unique_pairs(sides, model.particle_count)[0].astype(np.int32)
+
+
+class DisplacementBounds:
+    """The bounds' arrays and their two passes (``measure`` and ``clamp``), made once per simulator. A particle
+    that does not fit its hash bucket is counted in ``overflow`` and its pairs go unmeasured (the tools report
+    it: the guarantee needs none)."""
+
+    def __init__(self, model: Model, device_model: DeviceModel, settings: BoundSettings) -> None:
+        self.settings = settings
+        self.device_model = device_model
+        device = self.device = device_model.device
+        n = self.n = model.particle_count
+        triangles, ends = mesh_primitives(model)
+        self.edge_count = len(ends)
+        order = np.argsort(triangles[:, 0], kind="stable")
+        owned_offsets = np.zeros(n + 1, dtype=np.int32)
+        np.cumsum(np.bincount(triangles[:, 0], minlength=n), out=owned_offsets[1:])
+        edges_at = Adjacency.of(ends, n)
+        mesh = self.mesh = Primitives()
+        mesh.triangles = wp.array(triangles, dtype=wp.vec3i, device=device)
+        mesh.owned_offsets = wp.array(owned_offsets, dtype=int, device=device)
+        mesh.owned = wp.array(order.astype(np.int32), dtype=int, device=device)
+        mesh.ends = wp.array(ends, dtype=wp.vec2i, device=device)
+        mesh.edge_offsets = wp.array(edges_at.offsets, dtype=int, device=device)
+        mesh.edges_at = wp.array(edges_at.spring, dtype=int, device=device)
+        mesh.world = device_model.particle_world
+        table = hash_table_size(n)
+        grid = self.grid = DistanceHash()
+        grid.inv_cell = wp.zeros(1, dtype=float, device=device)
+        grid.mask = table - 1
+        grid.capacity = BUCKET_CAPACITY
+        grid.epoch = wp.zeros(1, dtype=int, device=device)
+        grid.bucket_size = wp.zeros(table, dtype=int, device=device)
+        grid.bucket_items = wp.zeros(table * BUCKET_CAPACITY, dtype=int, device=device)
+        self.insert_always = wp.ones(1, dtype=int, device=device)  # the hash's request to fill: every table
+        self.longest = wp.zeros(1, dtype=float, device=device)
+        self.nearest = wp.zeros(n, dtype=float, device=device)
+        self.start = wp.zeros(n, dtype=wp.vec3, device=device)
+        self.position = wp.zeros(n, dtype=wp.vec3, device=device)
+        self.overflow = wp.zeros(1, dtype=int, device=device)
+        self.clamped = wp.zeros(settings.rounds, dtype=int, device=device)  # particles held short, by round
+        self.held_back = wp.zeros(1, dtype=float, device=device)
+        self.measure = MeasureBounds(self)
+        self.clamp = ClampToBounds(self)
+
+    @classmethod
+    def of(cls, model: Model, device_model: DeviceModel) -> DisplacementBounds | None:
+        """The bounds the lab's hook asks for now (None: off)."""
+        return None if BOUNDS is None else cls(model, device_model, BOUNDS)
+
+    def measure_at(self, x: wp.array) -> None:
+        """Each particle's nearest pair distance (at most the radius) at positions ``x``, into ``nearest``."""
+        device, radius, grid = self.device, self.settings.radius, self.grid
+        self.longest.zero_()
+        wp.launch(primitive_distances.longest_edge, dim=self.edge_count, inputs=[x, self.mesh.ends],
+                  outputs=[self.longest], device=device)
+        wp.launch(primitive_distances.next_table, dim=1, inputs=[radius, self.longest, grid], device=device)
+        wp.launch(spatial_hash.insert_points_at_chosen_width, dim=self.n,
+                  inputs=[x, self.mesh.world, grid.inv_cell, grid.mask, grid.capacity, grid.epoch,
+                          self.insert_always],
+                  outputs=[grid.bucket_size, grid.bucket_items, self.overflow], device=device)
+        self.nearest.fill_(radius)
+        wp.launch(primitive_distances.nearest_to_triangles, dim=self.n,
+                  inputs=[x, self.mesh, grid, radius, self.longest], outputs=[self.nearest], device=device)
+        wp.launch(primitive_distances.nearest_between_edges, dim=self.edge_count,
+                  inputs=[x, self.mesh, grid, radius, self.longest], outputs=[self.nearest], device=device)
+
+    MEASURE_LAUNCHES = ["a zeroed longest edge", "longest_edge", "next_table", "insert_points_at_chosen_width",
+                        "nearest filled with the radius", "nearest_to_triangles", "nearest_between_edges"]
+
+    def read_stats(self) -> tuple[list[int], float, int]:
+        """Particles held short in each round, the distance they gave up (metres, summed) and the hash's
+        overflow, since the last reading (waits for the device)."""
+        clamped, held_back, overflow = self.clamped.numpy().tolist(), float(self.held_back.numpy()[0]), \
+            int(self.overflow.numpy()[0])
+        self.clamped.zero_()
+        self.held_back.zero_()
+        return clamped, held_back, overflow
+
+
+class MeasureBounds:
+    """The substep's first pass: where it starts, and the bounds there."""
+
+    name = "bounds:measure"
+
+    def __init__(self, bounds: DisplacementBounds) -> None:
+        self.bounds = bounds
+
+    def describe(self) -> list[str]:
+        return [f"{self.name}:", "    a copy of the positions"] + \
+            [f"    {launch}" for launch in DisplacementBounds.MEASURE_LAUNCHES]
+
+    def run(self, state: DeviceState) -> None:
+        wp.copy(self.bounds.start, state.x)
+        self.bounds.measure_at(state.x)
+
+
+class ClampToBounds:
+    """After the solves: each particle's step from the start clamped to its bound (in rounds, the bounds
+    measured again before each after the first), then the particles held short moved there, with the
+    velocity of their clamped step."""
+
+    name = "bounds:clamp"
+
+    def __init__(self, bounds: DisplacementBounds) -> None:
+        self.bounds = bounds
+
+    def describe(self) -> list[str]:
+        rounds = self.bounds.settings.rounds
+        lines = [f"{self.name}:", "    a copy of the start", f"    {displacement_bounds.clamp_to_bounds.key}"]
+        if rounds > 1:
+            lines += [f"    then {rounds - 1} more rounds of:"] + \
+                [f"      {launch}" for launch in DisplacementBounds.MEASURE_LAUNCHES] + \
+                [f"      {displacement_bounds.clamp_to_bounds.key}"]
+        return lines + [f"    {displacement_bounds.take_bounded_step.key}"]
+
+    def run(self, state: DeviceState) -> None:
+        bounds, device = self.bounds, state.device
+        model = bounds.device_model
+        wp.copy(bounds.position, bounds.start)
+        for slot in range(bounds.settings.rounds):
+            if slot > 0:
+                bounds.measure_at(bounds.position)
+            wp.launch(displacement_bounds.clamp_to_bounds, dim=bounds.n,
+                      inputs=[state.x, bounds.nearest, bounds.settings.gamma, model.inv_mass, bounds.position,
+                              bounds.clamped, slot], device=device)
+        wp.launch(displacement_bounds.take_bounded_step, dim=bounds.n,
+                  inputs=[bounds.start, bounds.position, 1.0 / model.h],
+                  outputs=[state.x, state.v, bounds.held_back], device=device)
