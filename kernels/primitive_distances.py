@@ -17,6 +17,7 @@ numbered one's thread.
 
 import warp as wp
 
+from .edge_collision import closest_points
 from .spatial_hash import cell_of, count_in, neighbour_bucket, stamp_of
 
 
@@ -70,24 +71,9 @@ def point_triangle_distance(p: wp.vec3, a: wp.vec3, b: wp.vec3, c: wp.vec3) -> f
 
 @wp.func
 def segment_distance(p0: wp.vec3, p1: wp.vec3, q0: wp.vec3, q1: wp.vec3) -> float:
-    """The distance between the segments p0-p1 and q0-q1: between the closest points of their lines where
-    both lie inside the segments, else the least of each end's distance to the other segment."""
-    d1 = p1 - p0
-    d2 = q1 - q0
-    r = p0 - q0
-    a = wp.dot(d1, d1)
-    e = wp.dot(d2, d2)
-    b = wp.dot(d1, d2)
-    c = wp.dot(d1, r)
-    f = wp.dot(d2, r)
-    denominator = a * e - b * b
-    if denominator > 1.0e-12 * a * e:
-        s = (b * f - c * e) / denominator
-        t = (a * f - b * c) / denominator
-        if s >= 0.0 and s <= 1.0 and t >= 0.0 and t <= 1.0:
-            return wp.length(p0 + s * d1 - (q0 + t * d2))
-    return wp.min(wp.min(point_segment_distance(p0, q0, q1), point_segment_distance(p1, q0, q1)),
-                  wp.min(point_segment_distance(q0, p0, p1), point_segment_distance(q1, p0, p1)))
+    """The distance between the segments p0-p1 and q0-q1, between their closest points (edge_collision's)."""
+    st = closest_points(p0, p1, q0, q1)
+    return wp.length(p0 + st[0] * (p1 - p0) - (q0 + st[1] * (q1 - q0)))
 
 
 @wp.func
