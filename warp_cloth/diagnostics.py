@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import numpy as np
 import warp as wp
 
 from warp_cloth.kernels import intersections
@@ -16,10 +15,10 @@ class TriangleIntersections:
 
     def __init__(self, sim: Simulator) -> None:
         model = sim.model
-        triangles = np.concatenate([g.triangles + model.offsets[c] for c, g in enumerate(model.cloths)])
+        triangles = model.triangles
         self.device = sim.device
         self.points = wp.array(model.positions, dtype=wp.vec3, device=self.device)
-        self.triangles = wp.array(triangles.astype(np.int32).ravel(), dtype=int, device=self.device)
+        self.triangles = wp.array(triangles.ravel(), dtype=int, device=self.device)
         self.mesh = wp.Mesh(points=self.points, indices=self.triangles)
         self.count_buffer = wp.zeros(1, dtype=int, device=self.device)
         self.triangle_count = len(triangles)

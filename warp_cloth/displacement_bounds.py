@@ -26,7 +26,7 @@ from warp_cloth.kernels.primitive_distances import DistanceHash, Primitives
 
 from .adjacency import Adjacency
 from .device_model import DeviceModel
-from .mesh_io import unique_pairs
+from .mesh_io import triangle_sides
 from .model import Model
 from .state import DeviceState, hash_table_size
 
@@ -74,9 +74,8 @@ BUCKET_CAPACITY = 64  # particles a bucket of the bounds' hash holds: its cells 
 
 def mesh_primitives(model: Model) -> tuple[np.ndarray, np.ndarray]:
     """Every cloth's triangles, (t, 3), and their edges once each, (m, 2), in the model's particle numbers."""
-    triangles = np.concatenate([g.triangles + model.offsets[c] for c, g in enumerate(model.cloths)]).astype(np.int32)
-    sides = np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
-    return triangles, unique_pairs(sides, model.particle_count)[0].astype(np.int32)
+    triangles = model.triangles
+    return triangles, triangle_sides(triangles, model.particle_count).astype(np.int32)
 
 
 class DisplacementBounds:

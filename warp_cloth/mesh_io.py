@@ -490,6 +490,12 @@ def unique_pairs(pairs: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     return np.stack([keys // n, keys % n], axis=1), uses
 
 
+def triangle_sides(triangles: np.ndarray, n: int) -> np.ndarray:
+    """(m, 2) the distinct sides of ``triangles`` (t, 3) over vertices below n, each once, sorted."""
+    sides = np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
+    return unique_pairs(sides, n)[0]
+
+
 def count_pieces(n: int, edges: np.ndarray) -> int:
     """Connected components of a graph of n vertices: every vertex hooked to the smallest label across its
     edges, then labels followed to their roots, until nothing changes (a few dozen rounds on a mesh)."""

@@ -18,7 +18,7 @@ from .adjacency import Adjacency
 from .cloth_grid import build_grid, rotation_matrix
 from .cloth_mesh import BEND, SHEAR, STRUCTURAL, ClothMesh, enclosing_radii, rest_adjacent_pairs
 from .mesh_cloth import build_mesh_cloth
-from .mesh_io import load_transform_motion, unique_pairs
+from .mesh_io import load_transform_motion, triangle_sides
 from .pin_selection import select_pins
 from .materials import REGIMES as MATERIAL_REGIMES
 from .scene import Cloth, Scene, SpringRegime, TransformKey
@@ -223,6 +223,11 @@ class Model:
 
     def cloth_slice(self, c: int) -> slice:
         return slice(self.offsets[c], self.offsets[c + 1])
+
+    @property
+    def triangles(self) -> np.ndarray:
+        """(t, 3) int32 every cloth's triangles, in the model's particle numbers."""
+        return np.concatenate([g.triangles + self.offsets[c] for c, g in enumerate(self.cloths)]).astype(np.int32)
 
 
 def build_model(scene: Scene, worlds: Worlds | None = None) -> Model:
@@ -533,9 +538,7 @@ def long_triangle_edges(cloth: Cloth, mesh: ClothMesh, radii: np.ndarray,
     such crossing at their middles keep every end that far from the other's (on a grid with the seed's
     radii, the diagonals). A shorter edge crossing a long one is not guarded (on the grid, a structural
     edge crossing a diagonal at both middles keeps their ends 0.87 cells apart)."""
-    triangles = mesh.triangles
-    sides = np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
-    pairs = unique_pairs(sides, len(mesh.positions))[0]
+    pairs = triangle_sides(mesh.triangles, len(mesh.positions))
     a, b = pairs[:, 0], pairs[:, 1]
     length = (1.0 + cloth.strain_limit.stretch) * np.linalg.norm(mesh.positions[a] - mesh.positions[b], axis=1)
     long = length > np.sqrt(2.0) * separation * 0.5 * (radii[a] + radii[b])
