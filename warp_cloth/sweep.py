@@ -22,11 +22,12 @@ an interrupted sweep goes on where it stopped, and nothing is computed twice; a 
 run again. The folder is locked while a sweep runs (``results.lock``): a second sweep into it is refused.
 
 With ``--cluster ADDRESS`` (a running Ray cluster's, or ``local`` for one started on this machine with
-``--cluster-workers`` workers), each batch is a Ray task, on a GPU where the cluster has them (else on a
-CPU; batches are split until each GPU, or worker, has one, where there are variants enough), retried on another worker if its worker is lost (``--retries``). The tasks write their USD files
-into the output folder, which every worker must reach (shared storage on a real cluster); the table is
-written here as their results come back. An address where no Ray cluster answers is refused within
-seconds; Ray's own log lines show with ``--verbose``. Ray is the ``cluster`` extra:
+``--cluster-workers`` workers), each batch is a Ray task: two at a time on each GPU where the cluster has
+them (one builds its model while the other runs), else one a CPU; batches are split until each such slot
+has one, where there are variants enough. A task whose worker is lost runs again on another
+(``--retries``). The tasks write their USD files into the output folder, which every worker must reach
+(shared storage on a real cluster); the table is written here as their results come back. An address
+where no Ray cluster answers is refused within seconds; Ray's own log lines show with ``--verbose``. Ray is the ``cluster`` extra:
 ``pip install 'warp-cloth[cluster]'``.
 """
 
@@ -65,6 +66,9 @@ RESULTS = "results.jsonl"
 TABLE = "results.csv"
 COLUMNS = ("variant", "settings", "stretch", "compression", "kinetic_energy", "closest_contact", "unstable_frame",
            "batch_worlds", "batch_seconds", "usd")
+# Two workers share a GPU: one builds its batch's model on the host while the other's runs on the GPU
+# (alone, a GPU idled for the build, a fifth of a 256^2 batch: docs/benchmarks.md).
+TASKS_PER_GPU = 2
 SIGNIFICANT_DIGITS = 6  # of a number drawn in a range: its variant's name, row and run all have this value
 PROBE_SECONDS = 5.0  # how long a --cluster address has to answer as Ray does
 
@@ -463,9 +467,9 @@ def run_cluster(todo: list[list[Variant]], out: Path, device: str | None, usd: b
             gpus = int(resources.get("GPU", 0)) if device in (None, "cuda") else 0
             # max_calls=0: a worker runs batch after batch (Ray's default for a GPU task is a process a task,
             # which paid Python's start and Warp's module loads again for each batch: 0.57x of a sweep without Ray)
-            task = ray.remote(num_gpus=1 if gpus else 0, num_cpus=0 if gpus else 1, max_retries=retries,
-                              retry_exceptions=False, max_calls=0)(run_batch)
-            slots = gpus or int(resources.get("CPU", 1))
+            task = ray.remote(num_gpus=1 / TASKS_PER_GPU if gpus else 0, num_cpus=0 if gpus else 1,
+                              max_retries=retries, retry_exceptions=False, max_calls=0)(run_batch)
+            slots = gpus * TASKS_PER_GPU or int(resources.get("CPU", 1))
             pending = [task.remote(chunk, out.absolute(), "cuda" if gpus else "cpu", usd)
                        for chunk in spread(todo, slots)]
             while pending:
