@@ -224,6 +224,7 @@ class DeviceModel:
         rules = EdgeRules()
         rules.world, rules.cloth_id = particle_rules.world, particle_rules.cloth_id
         rules.self_collision, rules.between_cloths = particle_rules.self_collision, particle_rules.between_cloths
+        rules.sewn_offsets, rules.sewn_other = particle_rules.sewn_offsets, particle_rules.sewn_other
         return DeviceContactEdges(upload(edges.ends, wp.vec2i, device),
                                   upload(model.particle_world[edges.ends[:, 0]], int, device),
                                   upload(edges.incidence.offsets, int, device),
