@@ -342,12 +342,13 @@ def _springs(scene: Scene, meshes, offsets, n: int) -> Springs | None:
 def _limits(springs: Springs | None, n: int, attachments: tuple[np.ndarray, np.ndarray],
             sewn: SewnPairs | None) -> StrainLimits | None:
     """The limited springs, and the sewn pairs after them, as incidence lists."""
-    limited = np.isfinite(springs.limit_max) if springs is not None else np.zeros(0, dtype=bool)
-    if not limited.any() and sewn is None:
+    if springs is None:
+        pairs, lo, hi = np.zeros((0, 2), dtype=np.int32), np.zeros(0, dtype=np.float32), np.zeros(0, dtype=np.float32)
+    else:
+        limited = np.isfinite(springs.limit_max)
+        pairs, lo, hi = springs.pairs[limited], springs.limit_min[limited], springs.limit_max[limited]
+    if len(pairs) == 0 and sewn is None:
         return None
-    pairs = springs.pairs[limited] if springs is not None else np.zeros((0, 2), dtype=np.int32)
-    lo, hi = springs.limit_min[limited] if springs is not None else np.zeros(0, dtype=np.float32), \
-        springs.limit_max[limited] if springs is not None else np.zeros(0, dtype=np.float32)
     if sewn is None:
         adjacency = Adjacency.of(pairs, n)
         return StrainLimits(adjacency.offsets, adjacency.other, lo[adjacency.spring], hi[adjacency.spring],
