@@ -166,3 +166,15 @@ def test_a_bad_seam_in_a_file_is_one_line_and_exit_2(tmp_path):
     code, out, err = run_cli_in_process("run", "bad.toml", "--frames", "1", cwd=tmp_path)
     assert code == 2 and out == ""
     assert err.count("\n") == 1 and "bad.toml" in err and "seam[0].b" in err and "particles side a does not have" in err
+
+
+def test_a_batch_sews_each_worlds_seams_as_its_scene_alone():
+    one = scene_from_dict(sewn_panels())
+    batch = wc.Batch([one, one], device="cpu")
+    alone = wc.Simulator(one, device="cpu")
+    for _ in range(13):
+        batch.step()
+        alone.step()
+    assert seam_gap(alone) < 1e-4
+    for w in range(2):  # each world's frames are its scene's alone, to rounding (batch.py)
+        assert np.allclose(batch.positions(w), alone.positions(), rtol=0.0, atol=1e-6)
