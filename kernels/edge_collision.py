@@ -31,11 +31,14 @@ class EdgeContacts:
 @wp.struct
 class EdgeRules:
     """Which edges may touch: as particles' (particle_collision.may_collide), but any two edges that share
-    no particle, however close they lie in the cloth at rest."""
+    no particle, however close they lie in the cloth at rest, nor a pair of particles a seam keeps from
+    colliding."""
     world: wp.array(dtype=int)  # (n,) each particle's
     cloth_id: wp.array(dtype=int)
     self_collision: int
     between_cloths: int
+    sewn_offsets: wp.array(dtype=int)  # as particle_collision.PairRules': empty where no pair is sewn
+    sewn_other: wp.array(dtype=int)
 
 
 @wp.func
@@ -79,9 +82,24 @@ def shares_particle(a: wp.vec2i, b: wp.vec2i) -> bool:
 
 
 @wp.func
+def sewn_near(rules: EdgeRules, a: wp.vec2i, b: wp.vec2i) -> bool:
+    """Whether an end of edge a and an end of b are a pair that a seam keeps from colliding."""
+    for end in range(2):
+        i = a[end]
+        for k in range(rules.sewn_offsets[i], rules.sewn_offsets[i + 1]):
+            other = rules.sewn_other[k]
+            if other == b[0] or other == b[1]:
+                return True
+    return False
+
+
+@wp.func
 def may_touch(rules: EdgeRules, a: wp.vec2i, b: wp.vec2i) -> bool:
     if shares_particle(a, b):
         return False
+    if rules.sewn_offsets.shape[0] > 0:
+        if sewn_near(rules, a, b):
+            return False
     i = a[0]
     j = b[0]
     if rules.world[i] != rules.world[j]:

@@ -16,6 +16,8 @@ class StrainLimits:
     other: wp.array(dtype=int)  # per incidence: the particle at the other end
     min_length: wp.array(dtype=float)  # per incidence: the allowed range of the spring's length
     max_length: wp.array(dtype=float)
+    residual_length: wp.array(dtype=float)  # per incidence where some pair is sewn, else empty: the length a
+    # violation is a fraction of where it is more than max_length (a seam's allowed length reaches 0)
 
 
 @wp.func
@@ -58,12 +60,16 @@ def limit_violation(limits: StrainLimits, i: int, x: wp.array(dtype=wp.vec3)) ->
     fraction of the length it should be within (0 where all hold)."""
     xi = x[i]
     worst = float(0.0)
+    sewn = limits.residual_length.shape[0] > 0
     for e in range(limits.offsets[i], limits.offsets[i + 1]):
         length = wp.length(xi - x[limits.other[e]])
         longest = limits.max_length[e]
         shortest = limits.min_length[e]
         if length > longest:
-            worst = wp.max(worst, (length - longest) / longest)
+            scale = longest
+            if sewn:
+                scale = wp.max(longest, limits.residual_length[e])
+            worst = wp.max(worst, (length - longest) / scale)
         elif length < shortest:
             worst = wp.max(worst, (shortest - length) / shortest)
     return worst

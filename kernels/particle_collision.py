@@ -46,6 +46,8 @@ class PairRules:
     adjacent_offsets: wp.array(dtype=int)  # (n + 1,) particles that share a face (CSR), or empty where no
     adjacent_other: wp.array(dtype=int)  # cloth skips them; each particle's list sorted
     exclude_adjacent: wp.array(dtype=int)  # (cloths,) 1 where a cloth skips them, or empty
+    sewn_offsets: wp.array(dtype=int)  # (n + 1,) pairs a seam keeps from colliding (CSR), or empty: no seam
+    sewn_other: wp.array(dtype=int)  # each particle's list sorted
     search_scale: float  # candidates lie within this many contact distances
 
 
@@ -67,9 +69,14 @@ def contact_distance(ri: float, rj: float, separation: float) -> float:
 def may_collide(rules: PairRules, i: int, j: int) -> bool:
     """Whether the pair i-j is one the scene asks to collide. Rest-adjacent particles of a cloth (that share
     a face: on a grid, neighbours with diagonals) are skipped only where that cloth's strain limit cannot
-    keep them apart by itself."""
+    keep them apart by itself. Sewn particles, and those around them (model.ParticleContacts.sewn), never
+    collide."""
     if rules.world[i] != rules.world[j]:
         return False
+    if rules.sewn_offsets.shape[0] > 0:
+        for k in range(rules.sewn_offsets[i], rules.sewn_offsets[i + 1]):
+            if rules.sewn_other[k] == j:
+                return False
     ci = rules.cloth_id[i]
     if ci != rules.cloth_id[j]:
         return rules.between_cloths != 0

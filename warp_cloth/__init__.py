@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 from .errors import SceneError, UnstableSimulation
 from .materials import Material
 from .scene import (Box, Cloth, Collision, Ground, ImplicitSolver, Limit, MeshCollider, MeshSource, Oscillation,
-                    Output, Pin, Scene, Simulation, Sphere, SpringKind, TransformKey, Wind, WindKey)
+                    Output, Pin, Scene, Seam, SeamSide, Simulation, Sphere, SpringKind, TransformKey, Wind, WindKey)
 
 if TYPE_CHECKING:
     from .batch import Batch
@@ -50,7 +50,7 @@ __all__ = [
     "MeshCollider",
     "MeshSource", "MetricsWriter",
     "Oscillation", "Output",
-    "Pin", "PolyWriter", "RunSummary", "Scene", "SceneError", "Simulation", "Simulator", "Sphere", "SpringKind",
+    "Pin", "PolyWriter", "RunSummary", "Scene", "SceneError", "Seam", "SeamSide", "Simulation", "Simulator", "Sphere", "SpringKind",
     "StrainMonitor", "StrainReport", "TransformKey", "Wind", "WindKey",
     "UnstableSimulation", "UnstableStepWarning", "UsdWriter", "builtin_scene_names", "load_scene", "render_preview",
     "scene_from_dict", "set_verbose",

@@ -76,9 +76,12 @@ def pack(scenes: Sequence[Scene]) -> tuple[Scene, Worlds]:
     """The one scene that scenes of one step (``step_key``) are simulated as, and its worlds. Give it the
     scenes with their step set (``scene_with_step``): the packed scene takes the first's."""
     first = scenes[0]
-    cloths, spheres, colliders = [], [], []
+    cloths, spheres, colliders, seams = [], [], [], []
     cloth_world, sphere_start, mesh_start = [], [0], [0]
     for w, scene in enumerate(scenes):
+        seams += [dataclasses.replace(seam, a=dataclasses.replace(seam.a, cloth=_renamed(seam.a.cloth, w)),
+                                      b=dataclasses.replace(seam.b, cloth=_renamed(seam.b.cloth, w)))
+                  for seam in scene.seams]
         for cloth in scene.cloths:
             pins = tuple(dataclasses.replace(pin, target=_renamed(pin.target, w))
                          if pin.target is not None and not pin.target.startswith("/") else pin for pin in cloth.pins)
@@ -96,7 +99,7 @@ def pack(scenes: Sequence[Scene]) -> tuple[Scene, Worlds]:
                     np.asarray([g.friction if g is not None else 0.0 for g in grounds], dtype=np.float32),
                     np.asarray(sphere_start, dtype=np.int32), np.asarray(mesh_start, dtype=np.int32))
     packed = dataclasses.replace(with_start(first), name="batch", cloths=tuple(cloths), spheres=tuple(spheres),
-                                 colliders=tuple(colliders), ground=None)
+                                 colliders=tuple(colliders), seams=tuple(seams), ground=None)
     return packed, worlds
 
 

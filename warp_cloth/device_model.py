@@ -74,6 +74,15 @@ EDGE_THICKNESS = 0.25  # contact distances: below the midpoints' gap across the 
 
 
 @dataclass(frozen=True)
+class SeamClosing:
+    """What the seams' pass writes the sewn pairs' allowed lengths from (model.SeamEntries)."""
+    entry: wp.array
+    start_length: wp.array
+    close_time: wp.array
+    closes_at: wp.array
+
+
+@dataclass(frozen=True)
 class ParticleContacts:
     """Particle collision's settings and per-particle constants."""
     settings: Collision
@@ -109,6 +118,7 @@ class DeviceModel:
         self.compensated = simulation.compensated
         self.springs = self._springs(model, n)
         self.limits = self._limits(model)
+        self.seams = self._seams(model)  # None: no seam
         self.attachments = self._attachments(model)  # None: no cloth has attachments to its pins
         self.pins = None if model.pins is None else PinMotion(
             upload(model.pins.index, int, device), upload(model.pins.anchor, wp.vec3, device),
@@ -162,7 +172,17 @@ class DeviceModel:
         limits.other = upload(lim.other, int, device)
         limits.min_length = upload(lim.min_length, float, device)
         limits.max_length = upload(lim.max_length, float, device)
+        limits.residual_length = upload(lim.seams.residual_length if lim.seams is not None else np.zeros(0), float,
+                                        device)
         return limits
+
+    def _seams(self, model: Model) -> SeamClosing | None:
+        seams = model.limits.seams if model.limits is not None else None
+        if seams is None:
+            return None
+        device = self.device
+        return SeamClosing(upload(seams.entry, int, device), upload(seams.start_length, float, device),
+                           upload(seams.close_time, float, device), upload(seams.closes_at, float, device))
 
     def _attachments(self, model: Model) -> Attachments | None:
         if model.limits is None or len(model.limits.attachment_pin) == 0:
@@ -170,7 +190,8 @@ class DeviceModel:
         attachments, lim = Attachments(), model.limits
         attachments.pin = upload(lim.attachment_pin, int, self.device)
         attachments.length = upload(lim.attachment_length, float, self.device)
-        attachments.chord_half = 0.5 * float(lim.max_length.max(initial=0.0))
+        springs = lim.max_length if lim.seams is None else np.delete(lim.max_length, lim.seams.entry)
+        attachments.chord_half = 0.5 * float(springs.max(initial=0.0))
         return attachments
 
     def _contacts(self, model: Model, settings: Collision) -> ParticleContacts:
@@ -186,6 +207,11 @@ class DeviceModel:
             rules.adjacent_offsets = upload(contacts.rest_adjacent.offsets, int, device)
             rules.adjacent_other = upload(contacts.rest_adjacent.other, int, device)
             rules.exclude_adjacent = upload(contacts.exclude_adjacent, int, device)
+        if contacts.sewn is None:
+            rules.sewn_offsets = rules.sewn_other = wp.zeros(0, dtype=int, device=device)
+        else:
+            rules.sewn_offsets = upload(contacts.sewn.offsets, int, device)
+            rules.sewn_other = upload(contacts.sewn.other, int, device)
         rules.search_scale = particle_collision.SEARCH_SCALE
         return ParticleContacts(settings, upload(contacts.radius, float, device), rules, contacts.max_radius,
                                 float(contacts.radius.min()), self._contact_edges(model, rules, settings))
@@ -198,6 +224,7 @@ class DeviceModel:
         rules = EdgeRules()
         rules.world, rules.cloth_id = particle_rules.world, particle_rules.cloth_id
         rules.self_collision, rules.between_cloths = particle_rules.self_collision, particle_rules.between_cloths
+        rules.sewn_offsets, rules.sewn_other = particle_rules.sewn_offsets, particle_rules.sewn_other
         return DeviceContactEdges(upload(edges.ends, wp.vec2i, device),
                                   upload(model.particle_world[edges.ends[:, 0]], int, device),
                                   upload(edges.incidence.offsets, int, device),
@@ -217,7 +244,7 @@ class DeviceModel:
             wp.zeros(0, dtype=float, device=self.device)
         limits.offsets = wp.zeros(self.particle_count + 1, dtype=int, device=self.device)
         limits.other = empty_int
-        limits.min_length = limits.max_length = empty_float
+        limits.min_length = limits.max_length = limits.residual_length = empty_float
         return limits
 
     def no_attachments(self) -> Attachments:

@@ -13,6 +13,7 @@ from __future__ import annotations
 from .errors import SceneError
 from .mesh_io import SurfaceMesh, load_transform_motion
 from .pin_selection import select_pins
+from .seams import sew
 from .scene import MAX_EXTENT, MAX_PARTICLES, MIN_CELL, Cloth, MeshCollider, Scene
 
 
@@ -36,6 +37,7 @@ def validate(scene: Scene) -> None:
         raise SceneError("cloth", f"at most {MAX_PARTICLES} particles in all", total)
     _check_target_prims(scene)
     select_pins(scene)
+    sew(scene)
 
 
 def _check_mesh_cloth(cloth: Cloth) -> None:

@@ -22,6 +22,7 @@ from .mesh_io import load_transform_motion, triangle_sides
 from .pin_selection import select_pins
 from .materials import REGIMES as MATERIAL_REGIMES
 from .scene import Cloth, Scene, SpringRegime, TransformKey
+from .seams import SewnPairs, sewn_neighbourhood, sewn_pairs
 from .shot_clock import shot_clock
 from .spring_paths import nearest_along_edges
 
@@ -102,17 +103,31 @@ class PinAnimation:
 
 
 @dataclass(frozen=True)
+class SeamEntries:
+    """Where the sewn pairs are among the strain limits' incidences, and what the seams' pass (passes.CloseSeams)
+    writes there each substep: the longest each may be, ``start_length`` shrunk to 0 over ``close_time``."""
+
+    entry: np.ndarray  # (2k,) int32: the incidence (both ends of each pair)
+    start_length: np.ndarray  # (2k,) float32
+    close_time: np.ndarray  # (2k,) float32 seconds
+    closes_at: np.ndarray  # (2k,) float32: the time on the run's clock it reaches 0
+    residual_length: np.ndarray  # (incidences,) float32: what a sewn pair's violation is a fraction of (the
+    # shortest edge of its cloths) where its allowed length is shorter, 0 for the springs
+
+
+@dataclass(frozen=True)
 class StrainLimits:
-    """Limited (structural and shear) springs as incidence lists with allowed length ranges, and each
-    particle's long-range attachment: the nearest pin of its cloth (-1: none) and how far from it the
+    """Limited (structural and shear) springs and sewn pairs as incidence lists with allowed length ranges,
+    and each particle's long-range attachment: the nearest pin of its cloth (-1: none) and how far from it the
     particle may be. The attachment arrays are empty when no cloth has one."""
 
     offsets: np.ndarray
     other: np.ndarray
     min_length: np.ndarray
-    max_length: np.ndarray
+    max_length: np.ndarray  # a sewn pair's: where it starts (the seams' pass rewrites it every substep)
     attachment_pin: np.ndarray  # (n,) int32 or (0,)
     attachment_length: np.ndarray  # (n,) float32 or (0,)
+    seams: SeamEntries | None = None
 
 
 @dataclass(frozen=True)
@@ -174,6 +189,7 @@ class ParticleContacts:
     exclude_adjacent: np.ndarray | None  # (cloths,) int32, 1 where rest-adjacent pairs are skipped
     rest_adjacent: Adjacency | None  # particles that share a face, both ways, each list sorted
     edges: ContactEdges | None = None  # where the scene asks for edge contacts
+    sewn: Adjacency | None = None  # pairs a seam keeps from colliding (seams.sewn_neighbourhood), each list sorted
 
     @property
     def max_radius(self) -> float:
@@ -203,6 +219,7 @@ class Model:
     worlds: Worlds | None = None  # None: the scene is one world (``Worlds.of_scene``)
     friction: np.ndarray | None = None  # (n,) float32 each particle's cloth's material's coefficient, 0 where it
     # sets none; None: no cloth's material sets one
+    sewn: SewnPairs | None = None  # the seams' pairs; None: no seam
 
     @property
     def particle_world(self) -> np.ndarray:
@@ -257,12 +274,13 @@ def build_model(scene: Scene, worlds: Worlds | None = None) -> Model:
     for animation in pin_animations:
         positions[animation.index] = keyed_at(animation.key_times, animation.key_points, begins)
     springs = _springs(scene, meshes, offsets, n)
-    limits = _limits(springs, n, _attachments(scene, meshes, offsets, selections))
     edges, edge_rest, edge_kind = _edges(meshes, offsets)
+    sewn = sewn_pairs(scene, positions, offsets, [float(g.rest_lengths[g.is_edge].min()) for g in meshes], begins)
+    limits = _limits(springs, n, _attachments(scene, meshes, offsets, selections), sewn)
     return Model(meshes, tuple(offsets), positions, velocities, masses, inv_mass, cloth_id, springs, limits,
-                 pins, _spheres(scene, begins), _contacts(scene, meshes), edges, edge_rest, edge_kind,
+                 pins, _spheres(scene, begins), _contacts(scene, meshes, sewn), edges, edge_rest, edge_kind,
                  _mesh_colliders(scene, begins), _wind_faces(meshes, offsets) if scene.wind is not None else None,
-                 pin_animations, worlds, _friction(scene, meshes))
+                 pin_animations, worlds, _friction(scene, meshes), sewn)
 
 
 def _friction(scene: Scene, meshes) -> np.ndarray | None:
@@ -321,16 +339,31 @@ def _springs(scene: Scene, meshes, offsets, n: int) -> Springs | None:
                    Adjacency.of(pairs, n))
 
 
-def _limits(springs: Springs | None, n: int, attachments: tuple[np.ndarray, np.ndarray]) -> StrainLimits | None:
-    """The limited springs as incidence lists."""
+def _limits(springs: Springs | None, n: int, attachments: tuple[np.ndarray, np.ndarray],
+            sewn: SewnPairs | None) -> StrainLimits | None:
+    """The limited springs, and the sewn pairs after them, as incidence lists."""
     if springs is None:
+        pairs, lo, hi = np.zeros((0, 2), dtype=np.int32), np.zeros(0, dtype=np.float32), np.zeros(0, dtype=np.float32)
+    else:
+        limited = np.isfinite(springs.limit_max)
+        pairs, lo, hi = springs.pairs[limited], springs.limit_min[limited], springs.limit_max[limited]
+    if len(pairs) == 0 and sewn is None:
         return None
-    limited = np.isfinite(springs.limit_max)
-    if not limited.any():
-        return None
-    lo, hi = springs.limit_min[limited], springs.limit_max[limited]
-    adjacency = Adjacency.of(springs.pairs[limited], n)
-    return StrainLimits(adjacency.offsets, adjacency.other, lo[adjacency.spring], hi[adjacency.spring], *attachments)
+    if sewn is None:
+        adjacency = Adjacency.of(pairs, n)
+        return StrainLimits(adjacency.offsets, adjacency.other, lo[adjacency.spring], hi[adjacency.spring],
+                            *attachments)
+    first = len(pairs)  # the sewn pairs' numbers start here
+    adjacency = Adjacency.of(np.concatenate([pairs, sewn.pairs]), n)
+    lo = np.concatenate([lo, np.zeros(len(sewn.pairs), dtype=np.float32)])
+    hi = np.concatenate([hi, sewn.start_length])
+    entry = np.nonzero(adjacency.spring >= first)[0]
+    seam = adjacency.spring[entry] - first
+    residual = np.concatenate([np.zeros(first, dtype=np.float32), sewn.scale])[adjacency.spring]
+    seams = SeamEntries(entry.astype(np.int32), sewn.start_length[seam], sewn.close_time[seam], sewn.closes_at[seam],
+                        residual.astype(np.float32))
+    return StrainLimits(adjacency.offsets, adjacency.other, lo[adjacency.spring], hi[adjacency.spring], *attachments,
+                        seams)
 
 
 def _attachments(scene: Scene, meshes, offsets: list[int],
@@ -557,7 +590,7 @@ def _contact_edges(scene: Scene, meshes, radii, offsets: np.ndarray) -> ContactE
     return ContactEdges(ends, Adjacency.of(ends, int(offsets[-1])), longest)
 
 
-def _contacts(scene: Scene, meshes) -> ParticleContacts | None:
+def _contacts(scene: Scene, meshes, sewn: SewnPairs | None) -> ParticleContacts | None:
     collision = scene.collision
     if collision is None:
         return None
@@ -569,7 +602,10 @@ def _contacts(scene: Scene, meshes) -> ParticleContacts | None:
     exclude = np.array([needs_adjacent_exclusion(c, m.positions, a, r, collision.separation)
                         and collision.self_collision
                         for c, m, a, r in zip(scene.cloths, meshes, adjacent, radii)], dtype=np.int32)
+    sewn_apart = None if sewn is None else Adjacency.of(
+        sewn_neighbourhood(sewn, [m.face_counts for m in meshes], [m.face_indices for m in meshes], list(offsets)),
+        int(offsets[-1]))
     if not exclude.any():
-        return ParticleContacts(radius, None, None, edges)
+        return ParticleContacts(radius, None, None, edges, sewn_apart)
     pairs = np.concatenate([a + o for a, o in zip(adjacent, offsets)])
-    return ParticleContacts(radius, exclude, Adjacency.of(pairs, int(offsets[-1])), edges)
+    return ParticleContacts(radius, exclude, Adjacency.of(pairs, int(offsets[-1])), edges, sewn_apart)

@@ -7,7 +7,7 @@ from typing import Protocol
 
 import warp as wp
 
-from warp_cloth.kernels import colliders, gathering, motion, wind
+from warp_cloth.kernels import colliders, gathering, motion, seams, wind
 from warp_cloth.kernels.attachments import Attachments
 from warp_cloth.kernels.colliders import RigidColliders
 from warp_cloth.kernels.contact_velocities import ContactVelocitiesArgs, contact_velocities_kernel
@@ -252,6 +252,21 @@ class WindForces:
                inputs=[model.wind, state.clock, model.h, state.x, state.v], outputs=[self.shares])
         launch(wind.wind_accelerations, model.particle_count, state, inputs=[model.wind, self.shares, model.inv_mass],
                outputs=[state.wind])
+
+
+class CloseSeams:
+    """The sewn pairs' allowed lengths at the substep's end (kernels/seams.py), before any pass holds them."""
+
+    name = "seams:close"
+
+    def __init__(self, model: DeviceModel) -> None:
+        self.model = model
+
+    def run(self, state: DeviceState) -> None:
+        s = self.model.seams
+        launch(seams.close_seams, s.entry.shape[0], state,
+               inputs=[state.clock, self.model.h, s.entry, s.start_length, s.close_time, s.closes_at],
+               outputs=[self.model.limits.max_length])
 
 
 class AdvanceClock:

@@ -19,7 +19,7 @@ from .integrators import Integrator
 from .limit_solve import ConvergedProjection, LimitSolveSettings
 from .line_solve import HoldAndCollide, LineSolves
 from .neighbour_lists import LIST_THREADS_BY_SIZE, NeighbourLists
-from .passes import (AdvanceClock, Collide, ContactStart, DrivePins, FollowKeys, FollowTargets, Pass, WindForces,
+from .passes import (AdvanceClock, CloseSeams, Collide, ContactStart, DrivePins, FollowKeys, FollowTargets, Pass, WindForces,
                      contact_start_args, contact_velocities, edge_separation_pass, limit_and_separation_pass,
                      limit_pass, separation_pass)
 from .start_projection import StartProjection
@@ -90,7 +90,7 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
                threads: int | None = None, lines: LineSolves | None = None,
                bounds: DisplacementBounds | None = None) -> Plan:
     """The substep, in order: moving spheres and animated mesh colliders to the substep's end (nothing before
-    the colliders reads them); the wind's forces; the integrator's pass; driven pins (oscillating, on
+    the colliders reads them); the seams' allowed lengths; the wind's forces; the integrator's pass; driven pins (oscillating, on
     colliders, on keys); then, with particle collision, the contacts' start (in the integrator's pass where it
     can end with it and nothing comes between), the candidate lists, the projection passes (where the scene
     has edge contacts, an edge pass before each separating pass of a converged solve, so that its check
@@ -108,6 +108,8 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
     converged = solve.converged
     passes: list[Pass] = [bounds.measure] if bounds is not None else []
     passes.extend(model.collider_motion)
+    if model.seams is not None:
+        passes.append(CloseSeams(model))
     lists = start = projection = None
     if model.contacts is not None:
         list_threads = threads_per_particle(model.particle_count, model.device, LIST_THREADS_BY_SIZE) \
@@ -156,7 +158,7 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
         passes.append(Collide(model, rigid))
     if bounds is not None and start is None:
         passes.append(bounds.clamp)
-    if driven_pins or model.collider_motion or \
+    if driven_pins or model.collider_motion or model.seams is not None or \
             (model.wind is not None and (model.wind.turbulence > 0 or model.wind.key_time.shape[0] > 1)):
         passes.append(AdvanceClock())
     start_projection = StartProjection(model, state, solve, chosen, rigid) if model.limits is not None else None

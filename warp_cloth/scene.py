@@ -208,6 +208,48 @@ class Pin:
         _check_key_times(self.keys)
 
 
+DEFAULT_CLOSE_TIME = 0.5  # seconds: a seam's default closing, a garment tool's few frames (12 at 24 fps)
+
+
+@dataclass(frozen=True)
+class SeamSide:
+    """One side of a seam: particles of the cloth named ``cloth``, by ``indices`` (in the order given), by a
+    grid's ``edge`` (along its first grid direction for bottom and top, its second for left and right), or by
+    a mesh's ``group`` (the group's vertices on the mesh's boundary, which must form one open path along it:
+    a USD GeomSubset of points or a point primvar names them exactly; an OBJ ``g`` group gives its faces'
+    vertices, so a group of the faces along a side turns the corners too)."""
+
+    cloth: str
+    indices: tuple[int, ...] = ()
+    edge: Edge | None = None
+    group: str | None = None
+
+    def __post_init__(self) -> None:
+        check_fields(self)
+        for k, index in enumerate(self.indices):
+            _require(index >= 0, f"indices[{k}]", "a particle index >= 0", index)
+        given = [key for key in ("indices", "edge", "group") if getattr(self, key)]
+        _require(len(given) == 1, "", "one of indices, edge, group", " and ".join(given) or "none")
+
+
+@dataclass(frozen=True)
+class Seam:
+    """Two sides sewn together (of one cloth or two), the k-th particle of ``a`` to the k-th of ``b``: over
+    the first ``close_time`` seconds of the run each pair may be no farther apart than its start distance
+    shrunk linearly to 0, and then no farther than 0, held as one (the strain-limit solve projects it:
+    seams.py). Sides by edge or group are ordered along the boundary, ``b``'s way round the one that puts the
+    pairs nearer at the start; sides by indices in the order given. Sewn pairs, and the particles that share
+    a face with either of a pair, do not collide with each other."""
+
+    a: SeamSide
+    b: SeamSide
+    close_time: float = DEFAULT_CLOSE_TIME
+
+    def __post_init__(self) -> None:
+        check_fields(self)
+        _positive(self.close_time, "close_time")
+
+
 @dataclass(frozen=True)
 class MeshSource:
     """Where a cloth's mesh comes from: an OBJ file, or a ``Mesh`` prim of a USD file (``prim``: its path;
@@ -832,6 +874,7 @@ class Scene:
     colliders: tuple[MeshCollider, ...] = field(default=(), metadata={"toml": "collider"})
     collision: Collision | None = None
     wind: Wind | None = None
+    seams: tuple[Seam, ...] = field(default=(), metadata={"toml": "seam"})
 
     def __post_init__(self) -> None:
         check_fields(self)
@@ -841,6 +884,7 @@ class Scene:
         self._check_pin_targets()
         self._check_motion_in_bounds()
         self._check_edge_contacts_limited()
+        self._check_seam_sides()
 
     def _check_names_unique(self) -> None:
         """Cloths, spheres and mesh colliders are prims side by side under /World, beside the ground's, and
@@ -861,6 +905,20 @@ class Scene:
             _require(cloth.strain_limit is not None, "collision.edges",
                      f"false, or a strain limit on every cloth (cloth[{c}] "
                      "has none: edge contacts size their search by how far the limit lets an edge stretch)", True)
+
+    def _check_seam_sides(self) -> None:
+        """Each side names a cloth of the scene, with a selection that kind of cloth has."""
+        names = {c.name: c for c in self.cloths}
+        for k, seam in enumerate(self.seams):
+            for side_key, side in (("a", seam.a), ("b", seam.b)):
+                key = f"seam[{k}].{side_key}"
+                _require(side.cloth in names, f"{key}.cloth", "the name of a [[cloth]] (" + ", ".join(names) + ")",
+                         side.cloth)
+                mesh = names[side.cloth].mesh is not None
+                _require(side.edge is None or not mesh, f"{key}.edge", "no edge on a mesh cloth's side (edges are "
+                         "a grid's: use group or indices)", side.edge)
+                _require(side.group is None or mesh, f"{key}.group", "no group on a grid cloth's side (groups are a "
+                         "mesh's: use edge or indices)", side.group)
 
     def _check_pin_targets(self) -> None:
         colliders = [c.name for c in self.colliders]
