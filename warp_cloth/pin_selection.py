@@ -6,8 +6,8 @@ A cloth's boundary is the sides of its faces that belong to one face only. ``edg
 every vertex on them; ``corners = ["boundary"]`` those where the boundary turns by more than
 ``CORNER_ANGLE`` degrees (the angle between the boundary's side arriving at the vertex and the one leaving
 it; a vertex where the boundary meets itself, with other than two boundary sides, is a corner too). A
-rectangle's four corners turn by 90; a circle of 8 or more sides turns by 45 or less at each vertex and has
-none. On a grid they are its four edges and four corners.
+rectangle's four corners turn by 90; a circle of more than 8 sides turns by less than 45 at each vertex and
+has none. On a grid they are its four edges and four corners.
 """
 
 from __future__ import annotations
@@ -98,7 +98,11 @@ def pinned_indices(scene: Scene, cloth: Cloth, pin: Pin, positions: np.ndarray |
             raise SceneError(f"{key}.near.distance", f"a distance that reaches at least one particle of the cloth "
                              f"(none is within it of '{pin.near.collider}' where they start)", pin.near.distance)
         chosen.append(close)
-    return np.unique(np.concatenate(chosen)).astype(np.int64)
+    selected = np.unique(np.concatenate(chosen)).astype(np.int64)
+    if len(selected) == 0:  # only boundary corners can come back empty: a boundary that turns nowhere
+        raise SceneError(f"{key}.corners", f"a boundary with a corner (it turns by more than {CORNER_ANGLE:g} "
+                                           "degrees nowhere; pin its edges or a region)", list(pin.corners))
+    return selected
 
 
 def _boundary_sides(cloth: Cloth) -> np.ndarray:
