@@ -4,7 +4,8 @@ wind's accelerations and soft pins' springs.
 Both integrators read them through ``external_acceleration`` (the explicit step adds it to the springs'
 f / m, the implicit step's right-hand side adds m times it), and the implicit step's matrix reads their
 velocity and position derivatives through ``external_damping`` and ``external_stiffness``. A new force is
-a field of ``ExternalForces``, its term in these functions, and its scene entry (warp_cloth/device_model.py fills the struct).
+a field of ``ExternalForces``, its term in these functions, and its scene entry (warp_cloth/device_model.py
+fills the struct).
 """
 
 import warp as wp

@@ -2,6 +2,8 @@
 spheres driven from Python between frames (warp_cloth/pin_selection.py, kernels/forces.py, control.py)."""
 
 import math
+import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -187,3 +189,15 @@ def test_pin_names_are_unique():
     pins = (wc.Pin(indices=(0,), name="hand"), wc.Pin(indices=(1,), name="hand"))
     with pytest.raises(wc.SceneError, match=r"cloth\[0\].pins\[1\].name: expected a name no other pin has"):
         wc.Scene(cloths=(wc.Cloth(pins=pins),))
+
+
+def test_the_python_guides_control_example_runs():
+    text = (Path(__file__).parent.parent / "docs" / "guide" / "python-api.md").read_text()
+    example = re.search(r"## Driving pins and spheres from Python: the control input\n\n.*?```python\n(.*?)```",
+                        text, re.S).group(1)
+    names: dict = {}
+    exec(compile(example, "python-api.md", "exec"), names)
+    sim, hand = names["sim"], names["sim"].control.pins["hand"]
+    assert sim.frame == 24
+    assert np.array_equal(sim.positions()[8 * 9], (hand.rest[0] + [0.23, 0.0, 0.0]).astype(np.float32))
+    assert np.array_equal(sim.sphere_centers()[0], np.float32([0.5, 0.4, -0.5 + 0.04 * 23]))

@@ -124,8 +124,9 @@ class Named(dict):
 
 class Control:
     """The pins with a ``name`` (``pins``) and the spheres (``spheres``) a script can send, by name.
-    ``sphere_names``: the spheres' in the model's order; ``frame`` says which frame comes next; ``on_first_send`` is called before the first send (the simulator
-    then builds its plan again with ``passes()``)."""
+    ``sphere_names``: the spheres' in the model's order; ``frame`` says which frame comes next;
+    ``on_first_send`` is called before the first send (the simulator then builds its plan again with
+    ``passes()``)."""
 
     def __init__(self, model: Model, device_model: DeviceModel, state: DeviceState, sphere_names: list[str],
                  fps: float, frame: Callable[[], int], on_first_send: Callable[[], None]) -> None:

@@ -430,7 +430,8 @@ def _pins(scene: Scene, meshes, offsets, selections: list[list[np.ndarray]]) -> 
     return Pins(idx, positions[idx].astype(np.float32), amplitude_all,
                 np.concatenate(frequency).astype(np.float32), np.concatenate(phase).astype(np.float32),
                 moving=bool(np.any(amplitude_all != 0.0)), target=np.concatenate(target),
-                stiffness=np.concatenate(stiffness).astype(np.float32), damping=np.concatenate(damping).astype(np.float32),
+                stiffness=np.concatenate(stiffness).astype(np.float32),
+                damping=np.concatenate(damping).astype(np.float32),
                 named=tuple(named))
 
 

@@ -218,7 +218,8 @@ class FollowTargets:
     def run(self, state: DeviceState) -> None:
         for t in self.targets:
             launch(motion.follow_mesh, t.index.shape[0], state,
-                   inputs=[t.mesh.id, t.index, t.face, t.bary, t.offset], outputs=pin_outputs(self.model, state, t.soft))
+                   inputs=[t.mesh.id, t.index, t.face, t.bary, t.offset],
+                   outputs=pin_outputs(self.model, state, t.soft))
 
 
 class FollowKeys:
