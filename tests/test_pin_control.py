@@ -201,3 +201,21 @@ def test_the_python_guides_control_example_runs():
     assert sim.frame == 24
     assert np.array_equal(sim.positions()[8 * 9], (hand.rest[0] + [0.23, 0.0, 0.0]).astype(np.float32))
     assert np.array_equal(sim.sphere_centers()[0], np.float32([0.5, 0.4, -0.5 + 0.04 * 23]))
+
+
+def test_a_soft_pin_pulls_toward_where_its_keys_and_the_control_put_it():
+    """Keys carry the soft pins' targets 0.5 m along x over the first second; then the control sends them
+    0.5 m along z. Each time the cloth settles hanging m g / k below its targets."""
+    damping = 2.0 * math.sqrt(4.0 * 0.025)
+    keys = (wc.TransformKey(0.0), wc.TransformKey(1.0, translate=(0.5, 0.0, 0.0)))
+    pin = wc.Pin(corners=("boundary",), stiffness=4.0, damping=damping, keys=keys, name="frame")
+    cloth = wc.Cloth(resolution=(1, 1), size=(0.5, 0.5), orientation="horizontal", mass=0.025, pins=(pin,))
+    sim = wc.Simulator(wc.Scene(cloths=(cloth,), simulation=wc.Simulation(substeps=20)), device="cpu")
+    start, sag = sim.positions(), 0.025 * 9.81 / 4.0
+    for _ in range(72):
+        sim.step()
+    np.testing.assert_allclose(sim.positions() - start, np.tile([0.5, -sag, 0.0], (4, 1)), atol=0.02 * sag)
+    sim.control.pins["frame"].set_transform(translate=(0.5, 0.0, 0.5))
+    for _ in range(48):
+        sim.step()
+    np.testing.assert_allclose(sim.positions() - start, np.tile([0.5, -sag, 0.5], (4, 1)), atol=0.02 * sag)
