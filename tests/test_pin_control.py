@@ -219,3 +219,28 @@ def test_a_soft_pin_pulls_toward_where_its_keys_and_the_control_put_it():
     for _ in range(48):
         sim.step()
     np.testing.assert_allclose(sim.positions() - start, np.tile([0.5, -sag, 0.5], (4, 1)), atol=0.02 * sag)
+
+
+def test_a_mesh_collider_sent_from_python_carries_the_pins_that_touch_it(tmp_path):
+    """A cloth lies over a 4 m plate, 5 cm above it at one edge and tilted 1.5 degrees: its 4 rows of
+    particles within 7 cm of the plate (5 cm + 0.2 m x sin 1.5 degrees a row) are pinned to it. The plate
+    sent up 2 cm a frame, then turned 3 degrees about its origin, carries them with it."""
+    plate = tmp_path / "plate.obj"
+    plate.write_text("v -2 1 -2\nv 2 1 -2\nv 2 1 2\nv -2 1 2\nf 1 4 3 2\n")
+    collider = wc.MeshCollider(name="plate", mesh=wc.MeshSource(str(plate)))
+    pin = wc.Pin(near=wc.Near("plate", 0.07), target="plate")
+    cloth = wc.Cloth(resolution=(10, 10), size=(2.0, 2.0), orientation="horizontal", origin=(-1.0, 1.05, 1.0),
+                     rotation=(1.5, 0.0, 0.0), pins=(pin,), limit=wc.Limit())
+    sim = wc.Simulator(wc.Scene(cloths=(cloth,), colliders=(collider,)), device="cpu")
+    start = sim.positions()
+    held = sim.model.pins.index
+    assert len(held) == 4 * 11
+    for frame in range(1, 4):
+        sim.control.colliders["plate"].set_transform(translate=(0.0, 0.02 * frame, 0.0))
+        sim.step()
+        np.testing.assert_allclose(sim.positions()[held], start[held] + [0.0, 0.02 * frame, 0.0], atol=1e-5)
+    sim.control.colliders["plate"].set_transform(translate=(0.0, 0.06, 0.0), rotate=(0.0, 3.0, 0.0))
+    sim.step()
+    turn = np.radians(3.0)
+    rotation = np.array([[np.cos(turn), 0, np.sin(turn)], [0, 1, 0], [-np.sin(turn), 0, np.cos(turn)]])
+    np.testing.assert_allclose(sim.positions()[held], start[held] @ rotation.T + [0.0, 0.06, 0.0], atol=1e-5)

@@ -1,10 +1,12 @@
-"""What a script drives between frames (``Simulator.control``, as Newton's ``Control``): named pins and
-spheres sent somewhere without keying the scene again.
+"""What a script drives between frames (``Simulator.control``, as Newton's ``Control``): named pins,
+spheres and mesh colliders sent somewhere without keying the scene again.
 
 ``sim.control.pins["hand"].set_transform(translate=(0.2, 0, 0))`` sends a named pin's particles to their
 initial pose turned and moved as a key of the pin's ``keys`` would (``rotate``: degrees about X, then Y, then
 Z, about their centre, then ``translate``); ``set_positions`` sends each particle to a point of its own.
-``sim.control.spheres["ball"].set_center(c)`` sends a sphere's centre. What is sent moves in a straight line
+``sim.control.spheres["ball"].set_center(c)`` sends a sphere's centre, and
+``sim.control.colliders["body"].set_transform(translate, rotate)`` a mesh collider's points (its mesh as
+modelled turned about its own origin, then moved, as its ``keys`` do). What is sent moves in a straight line
 from where it is to there over the next frame, at the speed that takes (a soft pin's target: where its
 springs pull), and stays there, in place of the scene's motion, until sent again. The first send adds the
 control's passes to the plan (a scene never controlled launches none); a checkpoint does not keep what was
@@ -22,8 +24,8 @@ import warp as wp
 from warp_cloth.kernels import motion
 
 from .cloth_grid import rotation_matrix
-from .collider_kinds import upload
-from .scene import Vec3
+from .collider_kinds import Meshes, upload
+from .scene import Scene, Vec3
 
 if TYPE_CHECKING:
     from .device_model import DeviceModel
@@ -54,11 +56,13 @@ class ControlGroup:
 
 
 class FollowControl:
-    """A pass: the rows of a control group where they were sent, at the end of the substep."""
+    """A pass: the rows of a control group where they were sent, at the end of the substep (a mesh's BVH
+    refitted after)."""
 
     def __init__(self, name: str, group: ControlGroup, model: DeviceModel, fps: float,
-                 outputs: Callable[[DeviceState], list[wp.array]]) -> None:
+                 outputs: Callable[[DeviceState], list[wp.array]], mesh: wp.Mesh | None = None) -> None:
         self.name, self.group, self.model, self.fps, self.outputs = name, group, model, fps, outputs
+        self.mesh = mesh
 
     def run(self, state: DeviceState) -> None:
         g = self.group
@@ -66,6 +70,8 @@ class FollowControl:
         wp.launch(motion.follow_control, dim=g.index.shape[0],
                   inputs=[state.clock, substeps, 1.0 / self.fps, g.index, g.start, g.goal, g.first_frame],
                   outputs=self.outputs(state), device=state.device)
+        if self.mesh is not None:
+            self.mesh.refit()
 
 
 class PinControl:
@@ -111,6 +117,22 @@ class SphereControl:
         self._control.send(self._group, rows, self._where()[rows], goal)
 
 
+class ColliderControl:
+    """One mesh collider, sent from Python (see the module's docstring)."""
+
+    def __init__(self, control: Control, group: ControlGroup, points: np.ndarray, mesh: wp.Mesh) -> None:
+        self._control, self._group, self._mesh = control, group, mesh
+        self.points = points  # (v, 3) the mesh as modelled
+
+    def set_transform(self, translate: Vec3 = (0.0, 0.0, 0.0), rotate: Vec3 = (0.0, 0.0, 0.0)) -> None:
+        """Send the mesh as modelled turned by ``rotate`` (degrees about X, then Y, then Z, about its own
+        origin) and moved by ``translate``, over the next frame."""
+        goal = self.points @ rotation_matrix(tuple(rotate)).T + np.asarray(translate, dtype=np.float64)
+        if not np.isfinite(goal).all():
+            raise ValueError(f"translate and rotate: finite numbers, got {translate!r}, {rotate!r}")
+        self._control.send(self._group, slice(None), self._mesh.points.numpy(), goal)
+
+
 class Named(dict):
     """Controls by name; a missing name's error lists the names there are."""
 
@@ -123,17 +145,19 @@ class Named(dict):
 
 
 class Control:
-    """The pins with a ``name`` (``pins``) and the spheres (``spheres``) a script can send, by name.
-    ``sphere_names``: the spheres' in the model's order; ``frame`` says which frame comes next;
+    """The pins with a ``name`` (``pins``), the spheres (``spheres``) and the mesh colliders (``colliders``)
+    a script can send, by name. ``scene``: the model's (its spheres and colliders in the model's order);
+    ``frame`` says which frame comes next;
     ``on_first_send`` is called before the first send (the simulator then builds its plan again with
     ``passes()``)."""
 
-    def __init__(self, model: Model, device_model: DeviceModel, state: DeviceState, sphere_names: list[str],
-                 fps: float, frame: Callable[[], int], on_first_send: Callable[[], None]) -> None:
-        self._model, self._state, self._fps, self._frame = model, state, fps, frame
+    def __init__(self, model: Model, device_model: DeviceModel, state: DeviceState, scene: Scene,
+                 frame: Callable[[], int], on_first_send: Callable[[], None]) -> None:
+        self._fps, self._frame = scene.simulation.fps, frame
         self._on_first_send = on_first_send
         self.started = False
         self._groups: dict[str, ControlGroup] = {}
+        self._meshes: dict[str, wp.Mesh] = {}
         pins, device = model.pins, device_model.device
         rest_all = np.concatenate([g.positions for g in model.cloths])
         controls = {}
@@ -156,8 +180,20 @@ class Control:
         if model.spheres is not None:
             group = self._groups["spheres"] = ControlGroup(np.arange(len(model.spheres.radius)), device)
             spheres = {name: SphereControl(self, group, s, lambda: state.sphere_center.numpy())
-                       for s, name in enumerate(sphere_names)}
+                       for s, name in enumerate(s.name for s in scene.spheres)}
         self.spheres = Named("sphere", spheres)
+        colliders = {}
+        for collider, mesh in zip(scene.colliders, device_model.collider_kinds[Meshes].meshes):
+            points = collider.surface().points
+            group = self._groups[f"collider {collider.name}"] = ControlGroup(np.arange(len(points)), device)
+            self._meshes[f"collider {collider.name}"] = mesh
+            colliders[collider.name] = ColliderControl(self, group, points, mesh)
+        self.colliders = Named("collider", colliders)
+
+    @property
+    def moves_meshes(self) -> bool:
+        """Whether it can send mesh colliders (whose BVHs its passes then refit every substep)."""
+        return bool(self._meshes)
 
     def send(self, group: ControlGroup, rows: slice, now: np.ndarray, goal: np.ndarray) -> None:
         if not self.started:
@@ -165,11 +201,17 @@ class Control:
             self.started = True
         group.send(rows, now, goal, self._frame())
 
-    def passes(self, model: DeviceModel) -> dict[str, FollowControl]:
-        """The control's passes by what they move (``"spheres"``, ``"soft pins"``, ``"pins"``): where the plan
-        puts each (after the spheres' motion, before the step, after the pins' motion)."""
+    def passes(self, model: DeviceModel) -> dict[str, list[FollowControl]]:
+        """The control's passes by where the plan puts them: ``"colliders"`` (spheres and meshes, after the
+        colliders' motion), ``"soft pins"`` (before the step), ``"pins"`` (after the pins' motion)."""
         outputs = {"spheres": lambda state: [state.sphere_center, state.sphere_velocity],
                    "soft pins": lambda state: [model.soft_pins.target_x, model.soft_pins.target_v],
                    "pins": lambda state: [state.x, state.v]}
-        return {kind: FollowControl(f"{kind}:control", group, model, self._fps, outputs[kind])
-                for kind, group in self._groups.items()}
+        by_place: dict[str, list[FollowControl]] = {}
+        for kind, group in self._groups.items():
+            mesh = self._meshes.get(kind)
+            output = outputs[kind] if mesh is None else (lambda state, mesh=mesh: [mesh.points, mesh.velocities])
+            place = kind if kind in ("soft pins", "pins") else "colliders"
+            by_place.setdefault(place, []).append(FollowControl(f"{kind}:control", group, model, self._fps, output,
+                                                                mesh))
+        return by_place

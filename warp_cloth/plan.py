@@ -88,7 +88,7 @@ class Plan:
 
 def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, solve: LimitSolveSettings,
                threads: int | None = None, lines: LineSolves | None = None,
-               bounds: DisplacementBounds | None = None, control: dict[str, Pass] | None = None) -> Plan:
+               bounds: DisplacementBounds | None = None, control: dict[str, list[Pass]] | None = None) -> Plan:
     """The substep, in order: moving spheres and animated mesh colliders to the substep's end (nothing before
     the colliders reads them); the wind's forces; the integrator's pass; driven pins (oscillating, on
     colliders, on keys); then, with particle collision, the contacts' start (in the integrator's pass where it
@@ -101,7 +101,7 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
     for every plan a simulator builds (line_solve.LineSolves); ``bounds``: the lab's displacement bounds
     (displacement_bounds.py, made once per simulator), measured first and clamping the step after the solves
     (before the contact velocities); ``control``: the passes that put what a script sent from Python
-    (control.py's ``Control.passes``) after the spheres' motion (``"spheres"``), with the soft pins' motion
+    (control.py's ``Control.passes``) after the colliders' motion (``"colliders"``), with the soft pins' motion
     before the step (``"soft pins"``: where their springs pull, which the step reads) and after the hard
     pins' motion (``"pins"``)."""
     chosen = threads_per_particle(model.particle_count, model.device) if threads is None else threads
@@ -116,8 +116,7 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
     converged = solve.converged
     passes: list[Pass] = [bounds.measure] if bounds is not None else []
     passes.extend(model.collider_motion)
-    if "spheres" in control:
-        passes.append(control["spheres"])
+    passes.extend(control.get("colliders", []))
     lists = start = projection = None
     if model.contacts is not None:
         list_threads = threads_per_particle(model.particle_count, model.device, LIST_THREADS_BY_SIZE) \
@@ -127,16 +126,14 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
     if model.wind is not None:
         passes.append(WindForces(model))
     passes.extend(soft_motion)
-    if "soft pins" in control:
-        passes.append(control["soft pins"])
+    passes.extend(control.get("soft pins", []))
     start_in_step = start is not None and integrator.ends_with_contact_start and not driven_pins
     step = integrator.step(model, state, chosen, start if start_in_step else None)
     passes.append(step)
     if oscillating_pins:
         passes.append(DrivePins(model))
     passes.extend(hard_motion)
-    if "pins" in control:
-        passes.append(control["pins"])
+    passes.extend(control.get("pins", []))
     if start is not None:
         if not start_in_step:
             passes.append(ContactStart(start))

@@ -506,17 +506,21 @@ class Simulator:
 
     @property
     def control(self) -> Control:
-        """What a script drives between frames: named pins and spheres, sent by name (warp_cloth/control.py:
-        ``sim.control.pins["hand"].set_transform(translate=(0.1, 0, 0))``, then ``sim.step()``)."""
+        """What a script drives between frames: named pins, spheres and mesh colliders, sent by name
+        (warp_cloth/control.py: ``sim.control.pins["hand"].set_transform(translate=(0.1, 0, 0))``, then
+        ``sim.step()``)."""
         if self._control is None:
-            self._control = Control(self.model, self.device_model, self.state, [s.name for s in self.scene.spheres],
-                                    self.scene.simulation.fps, lambda: self.frame, self._take_control)
+            self._control = Control(self.model, self.device_model, self.state, self.scene, lambda: self.frame,
+                                    self._take_control)
         return self._control
 
     def _take_control(self) -> None:
         """Before the control's first send: its passes in the plan, the clock (which the plan may not have
-        advanced until now) set to the current frame."""
+        advanced until now) set to the current frame. A mesh's refit is a host call on the CPU, which a CPU
+        graph does not record: there, with mesh colliders, frames launch pass by pass from now on."""
         self._control.started = True
+        if self.device.is_cpu and self._control.moves_meshes:
+            self.use_graph = False
         self._build_plan_again()
         self.state.clock.fill_(self.substep_count)
 
