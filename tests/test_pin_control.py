@@ -244,3 +244,13 @@ def test_a_mesh_collider_sent_from_python_carries_the_pins_that_touch_it(tmp_pat
     turn = np.radians(3.0)
     rotation = np.array([[np.cos(turn), 0, np.sin(turn)], [0, 1, 0], [-np.sin(turn), 0, np.cos(turn)]])
     np.testing.assert_allclose(sim.positions()[held], start[held] @ rotation.T + [0.0, 0.06, 0.0], atol=1e-5)
+
+
+def test_pins_near_the_ground_select_in_their_own_world_of_a_batch():
+    """Two scenes, their grounds 5 and 30 cm under the same hanging cloth of 25 cm rows: within 35 cm of its
+    ground, each world pins two rows and one (the packed scene has no ground), their pins' names apart."""
+    cloth = wc.Cloth(resolution=(4, 4), size=(1.0, 1.0), pins=(wc.Pin(near=wc.Near("ground", 0.35), name="hem"),))
+    scenes = [wc.Scene(cloths=(cloth,), ground=wc.Ground(height=h)) for h in (-0.05, -0.3)]
+    sim = wc.Batch(scenes, device="cpu").simulator
+    assert sim.model.pins.index.tolist() == list(range(10)) + [25 + i for i in range(5)]
+    assert sorted(sim.control.pins) == ["w0_hem", "w1_hem"]

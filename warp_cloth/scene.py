@@ -448,11 +448,18 @@ class Cloth:
         return ("density", self.density) if self.density is not None else ("mass", self.mass)
 
     def check_masses(self, lightest: float, heaviest: float) -> None:
-        """Every particle's mass (then its inverse too) and stiffness / mass, as the device holds them in float32.
+        """Every particle's mass (then its inverse too) and stiffness / mass (the springs', the soft pins'), as the
+        device holds them in float32.
         A material's ranges keep its springs' stiffness / mass finite (materials._RANGES)."""
         key, value = self.mass_key()
         check_float32(lightest, "the lightest particle's mass", key, value)
         check_float32(heaviest, "the heaviest particle's mass", key, value)
+        for p, pin in enumerate(self.pins):
+            if pin.soft:
+                field = "damping" if pin.damping > pin.stiffness else "stiffness"
+                _require(getattr(pin, field) / lightest <= FLOAT32_MAX, f"pins[{p}].{field}",
+                         f"a soft pin's stiffness and damping / the lightest particle's mass ({lightest:.3g} kg) at "
+                         f"most {FLOAT32_MAX:.3g} (float32)", getattr(pin, field))
         if self.material is not None:
             return
         for kind in ("structural", "shear", "bend"):
