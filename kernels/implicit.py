@@ -16,7 +16,7 @@ in ``stats`` = [CG iterations, r.z / r0.z0 at the end of a solve, Newton steps, 
 
 import warp as wp
 
-from .forces import ExternalForces, external_acceleration, external_damping
+from .forces import ExternalForces, external_acceleration, external_damping, external_stiffness
 from .springs import Springs, add_system_diagonal, add_system_times, spring_forces, stiffness_times_motion
 
 
@@ -104,13 +104,18 @@ def newton_rhs(y: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), v0: wp.ar
     out = args.h * f - m * (v[i] - v0[i])
     if linearized_at_start != 0:
         out = out - (args.h * args.h) * stiffness_times_motion(args.springs, i, y, v0)
+        if args.forces.pin_rate.shape[0] > 0:
+            out = out - (args.h * args.h * m * external_stiffness(args.forces, i)) * v0[i]
     rhs[i] = out
 
 
 @wp.func
 def mass_term(args: SpringSystemArgs, i: int) -> float:
-    """The diagonal of M - h (d external force / dv) for particle i."""
-    return args.mass[i] * (1.0 + args.h * external_damping(args.forces))
+    """The diagonal of M - h (d external force / dv) - h^2 (d external force / dx) for particle i."""
+    if args.forces.pin_rate.shape[0] > 0:
+        h = args.h
+        return args.mass[i] * (1.0 + h * external_damping(args.forces, i) + h * h * external_stiffness(args.forces, i))
+    return args.mass[i] * (1.0 + args.h * external_damping(args.forces, i))
 
 
 @wp.kernel(module="unique")  # without fast math, as the rest of the implicit solve

@@ -174,3 +174,24 @@ def follow_mesh(mesh: wp.uint64, index: wp.array(dtype=int), face: wp.array(dtyp
     i = index[k]
     x[i] = wp.mesh_eval_position(mesh, f, u, w) + face_frame(mesh, f) * offset[k]
     v[i] = wp.mesh_eval_velocity(mesh, f, u, w)
+
+
+@wp.kernel
+def follow_control(clock: wp.array(dtype=int), substeps: int, frame_time: float, index: wp.array(dtype=int),
+                   start: wp.array(dtype=wp.vec3), goal: wp.array(dtype=wp.vec3), first_frame: wp.array(dtype=int),
+                   x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3)):
+    """Points sent from Python (warp_cloth/control.py): row r, sent before frame ``first_frame[r]`` (-1: not
+    sent), goes from ``start`` to ``goal`` in a straight line over that frame, at the end of each substep,
+    with its speed, and then stays at ``goal`` at rest."""
+    r = wp.tid()
+    if first_frame[r] < 0:
+        return
+    i = index[r]
+    done = clock[0] - first_frame[r] * substeps  # the frame's substeps finished before this one
+    if done >= substeps:
+        x[i] = goal[r]
+        v[i] = wp.vec3(0.0)
+        return
+    w = float(done + 1) / float(substeps)
+    x[i] = (1.0 - w) * start[r] + w * goal[r]
+    v[i] = (goal[r] - start[r]) / frame_time

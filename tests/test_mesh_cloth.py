@@ -218,7 +218,7 @@ def test_mesh_cloth_refuses_grid_settings_and_usd_prims_that_are_not_meshes(tmp_
     path = grid_as_obj(tmp_path, GRID)
     with pytest.raises(wc.SceneError, match=r"resolution: expected no grid setting on a mesh cloth"):
         wc.Cloth.from_mesh(path, resolution=(4, 4))
-    with pytest.raises(wc.SceneError, match=r"pins\[0\]: expected pins by indices, region or group on a mesh cloth"):
+    with pytest.raises(wc.SceneError, match=r"pins\[0\].corners: expected \[\"boundary\"\] on a mesh cloth"):
         wc.Cloth.from_mesh(path, pins=(wc.Pin(corners=("top-left",)),))
     # A mesh file is read where the scene's geometry is checked: by the simulator, for a scene built in Python.
     shot = usd_shot(tmp_path / "shot.usda")

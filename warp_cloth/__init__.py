@@ -15,8 +15,9 @@ from typing import TYPE_CHECKING
 
 from .errors import SceneError, UnstableSimulation
 from .materials import Material
-from .scene import (Box, Cloth, Collision, Ground, ImplicitSolver, Limit, MeshCollider, MeshSource, Oscillation,
-                    Output, Pin, Scene, Seam, SeamSide, Simulation, Sphere, SpringKind, TransformKey, Wind, WindKey)
+from .scene import (Box, Cloth, Collision, Ground, ImplicitSolver, Limit, MeshCollider, MeshSource, Near,
+                    Oscillation, Output, Pin, Scene, Seam, SeamSide, Simulation, Sphere, SpringKind, TransformKey,
+                    Wind, WindKey)
 
 if TYPE_CHECKING:
     from .batch import Batch
@@ -48,7 +49,7 @@ except importlib.metadata.PackageNotFoundError:  # a source tree on sys.path, ne
 __all__ = [
     "Batch", "Box", "CheckpointWriter", "Cloth", "Collision", "Ground", "ImplicitSolver", "Limit", "Material",
     "MeshCollider",
-    "MeshSource", "MetricsWriter",
+    "MeshSource", "MetricsWriter", "Near",
     "Oscillation", "Output",
     "Pin", "PolyWriter", "RunSummary", "Scene", "SceneError", "Seam", "SeamSide", "Simulation", "Simulator", "Sphere", "SpringKind",
     "StrainMonitor", "StrainReport", "TransformKey", "Wind", "WindKey",

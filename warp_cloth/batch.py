@@ -23,7 +23,8 @@ from .errors import SceneError, UnstableSimulation
 from .geometry_checks import validate
 from .model import Model, Worlds, build_model
 from .output import RunOutcome
-from .scene import Scene
+from .pin_selection import select_pins
+from .scene import Pin, Scene
 from .shot_clock import with_start
 from .simulator import RunSummary, Simulator
 from .start_projection import StartedPast, StartReport
@@ -72,6 +73,20 @@ def _renamed(name: str, world: int) -> str:
     return f"w{world}_{name}"
 
 
+def _pin_in_world(pin: Pin, world: int, chosen: np.ndarray | None) -> Pin:
+    """A pin of world ``world`` in the packed scene: its names renamed as its world's, and where ``chosen``
+    (the particles it selected in its own scene), pinning those by index."""
+    changes: dict = {}
+    if pin.target is not None and not pin.target.startswith("/"):
+        changes["target"] = _renamed(pin.target, world)
+    if pin.name is not None:
+        changes["name"] = _renamed(pin.name, world)
+    if chosen is not None:
+        changes.update(indices=tuple(int(i) for i in chosen), corners=(), edges=(), region=None, group=None,
+                       near=None)
+    return dataclasses.replace(pin, **changes) if changes else pin
+
+
 def pack(scenes: Sequence[Scene]) -> tuple[Scene, Worlds]:
     """The one scene that scenes of one step (``step_key``) are simulated as, and its worlds. Give it the
     scenes with their step set (``scene_with_step``): the packed scene takes the first's."""
@@ -82,9 +97,12 @@ def pack(scenes: Sequence[Scene]) -> tuple[Scene, Worlds]:
         seams += [dataclasses.replace(seam, a=dataclasses.replace(seam.a, cloth=_renamed(seam.a.cloth, w)),
                                       b=dataclasses.replace(seam.b, cloth=_renamed(seam.b.cloth, w)))
                   for seam in scene.seams]
-        for cloth in scene.cloths:
-            pins = tuple(dataclasses.replace(pin, target=_renamed(pin.target, w))
-                         if pin.target is not None and not pin.target.startswith("/") else pin for pin in cloth.pins)
+        # pins near a collider select in their own world (the packed scene has no ground): by index here
+        near = any(pin.near is not None for cloth in scene.cloths for pin in cloth.pins)
+        selections = select_pins(scene) if near else None
+        for c, cloth in enumerate(scene.cloths):
+            pins = tuple(_pin_in_world(pin, w, selections[c][p] if near and pin.near is not None else None)
+                         for p, pin in enumerate(cloth.pins))
             cloths.append(dataclasses.replace(cloth, name=_renamed(cloth.name, w), pins=pins))
             cloth_world.append(w)
         spheres += [dataclasses.replace(s, name=_renamed(s.name, w)) for s in scene.spheres]

@@ -13,9 +13,8 @@ import math
 import numpy as np
 
 from .cloth_mesh import BEND, SHEAR, STRUCTURAL, ClothMesh
-from .errors import SceneError
 from .materials import derive_springs
-from .scene import Cloth, Pin
+from .scene import Cloth
 
 
 def rotation_matrix(degrees_xyz: tuple[float, float, float]) -> np.ndarray:
@@ -118,39 +117,16 @@ def _masses(cloth: Cloth, gx: np.ndarray, gy: np.ndarray, dx: float, dy: float) 
     return cloth.areal_density * dx * dy * wx * wy
 
 
-def pinned_indices(cloth: Cloth, pin: Pin, positions: np.ndarray | None, key: str) -> np.ndarray:
-    """The particles a pin selects, sorted and unique; an error if it selects none or one out of range.
-    ``positions`` (the cloth's initial pose) is needed only by a pin with a region."""
+def grid_corner(cloth: Cloth, name: str) -> int:
+    """The particle at a named corner of a grid (left/right along its first direction, bottom/top its second)."""
     nx, ny = cloth.resolution
-    n = cloth.particle_count
-    idx = lambda x, y: x + (nx + 1) * y  # noqa: E731
-    chosen: list[np.ndarray] = []
-    for k, i in enumerate(pin.indices):
-        if i >= n:
-            raise SceneError(f"{key}.indices[{k}]", f"a particle index < {n} (the cloth has {n})", i)
-        chosen.append(np.array([i]))
-    corner_xy = {"bottom-left": (0, 0), "bottom-right": (nx, 0), "top-left": (0, ny), "top-right": (nx, ny)}
-    for name in pin.corners:
-        chosen.append(np.array([idx(*corner_xy[name])]))
-    for edge in pin.edges:
-        if edge in ("bottom", "top"):
-            xs = np.arange(nx + 1)
-            chosen.append(idx(xs, 0 if edge == "bottom" else ny))
-        else:
-            ys = np.arange(ny + 1)
-            chosen.append(idx(0 if edge == "left" else nx, ys))
-    if pin.group is not None:
-        groups = cloth.surface().groups
-        if pin.group not in groups:
-            raise SceneError(f"{key}.group", "the name of a group of the cloth's mesh (a USD GeomSubset or point "
-                             "primvar, an OBJ g group: "
-                             + (", ".join(sorted(groups)) or "it has none") + ")", pin.group)
-        chosen.append(groups[pin.group])
-    if pin.region is not None:
-        inside = np.all((positions >= np.asarray(pin.region.min)) & (positions <= np.asarray(pin.region.max)),
-                        axis=1)
-        if not inside.any():
-            raise SceneError(f"{key}.region", "a box containing at least one particle of the cloth",
-                             {"min": list(pin.region.min), "max": list(pin.region.max)})
-        chosen.append(np.nonzero(inside)[0])
-    return np.unique(np.concatenate(chosen)).astype(np.int64)
+    x, y = {"bottom-left": (0, 0), "bottom-right": (nx, 0), "top-left": (0, ny), "top-right": (nx, ny)}[name]
+    return x + (nx + 1) * y
+
+
+def grid_edge(cloth: Cloth, name: str) -> np.ndarray:
+    """The particles along a named edge of a grid, in order."""
+    nx, ny = cloth.resolution
+    if name in ("bottom", "top"):
+        return np.arange(nx + 1) + (nx + 1) * (0 if name == "bottom" else ny)
+    return (0 if name == "left" else nx) + (nx + 1) * np.arange(ny + 1)

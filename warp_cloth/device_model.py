@@ -37,6 +37,7 @@ class PinTarget:
     face: wp.array
     bary: wp.array
     offset: wp.array
+    soft: bool = False  # soft pins': where their springs pull is put there, not the particles
 
 
 @dataclass(frozen=True)
@@ -45,6 +46,19 @@ class KeyedPins:
     index: wp.array
     key_times: wp.array
     keys: wp.array  # (k, m) vec3
+    soft: bool = False
+
+
+@dataclass(frozen=True)
+class SoftPins:
+    """Soft pins' springs, per particle (zero where a particle has none: kernels/forces.py), and where they
+    pull: their motion's passes put it there each substep before the step, a fixed soft pin's stays where
+    it starts."""
+    rate: wp.array  # (n,) stiffness / mass, 1/s^2
+    damping: wp.array  # (n,) damping / mass, 1/s
+    target_x: wp.array  # (n,) vec3
+    target_v: wp.array  # (n,) vec3
+    motion: PinMotion | None  # the oscillating ones'
 
 
 @dataclass(frozen=True)
@@ -120,13 +134,13 @@ class DeviceModel:
         self.limits = self._limits(model)
         self.seams = self._seams(model)  # None: no seam
         self.attachments = self._attachments(model)  # None: no cloth has attachments to its pins
-        self.pins = None if model.pins is None else PinMotion(
-            upload(model.pins.index, int, device), upload(model.pins.anchor, wp.vec3, device),
-            upload(model.pins.amplitude, wp.vec3, device), upload(model.pins.frequency, float, device),
-            upload(model.pins.phase, float, device), model.pins.moving)
+        hard = None if model.pins is None else ~model.pins.soft
+        self.pins = None if hard is None or not hard.any() else self._pin_motion(model, hard)  # the hard pins
+        self.soft_pins = self._soft_pins(model)
         self.pin_targets: tuple[PinTarget, ...] = ()
         self.keyed_pins = tuple(KeyedPins(upload(a.index, int, device), upload(a.key_times, float, device),
-                                          upload(a.key_points, wp.vec3, device)) for a in model.pin_animations)
+                                          upload(a.key_points, wp.vec3, device), a.soft)
+                                for a in model.pin_animations)
         # the rigid colliders, by kind (collider_kinds.KINDS), and the passes that move them
         self.collider_kinds = {kind: kind(model, scene, worlds, device, h) for kind in KINDS}
         self.has_colliders = any(kind.present for kind in self.collider_kinds.values())
@@ -236,7 +250,36 @@ class DeviceModel:
         state's, which the wind pass rewrites every substep)."""
         forces = ExternalForces()
         forces.gravity, forces.world, forces.drag, forces.wind = self._gravity, self.particle_world, self._drag, wind
+        soft = self.soft_pins
+        if soft is None:
+            forces.pin_rate = forces.pin_damping = wp.zeros(0, dtype=float, device=self.device)
+            forces.pin_x = forces.pin_v = wp.zeros(0, dtype=wp.vec3, device=self.device)
+        else:
+            forces.pin_rate, forces.pin_damping, forces.pin_x, forces.pin_v = (soft.rate, soft.damping, soft.target_x,
+                                                                               soft.target_v)
         return forces
+
+    def _pin_motion(self, model: Model, rows: np.ndarray) -> PinMotion:
+        pins, device = model.pins, self.device
+        return PinMotion(upload(pins.index[rows], int, device), upload(pins.anchor[rows], wp.vec3, device),
+                         upload(pins.amplitude[rows], wp.vec3, device), upload(pins.frequency[rows], float, device),
+                         upload(pins.phase[rows], float, device), bool(np.any(pins.amplitude[rows] != 0.0)))
+
+    def _soft_pins(self, model: Model) -> SoftPins | None:
+        """The soft pins' springs, pulling toward where their particles start (the model's start: where
+        their motion puts them then) until a pass moves that."""
+        pins = model.pins
+        if pins is None or not pins.soft.any():
+            return None
+        soft, n, device = pins.soft, model.particle_count, self.device
+        index = pins.index[soft]
+        rate, damping = np.zeros(n, dtype=np.float32), np.zeros(n, dtype=np.float32)
+        rate[index] = pins.stiffness[soft] / model.masses[index]
+        damping[index] = pins.damping[soft] / model.masses[index]
+        moving = np.any(pins.amplitude != 0.0, axis=1) & soft
+        return SoftPins(upload(rate, float, device), upload(damping, float, device),
+                        upload(model.positions, wp.vec3, device), upload(model.velocities, wp.vec3, device),
+                        self._pin_motion(model, moving) if moving.any() else None)
 
     def no_limits(self) -> StrainLimits:
         """No limited spring: for checks of scenes without strain limits."""
@@ -281,12 +324,17 @@ class DeviceModel:
         """Each targeted collider's pinned particles, attached to its nearest faces where they start."""
         positions, device = upload(model.positions, wp.vec3, self.device), self.device
         targets = []
-        for k in np.unique(model.pins.target[model.pins.target >= 0]).tolist():
-            index = upload(model.pins.index[model.pins.target == k], int, device)
+        pins = model.pins
+        groups = [(k, soft) for k in np.unique(pins.target[pins.target >= 0]).tolist() for soft in (False, True)]
+        for k, soft in groups:
+            rows = (pins.target == k) & (pins.soft == soft)
+            if not rows.any():
+                continue
+            index = upload(pins.index[rows], int, device)
             count = index.shape[0]
             target = PinTarget(self.collider_kinds[Meshes].meshes[k], index, wp.zeros(count, dtype=int, device=device),
                                wp.zeros(count, dtype=wp.vec2, device=device),
-                               wp.zeros(count, dtype=wp.vec3, device=device))
+                               wp.zeros(count, dtype=wp.vec3, device=device), soft)
             wp.launch(motion.attach_to_mesh, dim=count, inputs=[target.mesh.id, index, positions],
                       outputs=[target.face, target.bary, target.offset], device=device)
             targets.append(target)

@@ -15,8 +15,9 @@ import numpy as np
 from warp_cloth.kernels import springs as spring_kernels
 
 from .adjacency import Adjacency
-from .cloth_grid import build_grid, rotation_matrix
+from .cloth_grid import build_grid
 from .cloth_mesh import BEND, SHEAR, STRUCTURAL, ClothMesh, enclosing_radii, rest_adjacent_pairs
+from .keyed_motion import collider_keys, keyed_at, keyed_points
 from .mesh_cloth import build_mesh_cloth
 from .mesh_io import load_transform_motion, triangle_sides
 from .pin_selection import select_pins
@@ -64,6 +65,14 @@ class Pins:
     phase: np.ndarray
     moving: bool
     target: np.ndarray  # (p,) int32 the mesh collider each pinned particle follows, -1: none
+    stiffness: np.ndarray  # (p,) float32 N/m of a soft pin's spring to where its motion puts it, 0: a hard pin
+    damping: np.ndarray  # (p,) float32 N s/m of a soft pin's spring
+    named: tuple[tuple[str, int, int], ...] = ()  # each named pin's name and rows, first to end
+
+    @property
+    def soft(self) -> np.ndarray:
+        """(p,) bool: the soft pins' rows."""
+        return self.stiffness > 0
 
 
 @dataclass(frozen=True)
@@ -100,6 +109,7 @@ class PinAnimation:
     index: np.ndarray  # (m,) int32 particle
     key_times: np.ndarray  # (k,) seconds
     key_points: np.ndarray  # (k, m, 3) float32 where they are then
+    soft: bool = False  # a soft pin's: the points are where its springs pull, not where its particles are
 
 
 @dataclass(frozen=True)
@@ -203,7 +213,7 @@ class Model:
     positions: np.ndarray  # (n, 3) float32
     velocities: np.ndarray
     masses: np.ndarray
-    inv_mass: np.ndarray  # 0 for pinned particles
+    inv_mass: np.ndarray  # 0 for hard-pinned particles
     cloth_id: np.ndarray  # (n,) int32
     springs: Springs | None
     limits: StrainLimits | None
@@ -264,7 +274,7 @@ def build_model(scene: Scene, worlds: Worlds | None = None) -> Model:
     inv_mass = (1.0 / masses).astype(np.float32)
     begins = shot_clock(scene).first_time  # everything that moves starts where it is then
     if pins is not None:
-        inv_mass[pins.index] = 0.0
+        inv_mass[pins.index[~pins.soft]] = 0.0
         # A driven pin starts where its motion puts it, with that motion's velocity.
         omega = 2.0 * np.pi * pins.frequency[:, None]
         angle = omega * begins + pins.phase[:, None]
@@ -428,7 +438,8 @@ def _nearest_on_grid(gx: np.ndarray, gy: np.ndarray, px: np.ndarray, py: np.ndar
 
 
 def _pins(scene: Scene, meshes, offsets, selections: list[list[np.ndarray]]) -> Pins | None:
-    index, amplitude, frequency, phase, target = [], [], [], [], []
+    index, amplitude, frequency, phase, target, stiffness, damping = [], [], [], [], [], [], []
+    named, rows = [], 0
     collider_of = {c.name: k for k, c in enumerate(scene.colliders)}
     for c, (cloth, chosen_per_pin) in enumerate(zip(scene.cloths, selections)):
         for pin, chosen in zip(cloth.pins, chosen_per_pin):
@@ -439,6 +450,11 @@ def _pins(scene: Scene, meshes, offsets, selections: list[list[np.ndarray]]) -> 
             amplitude.append(np.tile(amp, (len(chosen), 1)))
             frequency.append(np.full(len(chosen), 0.0 if motion is None else motion.frequency))
             phase.append(np.full(len(chosen), 0.0 if motion is None else motion.phase))
+            stiffness.append(np.full(len(chosen), pin.stiffness or 0.0))
+            damping.append(np.full(len(chosen), pin.damping))
+            if pin.name is not None:
+                named.append((pin.name, rows, rows + len(chosen)))
+            rows += len(chosen)
     if not index:
         return None
     idx = np.concatenate(index).astype(np.int32)
@@ -446,7 +462,10 @@ def _pins(scene: Scene, meshes, offsets, selections: list[list[np.ndarray]]) -> 
     amplitude_all = np.concatenate(amplitude).astype(np.float32)
     return Pins(idx, positions[idx].astype(np.float32), amplitude_all,
                 np.concatenate(frequency).astype(np.float32), np.concatenate(phase).astype(np.float32),
-                moving=bool(np.any(amplitude_all != 0.0)), target=np.concatenate(target))
+                moving=bool(np.any(amplitude_all != 0.0)), target=np.concatenate(target),
+                stiffness=np.concatenate(stiffness).astype(np.float32),
+                damping=np.concatenate(damping).astype(np.float32),
+                named=tuple(named))
 
 
 def _pin_animations(scene: Scene, meshes, offsets, selections: list[list[np.ndarray]]) -> tuple[PinAnimation, ...]:
@@ -468,7 +487,7 @@ def _pin_animations(scene: Scene, meshes, offsets, selections: list[list[np.ndar
             else:
                 continue
             animations.append(PinAnimation((chosen + offsets[c]).astype(np.int32), times,
-                                           placed.astype(np.float32)))
+                                           placed.astype(np.float32), pin.soft))
     return tuple(animations)
 
 
@@ -509,8 +528,7 @@ def _mesh_colliders(scene: Scene, begins: float) -> MeshColliders | None:
     if not scene.colliders:
         return None
     surfaces = [c.surface() for c in scene.colliders]
-    animations = [(s.key_times, s.key_points) if not c.keys else keyed_points(s.points, c.keys, scene.simulation.fps)
-                  for c, s in zip(scene.colliders, surfaces)]
+    animations = [collider_keys(c, scene.simulation.fps) for c in scene.colliders]
     return MeshColliders(tuple((s.points if p is None else keyed_at(t, p, begins)).astype(np.float32)
                                for s, (t, p) in zip(surfaces, animations)),
                          tuple(s.triangles().astype(np.int32) for s in surfaces),
@@ -518,27 +536,6 @@ def _mesh_colliders(scene: Scene, begins: float) -> MeshColliders | None:
                          np.array([c.friction for c in scene.colliders], dtype=np.float32),
                          tuple(t for t, _ in animations),
                          tuple(None if p is None else p.astype(np.float32) for _, p in animations))
-
-
-def keyed_at(times: np.ndarray, points: np.ndarray, t: float) -> np.ndarray:
-    """Keyed points (``points[k]`` at ``times[k]`` seconds) at ``t``: linearly between the keys around it,
-    held at the first before it and at the last after it, as the motion kernels place them."""
-    after = int(np.searchsorted(times, t, side="right"))
-    if after == 0 or after == len(times):
-        return points[min(after, len(times) - 1)]
-    w = (t - times[after - 1]) / (times[after] - times[after - 1])
-    return points[after - 1] + w * (points[after].astype(np.float64) - points[after - 1])
-
-
-def keyed_points(points: np.ndarray, keys, fps: float) -> tuple[np.ndarray, np.ndarray]:
-    """A mesh moved along transform keys, sampled at the keys and every frame between the first and the
-    last (translations and rotation angles interpolated linearly, so that a turn stays a turn)."""
-    times = np.array([k.time for k in keys])
-    samples = np.union1d(times, np.arange(np.ceil(times[0] * fps), np.floor(times[-1] * fps) + 1) / fps)
-    translate = np.stack([np.interp(samples, times, [k.translate[a] for k in keys]) for a in range(3)], axis=1)
-    rotate = np.stack([np.interp(samples, times, [k.rotate[a] for k in keys]) for a in range(3)], axis=1)
-    placed = np.stack([points @ rotation_matrix(tuple(r)).T + t for r, t in zip(rotate, translate)])
-    return samples, placed
 
 
 def collision_radii(cloth: Cloth, mesh: ClothMesh, radius_override: float | None) -> np.ndarray:

@@ -183,51 +183,60 @@ class Collide:
                outputs=[state.x, state.v])
 
 
+def pin_outputs(model: DeviceModel, state: DeviceState, soft: bool) -> list[wp.array]:
+    """Where a pin's motion puts its particles: the particles themselves (a hard pin), or where the soft pins'
+    springs pull them (kernels/forces.py)."""
+    return [model.soft_pins.target_x, model.soft_pins.target_v] if soft else [state.x, state.v]
+
+
 class DrivePins:
-    """Pins moving along their oscillation. Fixed pins need no pass: a pinned particle has inverse mass 0,
-    starts at its anchor at rest, and no pass moves it."""
+    """Pins moving along their oscillation. Fixed pins need no pass: a hard-pinned particle has inverse mass
+    0, starts at its anchor at rest, and no pass moves it (nor a fixed soft pin's target)."""
 
-    name = "pins:oscillating"
-
-    def __init__(self, model: DeviceModel) -> None:
-        self.model = model
+    def __init__(self, model: DeviceModel, soft: bool = False) -> None:
+        self.model, self.soft = model, soft
+        self.pins = model.soft_pins.motion if soft else model.pins
+        self.name = "soft pins:oscillating" if soft else "pins:oscillating"
 
     def run(self, state: DeviceState) -> None:
-        p = self.model.pins
+        p = self.pins
         launch(motion.drive_pins, p.index.shape[0], state,
                inputs=[p.index, p.anchor, p.amplitude, p.frequency, p.phase, state.clock, self.model.h],
-               outputs=[state.x, state.v])
+               outputs=pin_outputs(self.model, state, self.soft))
 
 
 class FollowTargets:
-    """Pins that follow mesh colliders put where their attachments are now (after the integration, as
-    every driven pin)."""
+    """Pins that follow mesh colliders put where their attachments are now (hard ones after the integration,
+    as every driven pin; soft ones' targets before it)."""
 
-    name = "pins:follow colliders"
-
-    def __init__(self, model: DeviceModel) -> None:
-        self.model = model
+    def __init__(self, model: DeviceModel, soft: bool = False) -> None:
+        self.model, self.soft = model, soft
+        self.targets = [t for t in model.pin_targets if t.soft == soft]
+        self.name = "soft pins:follow colliders" if soft else "pins:follow colliders"
+        self.present = bool(self.targets)
 
     def run(self, state: DeviceState) -> None:
-        for t in self.model.pin_targets:
+        for t in self.targets:
             launch(motion.follow_mesh, t.index.shape[0], state,
-                   inputs=[t.mesh.id, t.index, t.face, t.bary, t.offset], outputs=[state.x, state.v])
+                   inputs=[t.mesh.id, t.index, t.face, t.bary, t.offset],
+                   outputs=pin_outputs(self.model, state, t.soft))
 
 
 class FollowKeys:
     """Puts pinned particles carried along keys (or a USD prim's transform) where they are at the end of
-    the substep, with their velocity."""
+    the substep, with their velocity (a soft pin's: where its springs pull)."""
 
-    name = "pins:follow keys"
-
-    def __init__(self, model: DeviceModel) -> None:
-        self.model = model
+    def __init__(self, model: DeviceModel, soft: bool = False) -> None:
+        self.model, self.soft = model, soft
+        self.keyed = [k for k in model.keyed_pins if k.soft == soft]
+        self.name = "soft pins:follow keys" if soft else "pins:follow keys"
+        self.present = bool(self.keyed)
 
     def run(self, state: DeviceState) -> None:
-        for pins in self.model.keyed_pins:
+        for pins in self.keyed:
             launch(motion.place_keyed_particles, pins.index.shape[0], state,
                    inputs=[state.clock, self.model.h, pins.key_times, pins.keys, pins.index],
-                   outputs=[state.x, state.v])
+                   outputs=pin_outputs(self.model, state, pins.soft))
 
 
 class WindForces:

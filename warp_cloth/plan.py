@@ -88,7 +88,7 @@ class Plan:
 
 def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, solve: LimitSolveSettings,
                threads: int | None = None, lines: LineSolves | None = None,
-               bounds: DisplacementBounds | None = None) -> Plan:
+               bounds: DisplacementBounds | None = None, control: dict[str, list[Pass]] | None = None) -> Plan:
     """The substep, in order: moving spheres and animated mesh colliders to the substep's end (nothing before
     the colliders reads them); the seams' allowed lengths; the wind's forces; the integrator's pass; driven pins (oscillating, on
     colliders, on keys); then, with particle collision, the contacts' start (in the integrator's pass where it
@@ -100,14 +100,23 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
     (None: by size); ``lines``: the line solves of the cloths' lines where ``solve.line_solve``, made once
     for every plan a simulator builds (line_solve.LineSolves); ``bounds``: the lab's displacement bounds
     (displacement_bounds.py, made once per simulator), measured first and clamping the step after the solves
-    (before the contact velocities)."""
+    (before the contact velocities); ``control``: the passes that put what a script sent from Python
+    (control.py's ``Control.passes``) after the colliders' motion (``"colliders"``), with the soft pins' motion
+    before the step (``"soft pins"``: where their springs pull, which the step reads) and after the hard
+    pins' motion (``"pins"``)."""
     chosen = threads_per_particle(model.particle_count, model.device) if threads is None else threads
     rigid = model.colliders(state) if model.has_colliders else None
+    control = control or {}
     oscillating_pins = model.pins is not None and model.pins.moving
-    driven_pins = oscillating_pins or bool(model.pin_targets) or bool(model.keyed_pins)
+    hard_motion = [p for p in (FollowTargets(model), FollowKeys(model)) if p.present]
+    soft_motion = [p for p in (FollowTargets(model, soft=True), FollowKeys(model, soft=True)) if p.present]
+    if model.soft_pins is not None and model.soft_pins.motion is not None:
+        soft_motion.insert(0, DrivePins(model, soft=True))
+    driven_pins = oscillating_pins or bool(hard_motion) or "pins" in control
     converged = solve.converged
     passes: list[Pass] = [bounds.measure] if bounds is not None else []
     passes.extend(model.collider_motion)
+    passes.extend(control.get("colliders", []))
     if model.seams is not None:
         passes.append(CloseSeams(model))
     lists = start = projection = None
@@ -118,15 +127,15 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
         start = contact_start_args(model, state, rigid or model.no_colliders(), lists.rebuild_distance)
     if model.wind is not None:
         passes.append(WindForces(model))
+    passes.extend(soft_motion)
+    passes.extend(control.get("soft pins", []))
     start_in_step = start is not None and integrator.ends_with_contact_start and not driven_pins
     step = integrator.step(model, state, chosen, start if start_in_step else None)
     passes.append(step)
     if oscillating_pins:
         passes.append(DrivePins(model))
-    if model.pin_targets:
-        passes.append(FollowTargets(model))
-    if model.keyed_pins:
-        passes.append(FollowKeys(model))
+    passes.extend(hard_motion)
+    passes.extend(control.get("pins", []))
     if start is not None:
         if not start_in_step:
             passes.append(ContactStart(start))
@@ -158,7 +167,7 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
         passes.append(Collide(model, rigid))
     if bounds is not None and start is None:
         passes.append(bounds.clamp)
-    if driven_pins or model.collider_motion or model.seams is not None or \
+    if driven_pins or soft_motion or control or model.collider_motion or model.seams is not None or \
             (model.wind is not None and (model.wind.turbulence > 0 or model.wind.key_time.shape[0] > 1)):
         passes.append(AdvanceClock())
     start_projection = StartProjection(model, state, solve, chosen, rigid) if model.limits is not None else None

@@ -20,8 +20,9 @@ from .materials import Material, along
 Vec3 = tuple[float, float, float]
 
 SpringRegime = Literal["tension", "compression", "both"]
-Corner = Literal["bottom-left", "bottom-right", "top-left", "top-right"]
-Edge = Literal["bottom", "top", "left", "right"]
+Corner = Literal["bottom-left", "bottom-right", "top-left", "top-right", "boundary"]
+Edge = Literal["bottom", "top", "left", "right", "boundary"]
+BOUNDARY = "boundary"  # the corners or the edges of any cloth's boundary (pin_selection.py)
 Integrator = Literal["explicit", "symplectic", "implicit"]
 INTEGRATORS: tuple[str, ...] = ("explicit", "symplectic", "implicit")
 
@@ -172,18 +173,42 @@ class Box:
 
 
 @dataclass(frozen=True)
+class Near:
+    """The particles within ``distance`` metres of a collider's surface where the cloth and the collider
+    start: ``collider`` names a sphere, a mesh collider or ``"ground"``."""
+
+    collider: str
+    distance: float
+
+    def __post_init__(self) -> None:
+        check_fields(self)
+        _require(bool(self.collider), "collider", "the name of a sphere, a [[collider]] or \"ground\"",
+                 self.collider)
+        _positive(self.distance, "distance")
+        _within_extent(self.distance, "distance")
+
+
+@dataclass(frozen=True)
 class Pin:
     """Particles held in place, driven by an oscillation about their initial position, carried along
     ``keys`` (``[[cloth.pins.keys]]``: turned by ``rotate`` about where the pinned particles' centre
     starts, then moved by ``translate``, interpolated linearly between keys), or carried by a ``target``:
     the named mesh collider, each pinned particle held where it started relative to the collider's nearest
     face (a cape pinned to a moving character); or, for a cloth from a USD file, the path of a prim of that
-    file (``"/World/Rig/Hand"``), whose world transform's motion carries the pinned particles.
+    file (``"/World/Rig/Hand"``), whose world transform's motion carries the pinned particles. A ``name``
+    lets a script drive the pin between frames (``Simulator.control``, warp_cloth/control.py).
 
     Selected by index (on a grid ``x + (nx + 1) y``), named corners and edges of the grid (left/right is
-    the first grid direction, bottom/top the second), a world-space box around the initial pose, or the
-    ``group`` of a mesh cloth: in USD a ``GeomSubset`` of its points or faces, or a primvar on its points
-    that is non-zero where they belong; in OBJ a ``g`` group (the vertices of its faces).
+    the first grid direction, bottom/top the second), the ``"boundary"`` corners or edges of any cloth
+    (pin_selection.py: every vertex of its boundary, or those where the boundary turns by more than
+    ``pin_selection.CORNER_ANGLE`` degrees), a world-space box around the initial pose, the ``group`` of a
+    mesh cloth (in USD a ``GeomSubset`` of its points or faces, or a primvar on its points that is non-zero
+    where they belong; in OBJ a ``g`` group: the vertices of its faces), or the particles ``near`` a
+    collider at the start. A pin selects the union of what its keys select.
+
+    Without ``stiffness`` a pin is hard: its particles are moved, never pushed (inverse mass 0). With it
+    (N/m, per particle) the pin is soft: each particle keeps its mass and is pulled toward where the pin's
+    motion puts it by a spring of zero rest length, with ``damping`` (N s/m) on their relative velocity.
     """
 
     indices: tuple[int, ...] = ()
@@ -191,21 +216,37 @@ class Pin:
     edges: tuple[Edge, ...] = ()
     region: Box | None = None
     group: str | None = None
+    near: Near | None = None
     motion: Oscillation | None = None
     target: str | None = None
     keys: tuple[TransformKey, ...] = ()
+    name: str | None = None
+    stiffness: float | None = None
+    damping: float = 0.0
 
     def __post_init__(self) -> None:
         check_fields(self)
+        if self.name is not None:
+            check_identifier(self.name, "name")
         for k, index in enumerate(self.indices):
             _require(index >= 0, f"indices[{k}]", "a particle index >= 0", index)
-        _require(bool(self.indices or self.corners or self.edges or self.region or self.group), "",
-                 "at least one of indices, corners, edges, region, group", "none")
+        _require(bool(self.indices or self.corners or self.edges or self.region or self.group or self.near), "",
+                 "at least one of indices, corners, edges, region, group, near", "none")
         _require(self.motion is None or self.target is None, "target", "either a motion or a target, not both",
                  self.target)
         _require(not (self.keys and (self.motion is not None or self.target is not None)), "keys",
                  "keys, a motion or a target, only one of them", has_got=False)
         _check_key_times(self.keys)
+        if self.stiffness is not None:
+            _positive(self.stiffness, "stiffness")
+            check_float32(self.stiffness, "the stiffness", "stiffness", self.stiffness)
+        _non_negative(self.damping, "damping")
+        _require(self.damping == 0.0 or self.stiffness is not None, "damping",
+                 "no damping on a hard pin (damping is a soft pin's, beside its stiffness)", self.damping)
+
+    @property
+    def soft(self) -> bool:
+        return self.stiffness is not None
 
 
 DEFAULT_CLOSE_TIME = 0.5  # seconds: a seam's default closing, a garment tool's few frames (12 at 24 fps)
@@ -294,7 +335,8 @@ class Cloth:
 
     A mesh cloth (triangles and quads, cloth_mesh.py) takes its particles, faces and UVs from the mesh as
     modelled, rotated by ``rotation`` about the mesh's own origin and moved by ``origin``; the grid's keys
-    (resolution, size, orientation, jitter, twist) do not apply to it, nor do pins by corners or edges.
+    (resolution, size, orientation, jitter, twist) do not apply to it, nor do the grid's named corners and
+    edges (its ``"boundary"`` ones do).
     ``density`` gives each particle a share of its faces' area.
 
     A ``material`` (materials.py: a preset's name or a table of SI values) gives the cloth its masses and
@@ -369,8 +411,10 @@ class Cloth:
             _require(getattr(self, key) == getattr(Cloth, key), key, "no grid setting on a mesh cloth (its "
                      "particles are the mesh's)", getattr(self, key))
         for p, pin in enumerate(self.pins):
-            _require(not (pin.corners or pin.edges), f"pins[{p}]", "pins by indices, region or group on a mesh "
-                     "cloth (corners and edges are a grid's)", has_got=False)
+            for key in ("corners", "edges"):
+                names = getattr(pin, key)
+                _require(all(name == BOUNDARY for name in names), f"pins[{p}].{key}",
+                         f"[\"{BOUNDARY}\"] on a mesh cloth (the named ones are a grid's)", list(names))
 
     def _check_grid(self) -> None:
         for p, pin in enumerate(self.pins):
@@ -446,11 +490,18 @@ class Cloth:
         return ("density", self.density) if self.density is not None else ("mass", self.mass)
 
     def check_masses(self, lightest: float, heaviest: float) -> None:
-        """Every particle's mass (then its inverse too) and stiffness / mass, as the device holds them in float32.
+        """Every particle's mass (then its inverse too) and stiffness / mass (the springs', the soft pins'), as the
+        device holds them in float32.
         A material's ranges keep its springs' stiffness / mass finite (materials._RANGES)."""
         key, value = self.mass_key()
         check_float32(lightest, "the lightest particle's mass", key, value)
         check_float32(heaviest, "the heaviest particle's mass", key, value)
+        for p, pin in enumerate(self.pins):
+            if pin.soft:
+                field = "damping" if pin.damping > pin.stiffness else "stiffness"
+                _require(getattr(pin, field) / lightest <= FLOAT32_MAX, f"pins[{p}].{field}",
+                         f"a soft pin's stiffness and damping / the lightest particle's mass ({lightest:.3g} kg) at "
+                         f"most {FLOAT32_MAX:.3g} (float32)", getattr(pin, field))
         if self.material is not None:
             return
         for kind in ("structural", "shear", "bend"):
@@ -922,8 +973,19 @@ class Scene:
 
     def _check_pin_targets(self) -> None:
         colliders = [c.name for c in self.colliders]
+        near = [s.name for s in self.spheres] + colliders + ([RESERVED_NAME] if self.ground is not None else [])
+        named: dict[str, str] = {}
         for c, cloth in enumerate(self.cloths):
             for p, pin in enumerate(cloth.pins):
+                if pin.name is not None:
+                    other = named.setdefault(pin.name, f"cloth[{c}].pins[{p}]")
+                    _require(other == f"cloth[{c}].pins[{p}]", f"cloth[{c}].pins[{p}].name",
+                             f"a name no other pin has ({other} has it)", pin.name)
+                if pin.near is not None:
+                    _require(pin.near.collider in near, f"cloth[{c}].pins[{p}].near.collider",
+                             "the name of a sphere, a [[collider]] or the ground (" + (", ".join(near) or
+                                                                                     "the scene has none") + ")",
+                             pin.near.collider)
                 key = f"cloth[{c}].pins[{p}].target"
                 if pin.target is not None and pin.target.startswith("/"):  # the prim: geometry_checks.validate
                     _require(cloth.usd_file() is not None, key, "the name of a [[collider]] (a prim path is for "

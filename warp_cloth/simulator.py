@@ -34,6 +34,7 @@ from .displacement_bounds import DisplacementBounds
 from .limit_solve import LimitSolveSettings
 from .cloth_lines import cloth_lines
 from .line_solve import LineSolves
+from .control import Control
 from .plan import Plan, build_plan
 from .scene import Scene
 from .shot_clock import ShotClock, shot_clock
@@ -269,6 +270,7 @@ class Simulator:
             if self.limit_solve.line_solve and self.model.limits is not None else None
         # the lab's displacement bounds (displacement_bounds.py, off by default): made once, for every plan built
         self._bounds = DisplacementBounds.of(self.model, self.device_model)
+        self._control: Control | None = None  # made when first asked for (``control``)
         self.plan: Plan = build_plan(self.device_model, self.state, self.integrator, self.limit_solve,
                                      threads_per_particle, self._lines, self._bounds)
         # with substeps auto: their choice from frame to frame, and a copy of each frame's start to make it again
@@ -484,16 +486,43 @@ class Simulator:
         """Take ``substeps`` a frame from the current frame on (with substeps auto, between frames): the
         device model's step and the plan built again for it (the old plan freed, the converged solve's
         estimated radius carried over), its frame graphs captured anew. The clock is ``_set_clock``'s."""
-        carried = self.plan.carried()
-        self._graphs.clear()
         self._substeps = substeps
         self.limit_solve = LimitSolveSettings.of(at_substeps(self.scene, substeps).simulation)
         self.device_model.set_step(1.0 / (self.scene.simulation.fps * substeps))
+        self._build_plan_again()
+        self._guard_flags()
+
+    def _build_plan_again(self) -> None:
+        """The plan built again (at the device model's step, with the control's passes once it has sent
+        something), its carried arrays copied over from the old one, whose frame graphs are dropped."""
+        carried = self.plan.carried()
+        self._graphs.clear()
+        control = self._control.passes(self.device_model) if self._control is not None and self._control.started \
+            else None
         self.plan = build_plan(self.device_model, self.state, self.integrator, self.limit_solve, self._threads,
-                               self._lines, self._bounds)
+                               self._lines, self._bounds, control)
         for name, array in self.plan.carried().items():
             wp.copy(array, carried[name])
-        self._guard_flags()
+
+    @property
+    def control(self) -> Control:
+        """What a script drives between frames: named pins, spheres and mesh colliders, sent by name
+        (warp_cloth/control.py: ``sim.control.pins["hand"].set_transform(translate=(0.1, 0, 0))``, then
+        ``sim.step()``)."""
+        if self._control is None:
+            self._control = Control(self.model, self.device_model, self.state, self.scene, lambda: self.frame,
+                                    self._take_control)
+        return self._control
+
+    def _take_control(self) -> None:
+        """Before the control's first send: its passes in the plan, the clock (which the plan may not have
+        advanced until now) set to the current frame. A mesh's refit is a host call on the CPU, which a CPU
+        graph does not record: there, with mesh colliders, frames launch pass by pass from now on."""
+        self._control.started = True
+        if self.device.is_cpu and self._control.moves_meshes:
+            self.use_graph = False
+        self._build_plan_again()
+        self.state.clock.fill_(self.substep_count)
 
     def _set_clock(self) -> None:
         """The clock at the current frame at the current substeps, so that time stays frame / fps."""

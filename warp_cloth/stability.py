@@ -24,7 +24,8 @@ One mode ``x'' = -w^2 x - c x'`` stepped with h:
   guarantees. So ``h < min(rho, 2 / C)``; with an undamped spring, the step at which the fastest mode grows
   at most 2x over the run, ``2 ln 2 / (T W^2)``.
 
-Every enabled spring counts, in whatever regime it acts (a bend spring acts only when compressed, but a
+A soft pin counts as a spring of zero length to a held point (``k`` where a spring has ``k/L0``). Every
+enabled spring counts, in whatever regime it acts (a bend spring acts only when compressed, but a
 compressed cloth has them all). Strain limits and collisions are projections: they add no stiffness.
 The implicit integrator (backward Euler) is stable at any step on these linear springs: it has no bound.
 This module finds W, C and rho; each integrator's bound from them is its own (``stable_step`` in
@@ -186,12 +187,30 @@ def model_bound(model: Model, sim: Simulation) -> StabilityBound | None:
     if integrator_for(sim.integrator).stable_step is None:
         return None
     springs = model.springs
+    duration = (sim.preroll + sim.frames) / sim.fps
     if springs is None:
-        return stable_step(model.positions, model.inv_mass, np.zeros((0, 2), dtype=np.int64), *(np.zeros(0),) * 3,
-                           np.zeros(0, dtype=np.int32), sim.integrator, sim.drag, (sim.preroll + sim.frames) / sim.fps)
-    return stable_step(model.positions, model.inv_mass, springs.pairs, springs.rest,
-                       springs.stiffness, springs.damping, springs.flags, sim.integrator, sim.drag,
-                       (sim.preroll + sim.frames) / sim.fps)
+        arrays = (model.positions, model.inv_mass, np.zeros((0, 2), dtype=np.int64), *(np.zeros(0),) * 3,
+                  np.zeros(0, dtype=np.int32))
+    else:
+        arrays = (model.positions, model.inv_mass, springs.pairs, springs.rest, springs.stiffness, springs.damping,
+                  springs.flags)
+    if model.pins is not None and model.pins.soft.any():
+        arrays = _with_soft_pins(model, *arrays)
+    return stable_step(*arrays, sim.integrator, sim.drag, duration)
+
+
+def _with_soft_pins(model: Model, positions, inv_mass, pairs, rest, stiffness, damping, flags) -> tuple:
+    """The springs with each soft pin's as one more, to a held particle where its own is (of zero length: it
+    counts whole in every direction) with rest length 1, so that its k / L0 is its stiffness k."""
+    pins = model.pins
+    index = pins.index[pins.soft]
+    count, n = len(index), len(positions)
+    both = FLAG_ELASTIC_TENSION | FLAG_ELASTIC_COMPRESSION | FLAG_DAMPING_TENSION | FLAG_DAMPING_COMPRESSION
+    return (np.concatenate([positions, positions[index]]), np.concatenate([inv_mass, np.zeros(count, inv_mass.dtype)]),
+            np.concatenate([pairs, np.stack([index, n + np.arange(count)], axis=1)]),
+            np.concatenate([rest, np.ones(count)]), np.concatenate([stiffness, pins.stiffness[pins.soft]]),
+            np.concatenate([damping, pins.damping[pins.soft]]),
+            np.concatenate([flags, np.full(count, both, dtype=flags.dtype)]))
 
 
 def automatic_substeps(fps: float, bound: StabilityBound | None) -> int:
