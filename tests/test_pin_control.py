@@ -112,14 +112,18 @@ def test_a_soft_pinned_particle_keeps_its_mass_and_a_hard_one_does_not():
     assert sim.model.inv_mass[0] > 0 and sim.model.inv_mass[1] == 0
 
 
-def hanging(pins, spheres=(), frames=24):
+DEVICES = ["cpu", pytest.param("cuda", marks=pytest.mark.cuda)]
+
+
+def hanging(pins, spheres=(), frames=24, device="cpu"):
     cloth = wc.Cloth(resolution=(8, 8), size=(1.0, 1.0), pins=pins, limit=wc.Limit())
     return wc.Simulator(wc.Scene(cloths=(cloth,), spheres=spheres, simulation=wc.Simulation(frames=frames)),
-                        device="cpu")
+                        device=device)
 
 
-def test_a_pin_driven_from_python_goes_in_a_line_and_ends_where_it_was_sent():
-    sim = hanging((wc.Pin(corners=("top-left",), name="hand"), wc.Pin(corners=("top-right",))))
+@pytest.mark.parametrize("device", DEVICES)
+def test_a_pin_driven_from_python_goes_in_a_line_and_ends_where_it_was_sent(device):
+    sim = hanging((wc.Pin(corners=("top-left",), name="hand"), wc.Pin(corners=("top-right",))), device=device)
     corner = 8 * 9
     assert "control" not in str(sim.plan)
     start = sim.positions()[corner]
@@ -146,10 +150,11 @@ def test_a_pin_driven_from_python_goes_in_a_line_and_ends_where_it_was_sent():
         sim.control.pins["foot"]
 
 
-def test_a_sphere_sent_from_python_pushes_the_cloth():
+@pytest.mark.parametrize("device", DEVICES)
+def test_a_sphere_sent_from_python_pushes_the_cloth(device):
     """A cloth hangs in z = 0 beside a sphere; sent through it over a frame, the sphere pushes it along."""
     ball = wc.Sphere(name="ball", center=(0.5, 0.4, -0.5), radius=0.2)
-    sim = hanging((wc.Pin(edges=("top",)),), spheres=(ball,))
+    sim = hanging((wc.Pin(edges=("top",)),), spheres=(ball,), device=device)
     sim.control.spheres["ball"].set_center((0.5, 0.4, 0.5))
     sim.step()
     assert np.array_equal(sim.sphere_centers()[0], np.float32([0.5, 0.4, 0.5]))
@@ -221,7 +226,8 @@ def test_a_soft_pin_pulls_toward_where_its_keys_and_the_control_put_it():
     np.testing.assert_allclose(sim.positions() - start, np.tile([0.5, -sag, 0.5], (4, 1)), atol=0.02 * sag)
 
 
-def test_a_mesh_collider_sent_from_python_carries_the_pins_that_touch_it(tmp_path):
+@pytest.mark.parametrize("device", DEVICES)
+def test_a_mesh_collider_sent_from_python_carries_the_pins_that_touch_it(tmp_path, device):
     """A cloth lies over a 4 m plate, 5 cm above it at one edge and tilted 1.5 degrees: its 4 rows of
     particles within 7 cm of the plate (5 cm + 0.2 m x sin 1.5 degrees a row) are pinned to it. The plate
     sent up 2 cm a frame, then turned 3 degrees about its origin, carries them with it."""
@@ -231,7 +237,7 @@ def test_a_mesh_collider_sent_from_python_carries_the_pins_that_touch_it(tmp_pat
     pin = wc.Pin(near=wc.Near("plate", 0.07), target="plate")
     cloth = wc.Cloth(resolution=(10, 10), size=(2.0, 2.0), orientation="horizontal", origin=(-1.0, 1.05, 1.0),
                      rotation=(1.5, 0.0, 0.0), pins=(pin,), limit=wc.Limit())
-    sim = wc.Simulator(wc.Scene(cloths=(cloth,), colliders=(collider,)), device="cpu")
+    sim = wc.Simulator(wc.Scene(cloths=(cloth,), colliders=(collider,)), device=device)
     start = sim.positions()
     held = sim.model.pins.index
     assert len(held) == 4 * 11
