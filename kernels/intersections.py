@@ -1,8 +1,9 @@
 """Diagnostic: count pairs of cloth triangles that pass through each other, with the triangle BVH of a
 ``wp.Mesh`` as broad phase. Two triangles intersect when an edge of one crosses the interior of the other
 (signs of signed volumes in double precision); triangles that share a vertex are mesh neighbours and are
-skipped (a vertex as ``welded`` numbers it: the particles a seam sews together are one vertex), and triangles that only touch or lie in one plane do not cross, so they are not counted (Moller's
-coplanar branch reports such neighbours of a flat cloth as overlapping)."""
+skipped (a vertex as ``welded`` numbers it: the particles a seam sews together are one vertex), and
+triangles that only touch or lie in one plane do not cross, so they are not counted (Moller's coplanar
+branch reports such neighbours of a flat cloth as overlapping)."""
 
 import warp as wp
 
