@@ -1,8 +1,9 @@
 """Diagnostic: count pairs of cloth triangles that pass through each other, with the triangle BVH of a
 ``wp.Mesh`` as broad phase. Two triangles intersect when an edge of one crosses the interior of the other
 (signs of signed volumes in double precision); triangles that share a vertex are mesh neighbours and are
-skipped, and triangles that only touch or lie in one plane do not cross, so they are not counted (Moller's
-coplanar branch reports such neighbours of a flat cloth as overlapping)."""
+skipped (a vertex as ``welded`` numbers it: the particles a seam sews together are one vertex), and
+triangles that only touch or lie in one plane do not cross, so they are not counted (Moller's coplanar
+branch reports such neighbours of a flat cloth as overlapping)."""
 
 import warp as wp
 
@@ -40,24 +41,25 @@ def triangles_cross(a0: wp.vec3d, a1: wp.vec3d, a2: wp.vec3d, b0: wp.vec3d, b1: 
 
 @wp.kernel
 def count_intersecting_triangles(mesh: wp.uint64, points: wp.array(dtype=wp.vec3),
-                                 triangles: wp.array(dtype=int), count: wp.array(dtype=int)):
+                                 triangles: wp.array(dtype=int), welded: wp.array(dtype=int),
+                                 count: wp.array(dtype=int)):
     t = wp.tid()
-    a0 = triangles[3 * t]
-    a1 = triangles[3 * t + 1]
-    a2 = triangles[3 * t + 2]
-    p0 = points[a0]
-    p1 = points[a1]
-    p2 = points[a2]
+    p0 = points[triangles[3 * t]]
+    p1 = points[triangles[3 * t + 1]]
+    p2 = points[triangles[3 * t + 2]]
+    a0 = welded[triangles[3 * t]]
+    a1 = welded[triangles[3 * t + 1]]
+    a2 = welded[triangles[3 * t + 2]]
     query = wp.mesh_query_aabb(mesh, wp.min(wp.min(p0, p1), p2), wp.max(wp.max(p0, p1), p2))
     u = int(0)
     while wp.mesh_query_aabb_next(query, u):
         if u <= t:
             continue
-        b0 = triangles[3 * u]
-        b1 = triangles[3 * u + 1]
-        b2 = triangles[3 * u + 2]
+        b0 = welded[triangles[3 * u]]
+        b1 = welded[triangles[3 * u + 1]]
+        b2 = welded[triangles[3 * u + 2]]
         if a0 == b0 or a0 == b1 or a0 == b2 or a1 == b0 or a1 == b1 or a1 == b2 or a2 == b0 or a2 == b1 or a2 == b2:
             continue
-        if triangles_cross(as_double(p0), as_double(p1), as_double(p2), as_double(points[b0]),
-                           as_double(points[b1]), as_double(points[b2])):
+        if triangles_cross(as_double(p0), as_double(p1), as_double(p2), as_double(points[triangles[3 * u]]),
+                           as_double(points[triangles[3 * u + 1]]), as_double(points[triangles[3 * u + 2]])):
             wp.atomic_add(count, 0, 1)

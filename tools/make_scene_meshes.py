@@ -12,7 +12,15 @@
   the hips to the shoulders, 0.4 x 0.24 m across) under an Xform keyed to walk 1.6 m along -Z in 2 s
   (speeding up over the first half second, slowing down over the last), then turn a quarter turn left in
   the next 2 s (likewise); behind its back a cape, a 0.56 x 0.9 m quad mesh of
-  20 x 30 cells with UVs, whose top row is the point subset "collar".
+  20 x 30 cells with UVs, whose top row is the point subset "collar";
+- garment.usda: a USD shot at 24 fps, Y-up, in metres: a torso (a closed elliptic cylinder from 0.5 m to
+  1.4 m, 0.34 x 0.24 m across) under an Xform keyed to stand still for the first second (while the seams
+  close), then turn 30 degrees left, 30 degrees right and back; around it a skirt's two panels, front and
+  back, quad meshes of 16 x 16 cells with UVs, each curved round half the torso: the waist row 1 cm off the
+  body, meeting the other panel's at the sides, the rows below flaring out to 6 cm off it and narrowing to
+  150 degrees of the 180 each covers, so that the sides stand open to a hem's gap of a 30-degree arc.
+  Each panel's side edges are the point subsets "side_left" and "side_right" (the body's left, +X, and
+  right: it faces +Z).
 """
 
 import argparse
@@ -157,6 +165,59 @@ def write_cape(path: str) -> None:
     stage.GetRootLayer().Save()
 
 
+def skirt_panel(front: bool, half_width: float, half_depth: float, waist: float, length: float,
+                columns: int, rows: int) -> tuple[list[tuple[float, float, float]], list[tuple[int, int, int, int]]]:
+    """One panel of ``columns`` x ``rows`` quads round half the elliptic torso, row 0 at the waist: a
+    point of row k stands off the ellipse along its normal by 1 cm at the waist, flaring to 6 cm at the
+    hem (as the square root of k / rows, so that only the waist row is within 1.5 cm of the body), and
+    covers 180 degrees at the waist narrowing to 150 at the hem. Column 0 is at the body's left (+X: it
+    faces +Z), on either panel."""
+    points = []
+    for k in range(rows + 1):
+        t = k / rows
+        offset = 0.01 + 0.05 * math.sqrt(t)
+        half_span = math.radians(90.0 - 15.0 * t)
+        for i in range(columns + 1):
+            theta = half_span * (1.0 - 2.0 * i / columns)  # from the left side round to the right
+            if not front:
+                theta = math.pi - theta
+            # the ellipse x = a cos(phi), z = b sin(phi), phi measured from +X towards +Z
+            phi = math.pi / 2 - theta
+            x, z = half_width * math.cos(phi), half_depth * math.sin(phi)
+            nx, nz = half_depth * math.cos(phi), half_width * math.sin(phi)
+            norm = math.hypot(nx, nz)
+            points.append((x + offset * nx / norm, waist - length * t, z + offset * nz / norm))
+    faces = [(k * (columns + 1) + i, (k + 1) * (columns + 1) + i, (k + 1) * (columns + 1) + i + 1,
+              k * (columns + 1) + i + 1) for k in range(rows) for i in range(columns)]
+    if front:  # outward faces: the front panel's columns run the other way round it
+        faces = [tuple(reversed(f)) for f in faces]
+    return points, faces
+
+
+def write_garment(path: str) -> None:
+    from pxr import Gf, Sdf, UsdGeom, Vt
+
+    stage = new_shot(path, "A skirt of two panels sewn round a torso that turns")
+    turn = UsdGeom.Xform.Define(stage, "/World/Character").AddRotateYOp()
+    for frame, angle in ((0, 0.0), (24, 0.0), (48, 30.0), (72, -30.0), (96, 0.0)):
+        turn.Set(angle, frame)
+    half_width, half_depth = 0.17, 0.12
+    define_mesh(stage, "/World/Character/Body", *elliptic_body(half_width, half_depth, 0.5, 1.4, 32, 6))
+    columns, rows = 16, 16
+    for name, front in (("Front", True), ("Back", False)):
+        points, faces = skirt_panel(front, half_width, half_depth, 1.05, 0.5, columns, rows)
+        panel = define_mesh(stage, f"/World/{name}", points, faces)
+        st = UsdGeom.PrimvarsAPI(panel).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray,
+                                                      UsdGeom.Tokens.vertex)
+        st.Set(Vt.Vec2fArray([Gf.Vec2f(i / columns, 1.0 - k / rows)
+                              for k in range(rows + 1) for i in range(columns + 1)]))
+        left = [k * (columns + 1) for k in range(rows + 1)]
+        right = [k * (columns + 1) + columns for k in range(rows + 1)]
+        for side, indices in (("side_left", left), ("side_right", right)):
+            UsdGeom.Subset.CreateGeomSubset(panel, side, UsdGeom.Tokens.point, Vt.IntArray(indices))
+    stage.GetRootLayer().Save()
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("folder")
@@ -167,6 +228,7 @@ def main() -> None:
     write_obj(f"{args.folder}/table.obj", "A round table of radius 0.6 m, 0.9 m high, in 48 sides", points, faces)
     write_turntable(f"{args.folder}/turntable.usda")
     write_cape(f"{args.folder}/cape.usda")
+    write_garment(f"{args.folder}/garment.usda")
 
 
 if __name__ == "__main__":

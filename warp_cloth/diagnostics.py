@@ -6,12 +6,16 @@ import warp as wp
 
 from warp_cloth.kernels import intersections
 
+from .seams import welded_ids
 from .simulator import Simulator
 from .strain import StrainMonitor
 
 
 class TriangleIntersections:
-    """Counts intersecting pairs among all cloth triangles of a simulator (self and cloth-cloth)."""
+    """Counts intersecting pairs among all cloth triangles of a simulator (self and cloth-cloth). Triangles
+    that meet across a seam (one with a particle sewn to one of the other's) are neighbours, as those that
+    share a vertex: shut, the seam is their common edge, whose two copies' rounding would count as crossings
+    (and open, contacts leave them alone, seams.sewn_neighbourhood)."""
 
     def __init__(self, sim: Simulator) -> None:
         model = sim.model
@@ -20,6 +24,7 @@ class TriangleIntersections:
         self.points = wp.array(model.positions, dtype=wp.vec3, device=self.device)
         self.triangles = wp.array(triangles.ravel(), dtype=int, device=self.device)
         self.mesh = wp.Mesh(points=self.points, indices=self.triangles)
+        self.welded = wp.array(welded_ids(model.sewn, len(model.positions)), dtype=int, device=self.device)
         self.count_buffer = wp.zeros(1, dtype=int, device=self.device)
         self.triangle_count = len(triangles)
 
@@ -28,7 +33,8 @@ class TriangleIntersections:
         self.mesh.refit()
         self.count_buffer.zero_()
         wp.launch(intersections.count_intersecting_triangles, dim=self.triangle_count,
-                  inputs=[self.mesh.id, self.points, self.triangles], outputs=[self.count_buffer], device=self.device)
+                  inputs=[self.mesh.id, self.points, self.triangles, self.welded], outputs=[self.count_buffer],
+                  device=self.device)
         return int(self.count_buffer.numpy()[0])
 
     def __call__(self, sim: Simulator) -> int:

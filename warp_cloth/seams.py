@@ -196,3 +196,18 @@ def sewn_neighbourhood(sewn: SewnPairs, face_counts: list[np.ndarray], face_indi
     skipped = np.sort(np.concatenate(skipped), axis=1)
     skipped = skipped[skipped[:, 0] != skipped[:, 1]]
     return np.unique(skipped, axis=0)
+
+
+def welded_ids(sewn: SewnPairs | None, particle_count: int) -> np.ndarray:
+    """(n,) int32: each particle's number once its seams are shut, the lowest of the particles sewn together
+    with it (directly or through others: a seam's end sewn in two seams), its own where it is not sewn."""
+    ids = np.arange(particle_count, dtype=np.int32)
+    if sewn is None:
+        return ids
+    changed = True
+    while changed:  # each round carries the lowest number one pair further
+        lowest = np.minimum(ids[sewn.pairs[:, 0]], ids[sewn.pairs[:, 1]])
+        changed = bool((ids[sewn.pairs] != lowest[:, None]).any())
+        np.minimum.at(ids, sewn.pairs[:, 0], lowest)
+        np.minimum.at(ids, sewn.pairs[:, 1], lowest)
+    return ids
