@@ -318,3 +318,19 @@ def test_friction_of_a_material_slows_a_cloth_sliding_on_a_frictionless_ground()
 
     assert slid(None) == pytest.approx(1.0, abs=0.02)  # the ground has no friction of its own
     assert slid(0.5) < 0.5 * slid(None)
+
+
+def test_a_knits_step_bound_leaves_out_the_sides_that_carry_nothing():
+    """Jersey's shear nears its stretch, so the long sides of cells twice as long as wide carry nothing (the
+    diagonals do): the stable step's damping times come from the springs that pull, with no 0 / 0 among
+    them."""
+    from warp_cloth.stability import model_bound
+
+    scene = wc.Scene(cloths=(wc.Cloth(resolution=(8, 16), size=(0.5, 0.5),
+                                  material=wc.Material.from_string("jersey")),))
+    sim = wc.Simulator(scene, device="cpu")
+    assert np.any(sim.model.springs.stiffness == 0.0)
+    with np.errstate(invalid="raise", divide="raise"):
+        bound = model_bound(sim.model, sim.scene.simulation)
+    assert np.isfinite(bound.step) and bound.step > 0
+    assert np.isfinite(bound.damping_time_min)

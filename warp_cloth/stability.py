@@ -150,7 +150,7 @@ def stable_step(positions: np.ndarray, inv_mass: np.ndarray, pairs: np.ndarray, 
     # A spring's damping time b L0 / k counts where its dashpot acts in its elastic regime.
     both = (((flags & FLAG_ELASTIC_TENSION) != 0) & ((flags & FLAG_DAMPING_TENSION) != 0)) | \
            (((flags & FLAG_ELASTIC_COMPRESSION) != 0) & ((flags & FLAG_DAMPING_COMPRESSION) != 0))
-    stiff = elastic & moving
+    stiff = elastic & moving & (axial > 0)  # a knit's sides may carry nothing (materials.py)
     rho = np.where(both, dashpot, 0.0)[stiff] / axial[stiff] if stiff.any() else np.array([math.inf])
     rho_min = float(rho.min())
     step, limited_by = bound(w2, c, rho_min, duration)
