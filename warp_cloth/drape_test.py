@@ -26,7 +26,7 @@ from . import drape_geometry as geometry
 from .errors import EXIT_BAD_INPUT, EXIT_UNSTABLE, SceneError, UnstableSimulation
 from .fabric_presets import PRESETS
 from .materials import Material
-from .scene import MeshSource, Scene
+from .scene import MAX_FRAMES, MeshSource, Scene
 
 SCENE = "drape_test"
 SETTLED_SPEED = 0.005  # m/s: the fastest particle, below which the specimen counts as at rest ...
@@ -238,6 +238,8 @@ def _parser() -> argparse.ArgumentParser:
                              "1 cm cells)")
     parser.add_argument("--json", required=True, metavar="OUT", help="the JSON file to write the result to")
     parser.add_argument("--picture", metavar="PNG", help="also a top view of the draped specimen")
+    parser.add_argument("--frames", type=int, metavar="N",
+                        help="at most N frames, settled or not (default: the scene's)")
     parser.add_argument("--quiet", action="store_true", help="no progress")
     return parser
 
@@ -253,6 +255,8 @@ def main(argv: list[str] | None = None) -> int:
         if not 4 <= args.resolution <= MAX_RESOLUTION:
             raise SceneError("--resolution", f"a whole number of cells in [4, {MAX_RESOLUTION}]", args.resolution,
                              "command line")
+        if args.frames is not None and not 1 <= args.frames <= MAX_FRAMES:
+            raise SceneError("--frames", f"a whole number in [1, {MAX_FRAMES}]", args.frames, "command line")
         json_path = Path(args.json)
         check_file_output(json_path, (".json",), "--json", "command line")
         picture = Path(args.picture) if args.picture else None
@@ -272,7 +276,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"drape-test {name}: frame {frame}/{frames}, fastest particle {fastest:.3g} m/s", flush=True)
 
     try:
-        result = run_drape_test(material, name, args.resolution, device, progress=progress)
+        result = run_drape_test(material, name, args.resolution, device, args.frames, progress)
     except UnstableSimulation as exc:
         print(f"warp-cloth drape-test: error: {name}: {exc}", file=sys.stderr)
         return EXIT_UNSTABLE
