@@ -19,11 +19,14 @@ from warp_cloth.materials import Material
 from warp_cloth.simulator import Simulator
 
 
-def measure(preset: str, resolution: int, device: str | None, frames: int) -> dict:
+def measure(preset: str, resolution: int, device: str | None, frames: int, bending_scale: float = 1.0) -> dict:
     import tempfile
 
+    material = Material(preset=preset)
+    if bending_scale != 1.0:
+        material = Material(preset=preset, bending=tuple(bending_scale * b for b in material.bending))
     with tempfile.TemporaryDirectory() as folder:
-        sim = Simulator(drape_scene(Material(preset=preset), resolution, Path(folder)), device=device)
+        sim = Simulator(drape_scene(material, resolution, Path(folder)), device=device)
         sim.prepare()
     mesh = geometry.specimen(resolution)
     triangles, area = mesh.triangles(), mesh.area
@@ -39,7 +42,7 @@ def measure(preset: str, resolution: int, device: str | None, frames: int) -> di
         if frame % int(fps) == 0:
             dc = geometry.drape_coefficient(geometry.projected_area(sim.positions(), triangles).area, area)
             history.append((frame, round(dc, 4), fastest))
-    return {"preset": preset, "resolution": resolution, "substeps_per_frame": sim.substeps_per_frame,
+    return {"preset": preset, "bending_scale": bending_scale, "resolution": resolution, "substeps_per_frame": sim.substeps_per_frame,
             "particles": sim.model.particle_count, "seconds": time.perf_counter() - started,
             "settled_at": settled_at, "dc_settled": None if settled_at is None else round(dc_settled, 4),
             "history": history}
@@ -51,17 +54,18 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=240)
     parser.add_argument("--resolutions", type=int, nargs="+", default=[30, 60])
     parser.add_argument("--presets", nargs="+", default=list(PRESETS))
+    parser.add_argument("--bending-scales", type=float, nargs="+", default=[1.0],
+                        help="the preset's bending stiffness times these (the coefficient's sensitivity to it)")
     parser.add_argument("--json")
     args = parser.parse_args()
     rows = []
-    for preset in args.presets:
-        for resolution in args.resolutions:
-            row = measure(preset, resolution, args.device, args.frames)
-            rows.append(row)
-            print(json.dumps(row), flush=True)
-            if args.json:
-                Path(args.json).write_text(json.dumps(rows, indent=1))
-
+    runs = [(p, r, s) for p in args.presets for r in args.resolutions for s in args.bending_scales]
+    for preset, resolution, scale in runs:
+        row = measure(preset, resolution, args.device, args.frames, scale)
+        rows.append(row)
+        print(json.dumps(row), flush=True)
+        if args.json:
+            Path(args.json).write_text(json.dumps(rows, indent=1))
 
 if __name__ == "__main__":
     main()

@@ -245,7 +245,6 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from .cli import _quiet_warp
     from .output import check_file_output
     from .simulator import resolve_device
 
@@ -262,7 +261,6 @@ def main(argv: list[str] | None = None) -> int:
         picture = Path(args.picture) if args.picture else None
         if picture is not None:
             check_file_output(picture, (".png",), "--picture", "command line")
-        _quiet_warp()
         try:
             device = resolve_device(args.device).alias
         except SceneError as exc:
