@@ -29,8 +29,9 @@ from .materials import Material
 from .scene import MAX_FRAMES, MeshSource, Scene
 
 SCENE = "drape_test"
-# m/s: the fastest particle, below which the specimen counts as at rest ... (measured at 30 cells: once the
-# fastest is below 3 cm/s, the coefficient moves less than 0.001 in the next second; docs/guide/scene-reference.md)
+# m/s: the fastest particle, below which the specimen counts as at rest ... (measured on every preset at 30 and
+# 60 cells: once the fastest is below 1.6 cm/s, the coefficient moves by at most 0.0005 in the next second;
+# docs/guide/scene-reference.md)
 SETTLED_SPEED = 0.01
 SETTLED_FRAMES = 12  # ... for this many frames in a row (half a second at 24 fps)
 MAX_RESOLUTION = 400
