@@ -12,7 +12,10 @@
   the hips to the shoulders, 0.4 x 0.24 m across) under an Xform keyed to walk 1.6 m along -Z in 2 s
   (speeding up over the first half second, slowing down over the last), then turn a quarter turn left in
   the next 2 s (likewise); behind its back a cape, a 0.56 x 0.9 m quad mesh of
-  20 x 30 cells with UVs, whose top row is the point subset "collar".
+  20 x 30 cells with UVs, whose top row is the point subset "collar";
+- drape_specimen.obj and drape_support.obj: the Cusick drape test's specimen (30 cells across) and support
+  disc, as warp_cloth/drape_geometry.py makes them (warp-cloth drape-test makes the specimen again at the
+  resolution it is asked for).
 """
 
 import argparse
@@ -167,6 +170,19 @@ def main() -> None:
     write_obj(f"{args.folder}/table.obj", "A round table of radius 0.6 m, 0.9 m high, in 48 sides", points, faces)
     write_turntable(f"{args.folder}/turntable.usda")
     write_cape(f"{args.folder}/cape.usda")
+    write_drape_test(args.folder)
+
+
+def write_drape_test(folder: str) -> None:
+    from warp_cloth import drape_geometry as geometry
+
+    specimen = geometry.specimen()
+    geometry.write_obj(f"{folder}/drape_specimen.obj", "The Cusick drape test specimen: a disc of 0.30 m in 30 cells "
+                       "across (warp_cloth/drape_geometry.py)", specimen.points,
+                       geometry.faces_of(specimen.face_counts, specimen.face_indices), specimen.uvs)
+    points, faces = geometry.support()
+    geometry.write_obj(f"{folder}/drape_support.obj", "The Cusick drape test support: a disc of 0.18 m, 1 cm thick, "
+                       "its top at y = 0 (warp_cloth/drape_geometry.py)", points, faces)
 
 
 if __name__ == "__main__":
