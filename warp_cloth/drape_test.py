@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from . import drape_geometry as geometry
-from .errors import EXIT_BAD_INPUT, EXIT_UNSTABLE, SceneError, UnstableSimulation
+from .errors import EXIT_BAD_INPUT, EXIT_OUTPUT_FAILED, EXIT_UNSTABLE, SceneError, UnstableSimulation
 from .fabric_presets import PRESETS
 from .materials import Material
 from .scene import MAX_FRAMES, MeshSource, Scene
@@ -281,8 +281,12 @@ def main(argv: list[str] | None = None) -> int:
     except UnstableSimulation as exc:
         print(f"warp-cloth drape-test: error: {name}: {exc}", file=sys.stderr)
         return EXIT_UNSTABLE
-    json_path.write_text(json.dumps(result.document(), indent=2) + "\n")
-    if picture is not None:
-        top_view(result, picture)
+    try:
+        json_path.write_text(json.dumps(result.document(), indent=2) + "\n")
+        if picture is not None:
+            top_view(result, picture)
+    except OSError as exc:
+        print(f"warp-cloth drape-test: error: {name}: could not write the result ({exc})", file=sys.stderr)
+        return EXIT_OUTPUT_FAILED
     print(result.summary())
     return 0
