@@ -21,6 +21,9 @@
   150 degrees of the 180 each covers, so that the sides stand open to a hem's gap of a 30-degree arc.
   Each panel's side edges are the point subsets "side_left" and "side_right" (the body's left, +X, and
   right: it faces +Z).
+- drape_specimen.obj and drape_support.obj: the Cusick drape test's specimen (30 cells across) and support
+  disc, as warp_cloth/drape_geometry.py makes them (warp-cloth drape-test makes the specimen again at the
+  resolution it is asked for).
 """
 
 import argparse
@@ -229,6 +232,19 @@ def main() -> None:
     write_turntable(f"{args.folder}/turntable.usda")
     write_cape(f"{args.folder}/cape.usda")
     write_garment(f"{args.folder}/garment.usda")
+    write_drape_test(args.folder)
+
+
+def write_drape_test(folder: str) -> None:
+    from warp_cloth import drape_geometry as geometry
+
+    specimen = geometry.specimen()
+    geometry.write_obj(f"{folder}/drape_specimen.obj", "The Cusick drape test specimen: a disc of 0.30 m in 30 cells "
+                       "across (warp_cloth/drape_geometry.py)", specimen.points,
+                       geometry.faces_of(specimen.face_counts, specimen.face_indices), specimen.uvs)
+    points, faces = geometry.support()
+    geometry.write_obj(f"{folder}/drape_support.obj", "The Cusick drape test support: a disc of 0.18 m, 1 cm thick, "
+                       "its top at y = 0 (warp_cloth/drape_geometry.py)", points, faces)
 
 
 if __name__ == "__main__":

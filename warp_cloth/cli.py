@@ -104,6 +104,8 @@ def _parser() -> argparse.ArgumentParser:
                                       "per integrator, step and resolution (see 'study --help')", add_help=False)
     commands.add_parser("sweep", help="run variants of a scene (--set KEY=V1,V2,...) as the worlds of batches, "
                                       "with a table of outcomes (see 'sweep --help')", add_help=False)
+    commands.add_parser("drape-test", help="the Cusick drape test of a material: its drape coefficient against the "
+                                           "published range (see 'drape-test --help')", add_help=False)
     commands.add_parser("preview", help="render a result's USD: a still of its last frame and an animation, with "
                                         "Blender (see 'preview --help')", add_help=False)
     return parser
@@ -598,6 +600,10 @@ def _main(argv: list[str] | None) -> int:
         from .sweep import main as sweep_main
 
         return sweep_main(rest)
+    if args.command == "drape-test":
+        from .drape_test import main as drape_test_main
+
+        return drape_test_main(rest)
     if args.command == "preview":
         from .preview import main as preview_main
 

@@ -22,6 +22,14 @@ WANG_2011 = ("Wang, O'Brien & Ramamoorthi 2011, Data-driven elastic models for c
 
 
 @dataclass(frozen=True)
+class PublishedDrape:
+    """Cusick drape coefficients measured on fabrics of a preset's class: the range (fractions) and where."""
+
+    range: tuple[float, float]
+    source: str
+
+
+@dataclass(frozen=True)
 class FabricData:
     """One preset's values in SI units (see ``materials.Material`` for their meaning) and where they come from."""
 
@@ -31,6 +39,7 @@ class FabricData:
     stretch: tuple[float, float]
     shear: float
     bending: tuple[float, float]
+    drape: PublishedDrape | None = None  # its class's measured drape coefficients (warp-cloth drape-test)
 
 
 def wang2011(fabric: str, file: str, density: float, stretching: tuple[float, float, float, float],
