@@ -105,11 +105,11 @@ def material_of(text: str) -> tuple[Material, str]:
                          "material's keys", text, "command line")
     import tomllib
 
-    from .scene_file import _convert
+    from .scene_file import table_as
 
     try:
         data = tomllib.loads(path.read_text())
-        return _convert(data, Material, ""), path.stem
+        return table_as(data, Material), path.stem
     except (tomllib.TOMLDecodeError, UnicodeDecodeError, OSError) as exc:
         raise SceneError("MATERIAL", f"a readable TOML file ({exc})", text, "command line") from None
     except SceneError as exc:

@@ -122,6 +122,12 @@ def scene_from_dict(data: dict[str, Any]) -> Scene:
     return scene
 
 
+def table_as(data: dict[str, Any], cls: type) -> Any:
+    """A table of plain data as the dataclass ``cls`` (a ``Material``, say), checked as a scene's table of
+    it is; errors name its keys from the top."""
+    return _convert(data, cls, "")
+
+
 def _join(path: str, key: str) -> str:
     return f"{path}.{key}" if path else key
 
