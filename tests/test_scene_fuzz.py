@@ -11,7 +11,9 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import functools
 import math
+import operator
 import os
 import re
 import tempfile
@@ -153,7 +155,7 @@ def slots(value: Any, hint: Any, owner: str, field: str, path: tuple) -> list[tu
     """Every place a value can change: (path, hint, owning class, field name), tables and arrays too."""
     hint = _plain(hint)
     found = [(path, hint, owner, field)] if path else []
-    if dataclasses.is_dataclass(hint):
+    if dataclasses.is_dataclass(hint) and isinstance(value, dict):
         for key, (name, sub) in _field_hints(hint).items():
             if key in value:
                 found += slots(value[key], sub, hint.__name__, name, path + (key,))
@@ -211,7 +213,9 @@ def malformed_scenes(draw) -> Case:
         key = "" if isinstance(value, Deep) and value.depth > 500 else key_path(path)
         return Case(to_toml(doc).encode(), key)
     if kind == "unknown key":
-        tables = [p for p, hint, _, _ in slots(doc, wc.Scene, "Scene", "", ()) if dataclasses.is_dataclass(hint)]
+        # a table given by its shorthand (``material = "denim"``, ``mesh = "a.obj"``) is a string, not a table
+        tables = [p for p, hint, _, _ in slots(doc, wc.Scene, "Scene", "", ())
+                  if dataclasses.is_dataclass(hint) and isinstance(functools.reduce(operator.getitem, p, doc), dict)]
         path = draw(st.sampled_from([()] + tables))
         table = doc
         for part in path:
