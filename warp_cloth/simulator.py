@@ -31,6 +31,7 @@ from .implicit import SolveStats
 from .integrators import Integrator, integrator_for
 from .pin_reach import check_pins_within_reach
 from .displacement_bounds import DisplacementBounds
+from .face_contacts import FaceContacts
 from .limit_solve import LimitSolveSettings
 from .cloth_lines import cloth_lines
 from .line_solve import LineSolves
@@ -269,8 +270,10 @@ class Simulator:
             if self.limit_solve.line_solve and self.model.limits is not None else None
         # the lab's displacement bounds (displacement_bounds.py, off by default): made once, for every plan built
         self._bounds = DisplacementBounds.of(self.model, self.device_model)
+        # the lab's face contacts (face_contacts.py, off by default): made once, for every plan built
+        self._faces = FaceContacts.of(self.model, self.device_model)
         self.plan: Plan = build_plan(self.device_model, self.state, self.integrator, self.limit_solve,
-                                     threads_per_particle, self._lines, self._bounds)
+                                     threads_per_particle, self._lines, self._bounds, self._faces)
         # with substeps auto: their choice from frame to frame, and a copy of each frame's start to make it again
         self.auto = SubstepChoice(self.substeps_per_frame, most_substeps(self.scene)) if auto else None
         self._frame_start = FrameStart(self._carried()) if auto else None
@@ -490,7 +493,7 @@ class Simulator:
         self.limit_solve = LimitSolveSettings.of(at_substeps(self.scene, substeps).simulation)
         self.device_model.set_step(1.0 / (self.scene.simulation.fps * substeps))
         self.plan = build_plan(self.device_model, self.state, self.integrator, self.limit_solve, self._threads,
-                               self._lines, self._bounds)
+                               self._lines, self._bounds, self._faces)
         for name, array in self.plan.carried().items():
             wp.copy(array, carried[name])
         self._guard_flags()
