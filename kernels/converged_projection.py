@@ -8,7 +8,6 @@ import warp as wp
 
 from .attachments import Attachments, attachment_violation
 from .colliders import RigidColliders, collide_particle
-from .face_collision import FaceContacts, deepest_face_overlap
 from .gathering import FAST_MATH
 from .limits import StrainLimits, limit_violation
 from .particle_collision import Contacts, deepest_overlap
@@ -50,8 +49,6 @@ class ResidualArgs:
     contacts: Contacts
     check_contacts: int  # 0: no particle collision
     contact_tolerance: float  # of a contact distance
-    faces: FaceContacts  # the lab's face contacts (face_collision.py), read where check_faces
-    check_faces: int  # 0: none (the faces' arrays are empty); their tolerance is the contacts', of the thickness
     inv_mass: wp.array(dtype=float)
     colliders: RigidColliders  # the spheres that attachments run around
 
@@ -87,7 +84,5 @@ def projection_residual(x: wp.array(dtype=wp.vec3), args: ResidualArgs, residual
         worst = limits_and_attachments_violation(args, i, x) / args.limit_tolerance
     if args.check_contacts != 0:
         worst = wp.max(worst, deepest_overlap(args.contacts, i, x) / args.contact_tolerance)
-    if args.check_faces != 0:
-        worst = wp.max(worst, deepest_face_overlap(args.faces, i, x) / args.contact_tolerance)
     if worst > 1.0:
         wp.atomic_max(residual, 0, worst)

@@ -140,10 +140,10 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
         if faces is not None:
             edge_passes.append(faces.separation_pass(model, chosen, rigid))
         if converged and model.limits is not None and solve.line_solve:
-            projection = line_contact_projection(model, state, solve, chosen, rigid, edge_passes, lines, faces)
+            projection = line_contact_projection(model, state, solve, chosen, rigid, edge_passes, lines)
             passes.append(projection)
         elif converged:
-            projection = converged_projection(model, state, solve, chosen, rigid, edge_passes, faces)
+            projection = converged_projection(model, state, solve, chosen, rigid, edge_passes)
             passes.append(projection)
         else:
             passes.extend(edge_passes + projection_passes(model, state, solve, chosen, rigid))
@@ -174,20 +174,17 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
 
 
 def converged_projection(model: DeviceModel, state: DeviceState, solve: LimitSolveSettings, threads: int,
-                         rigid: RigidColliders | None, edge_passes: list[Pass],
-                         faces: FaceContacts | None = None) -> ConvergedProjection:
+                         rigid: RigidColliders | None, edge_passes: list[Pass]) -> ConvergedProjection:
     """The converged solve of particle collision (with the strain limits where the scene has them: projected
-    jointly for ``solve.joint_passes`` passes, then sequentially; see limit_solve.JOINT_PASSES), checking the
-    lab's face contacts' pairs too where ``faces``."""
-    checked = faces.args if faces is not None else None
+    jointly for ``solve.joint_passes`` passes, then sequentially; see limit_solve.JOINT_PASSES)."""
     joint_first = model.limits is None or solve.joint_passes > 0
     first = projection_pair(model, state, threads, rigid, edge_passes, "joint" if joint_first else "sequential")
     counted = lambda body: sum(p not in edge_passes for p in body)  # noqa: E731
     if model.limits is None or not joint_first:
-        return ConvergedProjection(model, state, solve, first, rigid, counted=counted(first), faces=checked)
+        return ConvergedProjection(model, state, solve, first, rigid, counted=counted(first))
     later = projection_pair(model, state, threads, rigid, edge_passes, "sequential")
     return ConvergedProjection(model, state, solve, first, rigid, counted=counted(first), later_body=later,
-                               later_counted=counted(later), switch_at=solve.joint_passes, faces=checked)
+                               later_counted=counted(later), switch_at=solve.joint_passes)
 
 
 def line_round(model: DeviceModel, lines: LineSolves, rigid: RigidColliders | None) -> list[Pass]:
@@ -198,7 +195,7 @@ def line_round(model: DeviceModel, lines: LineSolves, rigid: RigidColliders | No
 
 def line_contact_projection(model: DeviceModel, state: DeviceState, solve: LimitSolveSettings, threads: int,
                             rigid: RigidColliders | None, edge_passes: list[Pass],
-                            lines: LineSolves, faces: FaceContacts | None = None) -> ConvergedProjection:
+                            lines: LineSolves) -> ConvergedProjection:
     """The converged solve of particle collision with the strain limits by rounds of line solves (the lab's,
     ``solve.line_solve``): a round, counted as one pass toward the cap, is a line round and then the two
     separating passes of the contacts' own converged solve (``edge_passes`` before each), reading the resting
@@ -207,8 +204,7 @@ def line_contact_projection(model: DeviceModel, state: DeviceState, solve: Limit
     against 1.0-1.1 and took 14% longer at 64^2 on the CPU.)"""
     body = line_round(model, lines, rigid) + [
         p for bit in (1, 2) for p in edge_passes + [separation_pass(model, state, threads, rigid, bit)]]
-    return ConvergedProjection(model, state, solve, body, rigid, counted=1,
-                               faces=faces.args if faces is not None else None)
+    return ConvergedProjection(model, state, solve, body, rigid, counted=1)
 
 
 def projection_pair(model: DeviceModel, state: DeviceState, threads: int, rigid: RigidColliders | None,
