@@ -1,5 +1,6 @@
-"""Neighbour lists of particles and of contact edges, gathered from spatial hashes (spatial_hash.py): the
-candidates particle_collision.py and edge_collision.py allow. warp_cloth/neighbour_lists.py runs them.
+"""Neighbour lists of particles, of contact edges and of vertex-triangle pairs, gathered from spatial hashes
+(spatial_hash.py): the candidates particle_collision.py, edge_collision.py and face_collision.py allow.
+warp_cloth/neighbour_lists.py and warp_cloth/face_contacts.py run them.
 """
 
 import functools
@@ -7,6 +8,8 @@ import functools
 import warp as wp
 
 from .edge_collision import EdgeContacts, EdgeRules, may_touch, pair_gap
+from .face_collision import FaceContacts, side_bit, vertex_face_gap
+from .face_collision import may_touch as may_touch_face
 from .gathering import BLOCK, FAST_MATH, sum_over_threads, thread_layout
 from .particle_collision import (Contacts, ListState, PairRules, add_candidate, is_candidate,
                                  sort_and_drop_repeats)
@@ -145,3 +148,80 @@ def gather_edge_candidates(x: wp.array(dtype=wp.vec3), midpoint: wp.array(dtype=
                     else:
                         wp.atomic_add(lists.overflow, 0, 1)
     edges.counts[e] = sort_and_drop_repeats(edges.neighbors, start, count)
+
+
+@wp.func
+def add_face_pair(listed: wp.array(dtype=int), start: int, count: int, most: int, entry: int,
+                  overflow: wp.array(dtype=int)) -> int:
+    if count < most:
+        listed[start + count] = entry
+        return count + 1
+    wp.atomic_add(overflow, 0, 1)
+    return count
+
+
+@wp.kernel
+def gather_vertex_faces(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules: EdgeRules, lists: ListState,
+                        reach: float, owned_offsets: wp.array(dtype=int), owned: wp.array(dtype=int),
+                        inv_cell: wp.array(dtype=float), mask: int, capacity: int, bucket_size: wp.array(dtype=int),
+                        bucket_items: wp.array(dtype=int)):
+    """Each vertex's candidate triangles, where ``rebuild`` is set: those it may touch within ``reach``, as
+    2 t + the side it lies on, in index order. The hash holds the particles (cells ``inv_cell[0]``, wider
+    than the reach plus any triangle's side), each triangle found from its first vertex (``owned``)."""
+    if lists.rebuild[0] == 0:
+        return
+    v = wp.tid()
+    p = x[v]
+    center = cell_of(p, inv_cell[0])
+    world = rules.world[v]
+    stamp = stamp_of(lists.epoch[0])
+    start = v * faces.max_neighbors
+    count = int(0)
+    for k in range(27):
+        bucket = neighbour_bucket(center, world, k, mask)
+        if first_visit(center, world, k, bucket, mask):
+            for s in range(wp.min(count_in(bucket_size[bucket], stamp), capacity)):
+                q = bucket_items[bucket * capacity + s]
+                for o in range(owned_offsets[q], owned_offsets[q + 1]):
+                    t_index = owned[o]
+                    t = faces.triangles[t_index]
+                    if may_touch_face(rules, v, t):
+                        a = x[t[0]]
+                        b = x[t[1]]
+                        c = x[t[2]]
+                        if vertex_face_gap(p, a, b, c) < reach:
+                            count = add_face_pair(faces.vertex_faces, start, count, faces.max_neighbors,
+                                                  2 * t_index + side_bit(p, a, b, c), lists.overflow)
+    faces.vertex_counts[v] = sort_and_drop_repeats(faces.vertex_faces, start, count)
+
+
+@wp.kernel
+def gather_face_vertices(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules: EdgeRules, lists: ListState,
+                         reach: float, inv_cell: wp.array(dtype=float), mask: int, capacity: int,
+                         bucket_size: wp.array(dtype=int), bucket_items: wp.array(dtype=int)):
+    """Each triangle's candidate vertices, where ``rebuild`` is set: the pairs ``gather_vertex_faces`` lists,
+    seen from the triangle (the same test on the same positions), as 2 v + the side v lies on, in index
+    order; found in the 27 cells around the triangle's first vertex."""
+    if lists.rebuild[0] == 0:
+        return
+    t_index = wp.tid()
+    t = faces.triangles[t_index]
+    a = x[t[0]]
+    b = x[t[1]]
+    c = x[t[2]]
+    center = cell_of(a, inv_cell[0])
+    world = rules.world[t[0]]
+    stamp = stamp_of(lists.epoch[0])
+    start = t_index * faces.max_neighbors
+    count = int(0)
+    for k in range(27):
+        bucket = neighbour_bucket(center, world, k, mask)
+        if first_visit(center, world, k, bucket, mask):
+            for s in range(wp.min(count_in(bucket_size[bucket], stamp), capacity)):
+                v = bucket_items[bucket * capacity + s]
+                if may_touch_face(rules, v, t):
+                    p = x[v]
+                    if vertex_face_gap(p, a, b, c) < reach:
+                        count = add_face_pair(faces.face_vertices, start, count, faces.max_neighbors,
+                                              2 * v + side_bit(p, a, b, c), lists.overflow)
+    faces.face_counts[t_index] = sort_and_drop_repeats(faces.face_vertices, start, count)

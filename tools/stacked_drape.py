@@ -29,6 +29,11 @@ A run the start check refuses, or that blows up, is reported as such: that is a 
 ``radius=0.02,rounds=3``); a bounded run adds the particles held short a substep (first and last round),
 the distance given up, and the bounds' hash overflow.
 
+``--faces`` runs each of those once per spec: ``off``, or the lab's face contacts
+(warp_cloth/face_contacts.py) as ``on`` (the edge contacts' thickness rule) or ``thickness=T`` in metres.
+Every run reports its closest surfaces also as a fraction of that thickness (the face contacts' own, or
+the rule's where they are off), and the lists' overflow.
+
     python tools/stacked_drape.py --sheets 3 --n 32 --frames 60 --radius 0.004 default --device cpu \\
         --json docs/results/stacked-drape-cpu.json
 
@@ -47,7 +52,10 @@ import warp as wp
 
 import warp_cloth as wc
 from warp_cloth.diagnostics import TriangleIntersections
+from warp_cloth.device_model import EDGE_THICKNESS
 from warp_cloth.displacement_bounds import BoundSettings, DisplacementBounds, lab_hooks
+from warp_cloth.face_contacts import FaceSettings
+from warp_cloth.face_contacts import lab_hooks as face_hooks
 from warp_cloth.lab.bench import environment
 
 DRAPE_MATERIAL = {"density": 0.2, "structural": wc.SpringKind(50.0, 0.05), "shear": wc.SpringKind(50.0, 0.05),
@@ -78,10 +86,11 @@ def contact_distance(sim: wc.Simulator) -> float:
     return sim.scene.collision.separation * float(np.min(sim.model.contacts.radius))
 
 
-def measure(scene: wc.Scene, gap: float, device: str, bounds: BoundSettings | None = None) -> dict:
+def measure(scene: wc.Scene, gap: float, device: str, bounds: BoundSettings | None = None,
+            faces: FaceSettings | None = None) -> dict:
     """One run of ``scene``, measured in every frame (see the module's docstring)."""
     try:
-        with lab_hooks(bounds):
+        with lab_hooks(bounds), face_hooks(faces):
             sim = wc.Simulator(scene, device=device)
     except wc.SceneError as refused:
         return {"outcome": "refused at start", "message": str(refused)}
@@ -92,6 +101,7 @@ def measure(scene: wc.Scene, gap: float, device: str, bounds: BoundSettings | No
     strain, crossings = wc.StrainMonitor(), TriangleIntersections(sim)
     strain.begin(sim)
     distance = contact_distance(sim)
+    thickness = sim.plan.faces.thickness if sim.plan.faces is not None else EDGE_THICKNESS * distance
     per_frame = {"crossings": [], "closest_contact": [], "substeps": [], "limit_passes": [], "limit_residual": [],
                  "closest_surfaces": [], "held_short_first": [], "held_short_last": [], "held_back_m": []}
     stepping, outcome = 0.0, "completed"
@@ -143,6 +153,8 @@ def measure(scene: wc.Scene, gap: float, device: str, bounds: BoundSettings | No
             "limit_passes_cap": sim.limit_solve.max_passes,
             "frames_ending_outside_tolerance": sum(r > 1.0 for r in per_frame["limit_residual"]),
             "closest_surfaces_m": min(per_frame["closest_surfaces"]),
+            "thickness": thickness, "closest_surfaces_of_thickness": min(per_frame["closest_surfaces"]) / thickness,
+            "faces": None if faces is None else vars(faces), "lists_overflow": sim.plan.lists.overflow,
             "bounds": None if bounds is None else vars(bounds),
             "held_short_mean": float(np.mean(per_frame["held_short_first"])) if per_frame["held_short_first"] else None,
             "held_short_last_mean": float(np.mean(per_frame["held_short_last"]))
@@ -156,7 +168,7 @@ def measure(scene: wc.Scene, gap: float, device: str, bounds: BoundSettings | No
 
 HEADER = (f"{'run':<44} {'frames':>6} {'step s':>8} {'substeps':>8} {'stretch':>8} {'compress':>8} "
           f"{'most crossings':>15} {'first':>5} {'closest':>7} {'m':>8} {'of gap':>6} {'passes mean/most/cap':>20} "
-          f"{'capped':>6} {'surfaces m':>10} {'held short':>10}")
+          f"{'capped':>6} {'surfaces m':>10} {'of thick':>8} {'held short':>10}")
 
 
 def table_lines(row: dict) -> list[str]:
@@ -172,6 +184,7 @@ def table_lines(row: dict) -> list[str]:
              f"{row['closest_contact']:>7.3f} {row['closest_contact_m']:>8.5f} {row['closest_contact_of_gap']:>6.3f} "
              f"{row['limit_passes_mean']:>7.1f}/{row['limit_passes_most']:>4}/{row['limit_passes_cap']:>5} "
              f"{row['frames_ending_outside_tolerance']:>6} {row['closest_surfaces_m']:>10.5f} "
+             f"{row['closest_surfaces_of_thickness']:>8.3f} "
              f"{'-' if row['held_short_mean'] is None else format(row['held_short_mean'], '.1f'):>10}"]
     if row["outcome"] != "completed":
         lines.append(f"{'':<44} {row['outcome']}")
@@ -197,6 +210,8 @@ def main() -> None:
     parser.add_argument("--substeps", type=int, default=None, help="fixed substeps a frame (default: the simulator's)")
     parser.add_argument("--bounds", nargs="+", default=["off"],
                         help="the lab's displacement bounds: off, on, or radius=R,gamma=G,rounds=K; one run each")
+    parser.add_argument("--faces", nargs="+", default=["off"],
+                        help="the lab's face contacts: off, on, or thickness=T (metres); one run each")
     parser.add_argument("--device", default=None)
     parser.add_argument("--json", default=None, help="where to write the runs and the environment")
     args = parser.parse_args()
@@ -207,15 +222,16 @@ def main() -> None:
     settings["cell"] = args.size / (args.n - 1)
     rows = []
     print(HEADER, "-" * len(HEADER), sep="\n")
-    for text, spec in ((t, b) for t in args.radius for b in args.bounds):
+    for text, spec, face_spec in ((t, b, f) for t in args.radius for f in args.faces for b in args.bounds):
         radius = None if text == "default" else float(text)
         scene = stacked_drape_scene(args.sheets, args.n, args.gap, args.limit, args.frames, args.fps, args.size,
                                     args.sphere_radius, args.drop, radius, not args.no_self, True, args.edges,
                                     args.friction, args.substeps)
         name = (f"{args.sheets}x{args.n}^2 r={'default' if radius is None else f'{1e3 * radius:g}mm'}"
                 f"{' edges' if args.edges else ''}{' no-self' if args.no_self else ''}"
-                f"{'' if spec == 'off' else ' bounds ' + spec}")
-        rows.append({"run": name, "radius": radius, **measure(scene, args.gap, device, BoundSettings.parse(spec))})
+                f"{'' if face_spec == 'off' else ' faces ' + face_spec}{'' if spec == 'off' else ' bounds ' + spec}")
+        rows.append({"run": name, "radius": radius, **measure(scene, args.gap, device, BoundSettings.parse(spec),
+                                                              FaceSettings.parse(face_spec))})
         print(*table_lines(rows[-1]), sep="\n", flush=True)
         if args.json:  # after every run: a later one may take long or fail
             with open(args.json, "w") as out:

@@ -1,8 +1,10 @@
-"""Particle collision's candidate lists, and edge contacts' where the scene has them: remade inside a substep
-where a particle has moved far enough since they were made, or on demand outside one; and the closest
-contact they show."""
+"""Particle collision's candidate lists, and edge contacts' where the scene has them (and the lab's face
+contacts' where its hook asks for them): remade inside a substep where a particle has moved far enough since
+they were made, or on demand outside one; and the closest contact they show."""
 
 from __future__ import annotations
+
+from typing import Protocol
 
 import numpy as np
 import warp as wp
@@ -27,6 +29,21 @@ LIST_THREADS_BY_SIZE = ((8192, 16), (131072, 4))
 REMAKE_EVERY_SUBSTEP = False
 
 
+def rebuild_distance(model: DeviceModel) -> float:
+    """How far a particle moves before the lists are remade: a pair left out of a list was farther apart
+    than ``SEARCH_SCALE`` contact distances when it was made, so it cannot touch before then."""
+    contacts = model.contacts
+    return 0.5 * (contacts.rules.search_scale - 1.0) * contacts.settings.separation * contacts.min_radius
+
+
+class OtherLists(Protocol):
+    """Candidate lists remade with the particle lists (the lab's face contacts, face_contacts.py)."""
+
+    kernels: list[wp.Kernel]
+
+    def remake_if_asked(self, x: wp.array, lists: ListState) -> None: ...
+
+
 class NeighbourLists:
     """The pass that remakes every particle's candidate list where ``rebuild`` is set (by the contacts'
     start, or at every substep with ``REMAKE_EVERY_SUBSTEP``), from the spatial hash or, up to
@@ -36,7 +53,7 @@ class NeighbourLists:
     A pair left out of a list was farther apart than ``SEARCH_SCALE`` contact distances when it was made,
     so it cannot touch before some particle has moved ``rebuild_distance``."""
 
-    def __init__(self, model: DeviceModel, state: DeviceState, threads: int) -> None:
+    def __init__(self, model: DeviceModel, state: DeviceState, threads: int, faces: OtherLists | None = None) -> None:
         settings = model.contacts.settings
         n = model.particle_count
         self.every_substep = REMAKE_EVERY_SUBSTEP
@@ -47,7 +64,7 @@ class NeighbourLists:
         self.rebuild = state.contacts.rebuild
         self.state = state.contacts
         self.n = n
-        self.rebuild_distance = 0.5 * (self.rules.search_scale - 1.0) * settings.separation * model.contacts.min_radius
+        self.rebuild_distance = rebuild_distance(model)
         self.use_hash = uses_hash(n)
         self.threads = threads if self.use_hash else 1
         self.grid = HashGrid()
@@ -64,6 +81,9 @@ class NeighbourLists:
         self.edges = EdgeLists(model, state, self.rebuild_distance) if state.edges is not None else None
         if self.edges is not None:
             self.name += "+edges"
+        self.faces = faces
+        if faces is not None:
+            self.name += "+faces"
 
     def run(self, state: DeviceState) -> None:
         if self.every_substep:
@@ -75,7 +95,8 @@ class NeighbourLists:
         """What a substep launches, in order (each returns at once where no list is to be remade)."""
         particles = [spatial_hash.insert_points, gather_neighbors_kernel(self.threads)] if self.use_hash \
             else [particle_collision.gather_neighbors_brute_force]
-        return particles + (self.edges.kernels if self.edges is not None else [])
+        return particles + (self.edges.kernels if self.edges is not None else []) + \
+            (self.faces.kernels if self.faces is not None else [])
 
     def describe(self) -> list[str]:
         """For the printed plan: the pass and its launches."""
@@ -94,6 +115,8 @@ class NeighbourLists:
                       inputs=[x, self.contacts, self.rules, self.lists], device=x.device)
         if self.edges is not None:
             self.edges.remake_if_asked(x, self.lists)
+        if self.faces is not None:
+            self.faces.remake_if_asked(x, self.lists)
 
     def remake_now(self, x: wp.array) -> None:
         """Remake every particle's list from positions ``x`` now, outside a substep."""

@@ -14,6 +14,7 @@ from warp_cloth.kernels.colliders import RigidColliders
 
 from .device_model import DeviceModel
 from .displacement_bounds import DisplacementBounds
+from .face_contacts import FaceContacts
 from .implicit import SolveStats
 from .integrators import Integrator
 from .limit_solve import ConvergedProjection, LimitSolveSettings
@@ -56,12 +57,14 @@ class Plan:
     projection: ConvergedProjection | None  # the converged limit solve, for its figures
     start: StartProjection | None  # what the simulator projects a fresh run's start with, where cloths are limited
     bounds: DisplacementBounds | None = None  # the lab's displacement bounds, for their figures
+    faces: FaceContacts | None = None  # the lab's face contacts, whose lists a substep carries
 
     def carried(self) -> dict[str, wp.array]:
         """The plan's arrays that a substep reads before writing them (the converged solve's estimated
-        spectral radius, which it carries from solve to solve), by name."""
+        spectral radius, which it carries from solve to solve; the lab's face contacts' lists), by name."""
         projection = self.projection
-        return {"projection.omega": projection.omega} if projection is not None and projection.accelerated else {}
+        arrays = {"projection.omega": projection.omega} if projection is not None and projection.accelerated else {}
+        return arrays | (self.faces.carried() if self.faces is not None else {})
 
     def run_substep(self, state: DeviceState) -> None:
         for step in self.passes:
@@ -88,7 +91,8 @@ class Plan:
 
 def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, solve: LimitSolveSettings,
                threads: int | None = None, lines: LineSolves | None = None,
-               bounds: DisplacementBounds | None = None, control: dict[str, list[Pass]] | None = None) -> Plan:
+               bounds: DisplacementBounds | None = None, control: dict[str, list[Pass]] | None = None,
+               faces: FaceContacts | None = None) -> Plan:
     """The substep, in order: moving spheres and animated mesh colliders to the substep's end (nothing before
     the colliders reads them); the seams' allowed lengths; the wind's forces; the integrator's pass; driven pins (oscillating, on
     colliders, on keys); then, with particle collision, the contacts' start (in the integrator's pass where it
@@ -103,7 +107,9 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
     (before the contact velocities); ``control``: the passes that put what a script sent from Python
     (control.py's ``Control.passes``) after the colliders' motion (``"colliders"``), with the soft pins' motion
     before the step (``"soft pins"``: where their springs pull, which the step reads) and after the hard
-    pins' motion (``"pins"``)."""
+    pins' motion (``"pins"``); ``faces``: the lab's face contacts (face_contacts.py, made
+    once per simulator, used only with particle collision), their lists remade with the particle lists and
+    their pass beside the edge contacts' pass."""
     chosen = threads_per_particle(model.particle_count, model.device) if threads is None else threads
     rigid = model.colliders(state) if model.has_colliders else None
     control = control or {}
@@ -123,7 +129,7 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
     if model.contacts is not None:
         list_threads = threads_per_particle(model.particle_count, model.device, LIST_THREADS_BY_SIZE) \
             if threads is None else threads
-        lists = NeighbourLists(model, state, list_threads)
+        lists = NeighbourLists(model, state, list_threads, faces)
         start = contact_start_args(model, state, rigid or model.no_colliders(), lists.rebuild_distance)
     if model.wind is not None:
         passes.append(WindForces(model))
@@ -141,6 +147,8 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
             passes.append(ContactStart(start))
         passes.append(lists)
         edge_passes = [edge_separation_pass(model, state, chosen, rigid)] if state.edges is not None else []
+        if faces is not None:
+            edge_passes.append(faces.separation_pass(model, chosen, rigid))
         if converged and model.limits is not None and solve.line_solve:
             projection = line_contact_projection(model, state, solve, chosen, rigid, edge_passes, lines)
             passes.append(projection)
@@ -172,7 +180,7 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
         passes.append(AdvanceClock())
     start_projection = StartProjection(model, state, solve, chosen, rigid) if model.limits is not None else None
     return Plan(tuple(passes), model.h, chosen, step if isinstance(step, SolvingPass) else None, lists, projection,
-                start_projection, bounds)
+                start_projection, bounds, faces)
 
 
 def converged_projection(model: DeviceModel, state: DeviceState, solve: LimitSolveSettings, threads: int,

@@ -31,6 +31,7 @@ from .implicit import SolveStats
 from .integrators import Integrator, integrator_for
 from .pin_reach import check_pins_within_reach
 from .displacement_bounds import DisplacementBounds
+from .face_contacts import FaceContacts
 from .limit_solve import LimitSolveSettings
 from .cloth_lines import cloth_lines
 from .line_solve import LineSolves
@@ -271,8 +272,10 @@ class Simulator:
         # the lab's displacement bounds (displacement_bounds.py, off by default): made once, for every plan built
         self._bounds = DisplacementBounds.of(self.model, self.device_model)
         self._control: Control | None = None  # made when first asked for (``control``)
+        # the lab's face contacts (face_contacts.py, off by default): made once, for every plan built
+        self._faces = FaceContacts.of(self.model, self.device_model)
         self.plan: Plan = build_plan(self.device_model, self.state, self.integrator, self.limit_solve,
-                                     threads_per_particle, self._lines, self._bounds)
+                                     threads_per_particle, self._lines, self._bounds, faces=self._faces)
         # with substeps auto: their choice from frame to frame, and a copy of each frame's start to make it again
         self.auto = SubstepChoice(self.substeps_per_frame, most_substeps(self.scene)) if auto else None
         self._frame_start = FrameStart(self._carried()) if auto else None
@@ -500,7 +503,7 @@ class Simulator:
         control = self._control.passes(self.device_model) if self._control is not None and self._control.started \
             else None
         self.plan = build_plan(self.device_model, self.state, self.integrator, self.limit_solve, self._threads,
-                               self._lines, self._bounds, control)
+                               self._lines, self._bounds, control, faces=self._faces)
         for name, array in self.plan.carried().items():
             wp.copy(array, carried[name])
 

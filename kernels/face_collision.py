@@ -1,0 +1,190 @@
+"""Face contacts (the lab's, issue 34): every vertex kept ``thickness`` from the triangles it is not a vertex of.
+
+Particle contacts keep points apart, and edge contacts edges; neither holds a vertex off the middle of a
+triangle larger than the contact distance, where layers pass through each other. Each vertex's candidate
+triangles, and each triangle's candidate vertices (the same pairs, listed from both sides so that a
+particle can gather its pairs as a vertex and as a triangle's vertex without atomics), are remade with the
+particle lists (neighbour_search.py), as long as those stay valid. A pair is listed with the side of the
+triangle its vertex was on then, so that a pair that has crossed since is pushed back, not through.
+
+A pass then moves each pair closer than the thickness apart along the closest points' direction (the
+triangle's normal, towards the listed side, where the vertex projects inside the triangle), the vertex and
+the triangle's three vertices by their shares (barycentric weights over the pair's inverse mass, as Offset
+Geometric Contact's and the edge contacts' pairs), every particle by the mean of its pairs' moves (Jacobi).
+Each pair is worked out from the same arguments whichever of its four particles asks, so that the moves
+agree to the bit and a pair's moves conserve momentum.
+"""
+
+import warp as wp
+
+from .edge_collision import EdgeRules
+
+wp.set_module_options({"fast_math": True})  # as the gathering kernels (see gathering.py)
+
+
+@wp.struct
+class FaceContacts:
+    triangles: wp.array(dtype=wp.vec3i)
+    incident_offsets: wp.array(dtype=int)  # (n + 1,) the triangles each particle is a vertex of (CSR)
+    incident: wp.array(dtype=int)
+    vertex_faces: wp.array(dtype=int)  # (n * max_neighbors,) each vertex's triangles as 2 t + side, in order
+    vertex_counts: wp.array(dtype=int)  # (n,)
+    face_vertices: wp.array(dtype=int)  # (t * max_neighbors,) each triangle's vertices as 2 v + side, in order
+    face_counts: wp.array(dtype=int)  # (t,)
+    max_neighbors: int
+    thickness: float  # how far a vertex is held from a triangle
+
+
+@wp.func
+def may_touch(rules: EdgeRules, v: int, t: wp.vec3i) -> bool:
+    """Whether vertex v and triangle t may touch: as edge_collision's pairs, v not one of t's vertices nor
+    sewn to one."""
+    if v == t[0] or v == t[1] or v == t[2]:
+        return False
+    if rules.sewn_offsets.shape[0] > 0:
+        for k in range(rules.sewn_offsets[v], rules.sewn_offsets[v + 1]):
+            other = rules.sewn_other[k]
+            if other == t[0] or other == t[1] or other == t[2]:
+                return False
+    if rules.world[v] != rules.world[t[0]]:
+        return False
+    if rules.cloth_id[v] != rules.cloth_id[t[0]]:
+        return rules.between_cloths != 0
+    return rules.self_collision != 0
+
+
+@wp.func
+def closest_weights(p: wp.vec3, a: wp.vec3, b: wp.vec3, c: wp.vec3) -> wp.vec3:
+    """The barycentric weights of the point of triangle a, b, c closest to p (Ericson, Real-Time Collision
+    Detection, 5.1.5); all three above zero where p projects inside the triangle."""
+    ab = b - a
+    ac = c - a
+    ap = p - a
+    d1 = wp.dot(ab, ap)
+    d2 = wp.dot(ac, ap)
+    if d1 <= 0.0 and d2 <= 0.0:
+        return wp.vec3(1.0, 0.0, 0.0)
+    bp = p - b
+    d3 = wp.dot(ab, bp)
+    d4 = wp.dot(ac, bp)
+    if d3 >= 0.0 and d4 <= d3:
+        return wp.vec3(0.0, 1.0, 0.0)
+    vc = d1 * d4 - d3 * d2
+    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+        s = d1 / (d1 - d3)
+        return wp.vec3(1.0 - s, s, 0.0)
+    cp = p - c
+    d5 = wp.dot(ab, cp)
+    d6 = wp.dot(ac, cp)
+    if d6 >= 0.0 and d5 <= d6:
+        return wp.vec3(0.0, 0.0, 1.0)
+    vb = d5 * d2 - d1 * d6
+    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+        s = d2 / (d2 - d6)
+        return wp.vec3(1.0 - s, 0.0, s)
+    va = d3 * d6 - d5 * d4
+    if va <= 0.0 and d4 - d3 >= 0.0 and d5 - d6 >= 0.0:
+        s = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        return wp.vec3(0.0, 1.0 - s, s)
+    total = va + vb + vc
+    if total <= 0.0:  # a triangle of no area that no edge region claimed
+        return wp.vec3(1.0, 0.0, 0.0)
+    s = vb / total
+    u = vc / total
+    return wp.vec3(1.0 - s - u, s, u)
+
+
+@wp.func
+def vertex_face_gap(p: wp.vec3, a: wp.vec3, b: wp.vec3, c: wp.vec3) -> float:
+    """The distance from p to triangle a, b, c: what the lists compare with their reach."""
+    weights = closest_weights(p, a, b, c)
+    return wp.length(p - (weights[0] * a + weights[1] * b + weights[2] * c))
+
+
+@wp.func
+def side_bit(p: wp.vec3, a: wp.vec3, b: wp.vec3, c: wp.vec3) -> int:
+    """0 where p lies on the side of triangle a, b, c its normal (b - a) x (c - a) points to, else 1."""
+    if wp.dot(p - a, wp.cross(b - a, c - a)) >= 0.0:
+        return 0
+    return 1
+
+
+@wp.func
+def face_push(faces: FaceContacts, i: int, vertex: int, code: int, x: wp.array(dtype=wp.vec3),
+              inv_mass: wp.array(dtype=float)):
+    """Particle i's move (the vertex or one of the triangle's) out of the pair of ``vertex`` and the triangle
+    ``code`` holds (2 t + side bit), and 1 if the two are closer than the thickness (else zero and 0)."""
+    t = faces.triangles[code >> 1]
+    side = 1.0 - 2.0 * float(code & 1)
+    p = x[vertex]
+    a = x[t[0]]
+    b = x[t[1]]
+    c = x[t[2]]
+    weights = closest_weights(p, a, b, c)
+    d = p - (weights[0] * a + weights[1] * b + weights[2] * c)
+    normal = wp.cross(b - a, c - a)
+    has_normal = wp.length_sq(normal) > 0.0
+    n = wp.vec3(0.0)
+    gap = float(0.0)
+    if weights[0] > 0.0 and weights[1] > 0.0 and weights[2] > 0.0 and has_normal:
+        n = side * wp.normalize(normal)
+        gap = wp.dot(d, n)  # below zero once the vertex has crossed to the other side
+    else:
+        gap = wp.length(d)
+        if gap > 1.0e-6 * faces.thickness:
+            n = d / gap
+        elif has_normal:
+            n = side * wp.normalize(normal)
+        else:
+            n = wp.normalize(wp.vec3(0.267, 0.535, 0.802))
+    if gap >= faces.thickness:
+        return wp.vec3(0.0), 0
+    weight = inv_mass[vertex] + weights[0] * weights[0] * inv_mass[t[0]] + weights[1] * weights[1] * inv_mass[t[1]] \
+        + weights[2] * weights[2] * inv_mass[t[2]]
+    if weight == 0.0:
+        return wp.vec3(0.0), 0
+    share = float(1.0)
+    if i == t[0]:
+        share = -weights[0]
+    elif i == t[1]:
+        share = -weights[1]
+    elif i == t[2]:
+        share = -weights[2]
+    return (inv_mass[i] * share * (faces.thickness - gap) / weight) * n, 1
+
+
+@wp.func
+def face_pushes(faces: FaceContacts, i: int, first: int, stride: int, x: wp.array(dtype=wp.vec3),
+                inv_mass: wp.array(dtype=float)) -> wp.vec4:
+    """Sum of particle i's moves out of its pairs as a vertex and as a vertex of its triangles (candidates
+    first, first + stride, ... of each list), and how many pairs are closer than the thickness (w)."""
+    total = wp.vec4(0.0)
+    start = i * faces.max_neighbors
+    for c in range(first, faces.vertex_counts[i], stride):
+        move, close = face_push(faces, i, i, faces.vertex_faces[start + c], x, inv_mass)
+        total = total + wp.vec4(move[0], move[1], move[2], float(close))
+    for k in range(faces.incident_offsets[i], faces.incident_offsets[i + 1]):
+        t = faces.incident[k]
+        for c in range(first, faces.face_counts[t], stride):
+            code = faces.face_vertices[t * faces.max_neighbors + c]
+            move, close = face_push(faces, i, code >> 1, 2 * t + (code & 1), x, inv_mass)
+            total = total + wp.vec4(move[0], move[1], move[2], float(close))
+    return total
+
+
+@wp.kernel
+def widen_face_cells(x: wp.array(dtype=wp.vec3), triangles: wp.array(dtype=wp.vec3i), rebuild: wp.array(dtype=int),
+                     longest: float, reach: float, inv_width: wp.array(dtype=float)):
+    """Where ``rebuild`` is set, the face hash's cells widened to the longest triangle side longer than
+    ``longest`` plus ``reach`` (after edge_collision.start_edge_cells set the least width), so that the 27
+    cells around a vertex hold the first vertex of every triangle within reach of it, and those around a
+    triangle's first vertex every vertex within reach of the triangle."""
+    if rebuild[0] == 0:
+        return
+    t = triangles[wp.tid()]
+    a = x[t[0]]
+    b = x[t[1]]
+    c = x[t[2]]
+    side = wp.max(wp.max(wp.length(b - a), wp.length(c - b)), wp.length(a - c))
+    if side > longest:
+        wp.atomic_min(inv_width, 0, 1.0 / (side + reach))

@@ -1,0 +1,167 @@
+"""The lab's face contacts (issue 34, off by default; ``lab_hooks``): every vertex kept a thickness in metres
+from the triangles it is not a vertex of, inside the converged solve beside the edge contacts' pass
+(kernels/face_collision.py).
+
+The simulator makes one ``FaceContacts`` where the hooks ask for it and the scene has particle collision,
+and hands it to every plan it builds (warp_cloth/plan.py): the particle lists' remake then remakes its
+candidate lists too (``remake_if_asked``), each vertex's triangles and each triangle's vertices within the
+thickness plus twice the lists' rebuild distance (valid as long as the particle lists are), found through a
+spatial hash of the particles whose cells are as wide as that reach plus the longest triangle side at the
+remake; and its pass (``separation_pass``) joins the edge contacts' passes of the solve. The lists are the
+plan's carried arrays (``carried``), so that a checkpoint or a frame made again keeps them."""
+
+from __future__ import annotations
+
+from contextlib import contextmanager
+from dataclasses import dataclass
+from typing import Iterator
+
+import numpy as np
+import warp as wp
+
+from warp_cloth.kernels import edge_collision, face_collision, spatial_hash
+from warp_cloth.kernels.colliders import RigidColliders
+from warp_cloth.kernels.edge_collision import EdgeRules
+from warp_cloth.kernels.face_collision import FaceContacts as FaceContactsArgs
+from warp_cloth.kernels.face_separation import FaceSeparationPassArgs, face_separation_pass_kernel
+from warp_cloth.kernels.neighbour_search import gather_face_vertices, gather_vertex_faces
+from warp_cloth.kernels.particle_collision import ListState
+
+from .device_model import EDGE_THICKNESS, DeviceModel
+from .model import Model
+from .neighbour_lists import rebuild_distance
+from .passes import GatheringPass
+from .state import hash_table_size
+
+
+@dataclass(frozen=True)
+class FaceSettings:
+    """``thickness``: how far a vertex is held from a triangle, metres (None: the edge contacts' rule,
+    ``EDGE_THICKNESS`` contact distances)."""
+    thickness: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.thickness is not None and not self.thickness > 0.0:
+            raise ValueError(f"face contacts need a thickness above 0, got {self.thickness}")
+
+    @classmethod
+    def parse(cls, spec: str) -> FaceSettings | None:
+        """A tool's spec: ``off`` (None), ``on`` (the defaults) or ``thickness=T``."""
+        if spec == "off":
+            return None
+        values = {} if spec == "on" else dict(item.split("=") for item in spec.split(","))
+        return cls(**{k: float(v) for k, v in values.items()})
+
+
+# The lab's hook, not a scene key: simulators built while it is set hold vertices off triangles.
+FACES: FaceSettings | None = None
+
+
+@contextmanager
+def lab_hooks(faces: FaceSettings | None = None) -> Iterator[None]:
+    """Simulators built inside take these hooks' values (the lab's and tests', never a scene's)."""
+    global FACES
+    before = FACES
+    FACES = faces
+    try:
+        yield
+    finally:
+        FACES = before
+
+
+FACE_NEIGHBORS = 32  # pairs a vertex's or a triangle's list holds (more are counted in the lists' overflow)
+BUCKET_CAPACITY = 64  # particles a bucket holds: its cells are wider than a triangle
+
+
+def incidence(triangles: np.ndarray, n: int, columns: slice = slice(None)) -> tuple[np.ndarray, np.ndarray]:
+    """Each particle's triangles (CSR offsets and triangle indices, in index order) among those it is a
+    vertex of in ``columns`` (all three, or the first alone)."""
+    corners = triangles[:, columns].reshape(len(triangles), -1)
+    owner = corners.ravel()
+    triangle = np.repeat(np.arange(len(triangles)), corners.shape[1])
+    order = np.lexsort((triangle, owner))
+    offsets = np.zeros(n + 1, dtype=np.int32)
+    np.cumsum(np.bincount(owner, minlength=n), out=offsets[1:])
+    return offsets, triangle[order].astype(np.int32)
+
+
+class FaceContacts:
+    """The face contacts' arrays, the remake of their lists and their pass, made once per simulator."""
+
+    def __init__(self, model: Model, device_model: DeviceModel, settings: FaceSettings) -> None:
+        contacts = device_model.contacts
+        device = self.device = device_model.device
+        n = self.n = model.particle_count
+        triangles = model.triangles
+        self.triangle_count = len(triangles)
+        self.thickness = settings.thickness if settings.thickness is not None else \
+            EDGE_THICKNESS * contacts.settings.separation * contacts.max_radius
+        self.reach = self.thickness + 2.0 * rebuild_distance(device_model)
+        rest = model.positions[triangles]
+        self.longest = float(np.linalg.norm(rest - np.roll(rest, 1, axis=1), axis=2).max(initial=0.0))
+        rules = self.rules = EdgeRules()
+        particle_rules = contacts.rules
+        rules.world, rules.cloth_id = particle_rules.world, particle_rules.cloth_id
+        rules.self_collision, rules.between_cloths = particle_rules.self_collision, particle_rules.between_cloths
+        rules.sewn_offsets, rules.sewn_other = particle_rules.sewn_offsets, particle_rules.sewn_other
+        args = self.args = FaceContactsArgs()
+        args.triangles = wp.array(triangles, dtype=wp.vec3i, device=device)
+        offsets, incident = incidence(triangles, n)
+        args.incident_offsets = wp.array(offsets, dtype=int, device=device)
+        args.incident = wp.array(incident, dtype=int, device=device)
+        args.vertex_faces = wp.zeros(n * FACE_NEIGHBORS, dtype=int, device=device)
+        args.vertex_counts = wp.zeros(n, dtype=int, device=device)
+        args.face_vertices = wp.zeros(self.triangle_count * FACE_NEIGHBORS, dtype=int, device=device)
+        args.face_counts = wp.zeros(self.triangle_count, dtype=int, device=device)
+        args.max_neighbors = FACE_NEIGHBORS
+        args.thickness = self.thickness
+        owned_offsets, owned = incidence(triangles, n, slice(0, 1))
+        self.owned_offsets = wp.array(owned_offsets, dtype=int, device=device)
+        self.owned = wp.array(owned, dtype=int, device=device)
+        self.mask = hash_table_size(n) - 1
+        self.inv_cell = wp.zeros(1, dtype=float, device=device)
+        self.bucket_size = wp.zeros(self.mask + 1, dtype=int, device=device)
+        self.bucket_items = wp.zeros((self.mask + 1) * BUCKET_CAPACITY, dtype=int, device=device)
+
+    @classmethod
+    def of(cls, model: Model, device_model: DeviceModel) -> FaceContacts | None:
+        """The face contacts the lab's hook asks for now (None: off, or a scene without particle collision)."""
+        return None if FACES is None or device_model.contacts is None else cls(model, device_model, FACES)
+
+    kernels = [edge_collision.start_edge_cells, face_collision.widen_face_cells,
+               spatial_hash.insert_points_at_chosen_width, gather_vertex_faces,
+               gather_face_vertices]  # as remake_if_asked launches them
+
+    def remake_if_asked(self, x: wp.array, lists: ListState) -> None:
+        """Both candidate lists from positions ``x``, where the particle lists' ``rebuild`` is set (after their
+        gather, before the end of the remake)."""
+        device, args, rules = self.device, self.args, self.rules
+        wp.launch(edge_collision.start_edge_cells, dim=1,
+                  inputs=[lists.rebuild, 1.0 / (self.longest + self.reach)], outputs=[self.inv_cell], device=device)
+        wp.launch(face_collision.widen_face_cells, dim=self.triangle_count,
+                  inputs=[x, args.triangles, lists.rebuild, self.longest, self.reach], outputs=[self.inv_cell],
+                  device=device)
+        wp.launch(spatial_hash.insert_points_at_chosen_width, dim=self.n,
+                  inputs=[x, rules.world, self.inv_cell, self.mask, BUCKET_CAPACITY, lists.epoch, lists.rebuild],
+                  outputs=[self.bucket_size, self.bucket_items, lists.overflow], device=device)
+        wp.launch(gather_vertex_faces, dim=self.n,
+                  inputs=[x, args, rules, lists, self.reach, self.owned_offsets, self.owned, self.inv_cell, self.mask,
+                          BUCKET_CAPACITY, self.bucket_size, self.bucket_items], device=device)
+        wp.launch(gather_face_vertices, dim=self.triangle_count,
+                  inputs=[x, args, rules, lists, self.reach, self.inv_cell, self.mask, BUCKET_CAPACITY,
+                          self.bucket_size, self.bucket_items], device=device)
+
+    def separation_pass(self, device_model: DeviceModel, threads: int, bundle: RigidColliders | None) -> GatheringPass:
+        """One Jacobi pass moving every listed pair closer than the thickness apart, then the colliders in
+        ``bundle`` (None: none)."""
+        args = FaceSeparationPassArgs()
+        args.faces, args.inv_mass, args.h = self.args, device_model.inv_mass, device_model.h
+        args.colliders = bundle if bundle is not None else device_model.no_colliders()
+        return GatheringPass("face_separation" + ("+colliders" if bundle is not None else ""),
+                             face_separation_pass_kernel(threads), threads, args, device_model.device)
+
+    def carried(self) -> dict[str, wp.array]:
+        """The lists a substep reads before it remakes them, by name (for the plan's carried arrays)."""
+        args = self.args
+        return {"faces.vertex_faces": args.vertex_faces, "faces.vertex_counts": args.vertex_counts,
+                "faces.face_vertices": args.face_vertices, "faces.face_counts": args.face_counts}
