@@ -473,3 +473,15 @@ def test_a_joint_pass_moves_by_both_means_but_no_limit_pulls_into_a_contact(pin_
     np.testing.assert_allclose(v.numpy()[0], np.array(expected) / h, rtol=1e-5, atol=1e-4)
     assert pushed.numpy()[0] == pytest.approx(0.2, abs=1e-6)
     np.testing.assert_array_equal(x_out.numpy()[1:], x.numpy()[1:])  # pinned particles stay
+
+
+def test_the_run_summary_says_when_contact_candidates_were_dropped():
+    """Candidates past a list's or a bucket's room go unchecked: the summary line says how many, and says
+    nothing where none were (the suite's scenes keep it 0)."""
+    from warp_cloth.cli import _lists_full
+
+    sim = wc.Simulator(wc.load_scene("fold"), device="cpu")
+    sim.step()
+    assert sim.plan.lists.overflow == 0 and _lists_full(sim) == ""
+    sim.plan.lists.lists.overflow.assign(np.array([7], dtype=np.int32))
+    assert _lists_full(sim) == "; contact lists full: 7 candidates dropped, their contacts unchecked"

@@ -258,6 +258,13 @@ def _limit_solve(sim) -> str:
             f"{ended}")
 
 
+def _lists_full(sim) -> str:
+    """Contact candidates that did not fit their lists or hash buckets over the run, for the summary line
+    ('' where none): their pairs went unchecked, so contacts may have been missed."""
+    dropped = sim.plan.lists.overflow if sim.plan.lists is not None else 0
+    return f"; contact lists full: {counted(dropped, 'candidate')} dropped, their contacts unchecked" if dropped else ""
+
+
 def _cmd_plan(args: argparse.Namespace) -> int:
     _quiet_warp()
     from .scene_file import load_scene
@@ -507,7 +514,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
           f"{sim_settings.integrator}) of {summary.particles} particles on {sim.device.alias} in "
           f"{summary.wall_seconds:.2f} s (+{building + summary.prepare_seconds:.1f} s building and compiling; "
           f"{summary.particle_substeps_per_second:.3g} particle-substeps/s); "
-          f"wrote {wrote}; {_strain(strain)}{_limit_solve(sim)}" + (f"; {check.summary()}" if check else ""))
+          f"wrote {wrote}; {_strain(strain)}{_limit_solve(sim)}{_lists_full(sim)}" +
+          (f"; {check.summary()}" if check else ""))
     return EXIT_SIGNAL_BASE + summary.stop_signal if summary.interrupted else 0
 
 
