@@ -3,6 +3,7 @@ colliders. See gathering.py for the form of a gathering kernel.
 """
 
 import functools
+from typing import Any
 
 import warp as wp
 
@@ -31,11 +32,11 @@ def gather_edge_pushes(args: EdgeSeparationPassArgs, i: int, first: int, stride:
 
 
 @wp.func
-def finish_edge_separation_pass(args: EdgeSeparationPassArgs, i: int, total: wp.vec4, x: wp.array(dtype=wp.vec3),
-                                v: wp.array(dtype=wp.vec3), x_out: wp.array(dtype=wp.vec3),
-                                v_out: wp.array(dtype=wp.vec3)):
-    """Moves free particle i by the mean of its edges' moves (its velocity by that over h), then out of the
-    rigid colliders."""
+def finish_contact_move(args: Any, i: int, total: wp.vec4, x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3),
+                        x_out: wp.array(dtype=wp.vec3), v_out: wp.array(dtype=wp.vec3)):
+    """Moves free particle i by the mean of its pairs' moves (its velocity by that over h), then out of the
+    rigid colliders: the finish of a pass whose ``args`` carry ``inv_mass``, ``h`` and ``colliders`` (the edge
+    contacts' and the lab's face contacts')."""
     xi = x[i]
     if args.inv_mass[i] == 0.0 or total[3] == 0.0:
         x_out[i] = xi
@@ -49,4 +50,4 @@ def finish_edge_separation_pass(args: EdgeSeparationPassArgs, i: int, total: wp.
 @functools.cache
 def edge_separation_pass_kernel(threads: int) -> wp.Kernel:
     return gathering_kernel("edge_separation_pass", EdgeSeparationPassArgs, gather_edge_pushes,
-                            finish_edge_separation_pass, threads)
+                            finish_contact_move, threads)

@@ -95,13 +95,6 @@ def closest_weights(p: wp.vec3, a: wp.vec3, b: wp.vec3, c: wp.vec3) -> wp.vec3:
 
 
 @wp.func
-def vertex_face_gap(p: wp.vec3, a: wp.vec3, b: wp.vec3, c: wp.vec3) -> float:
-    """The distance from p to triangle a, b, c: what the lists compare with their reach."""
-    weights = closest_weights(p, a, b, c)
-    return wp.length(p - (weights[0] * a + weights[1] * b + weights[2] * c))
-
-
-@wp.func
 def side_bit(p: wp.vec3, a: wp.vec3, b: wp.vec3, c: wp.vec3) -> int:
     """0 where p lies on the side of triangle a, b, c its normal (b - a) x (c - a) points to, else 1."""
     if wp.dot(p - a, wp.cross(b - a, c - a)) >= 0.0:

@@ -6,10 +6,10 @@ import functools
 
 import warp as wp
 
-from .colliders import RigidColliders, collide_particle
+from .colliders import RigidColliders
+from .edge_separation import finish_contact_move
 from .face_collision import FaceContacts, face_pushes
 from .gathering import FAST_MATH, gathering_kernel, gathers
-from .limits import mean_of
 
 wp.set_module_options(FAST_MATH)
 
@@ -30,23 +30,7 @@ def gather_face_pushes(args: FaceSeparationPassArgs, i: int, first: int, stride:
     return face_pushes(args.faces, i, first, stride, x, args.inv_mass)
 
 
-@wp.func
-def finish_face_separation_pass(args: FaceSeparationPassArgs, i: int, total: wp.vec4, x: wp.array(dtype=wp.vec3),
-                                v: wp.array(dtype=wp.vec3), x_out: wp.array(dtype=wp.vec3),
-                                v_out: wp.array(dtype=wp.vec3)):
-    """Moves free particle i by the mean of its pairs' moves (its velocity by that over h), then out of the
-    rigid colliders."""
-    xi = x[i]
-    if args.inv_mass[i] == 0.0 or total[3] == 0.0:
-        x_out[i] = xi
-        return
-    move = mean_of(total)
-    p, vel, unused_hit = collide_particle(i, xi + move, v[i] + move / args.h, args.colliders, args.h)
-    x_out[i] = p
-    v_out[i] = vel
-
-
 @functools.cache
 def face_separation_pass_kernel(threads: int) -> wp.Kernel:
     return gathering_kernel("face_separation_pass", FaceSeparationPassArgs, gather_face_pushes,
-                            finish_face_separation_pass, threads)
+                            finish_contact_move, threads)

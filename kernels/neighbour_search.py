@@ -8,11 +8,12 @@ import functools
 import warp as wp
 
 from .edge_collision import EdgeContacts, EdgeRules, may_touch, pair_gap
-from .face_collision import FaceContacts, side_bit, vertex_face_gap
+from .face_collision import FaceContacts, side_bit
 from .face_collision import may_touch as may_touch_face
 from .gathering import BLOCK, FAST_MATH, sum_over_threads, thread_layout
 from .particle_collision import (Contacts, ListState, PairRules, add_candidate, is_candidate,
                                  sort_and_drop_repeats)
+from .primitive_distances import point_triangle_distance
 from .spatial_hash import cell_of, count_in, first_visit, neighbour_bucket, stamp_of
 
 wp.set_module_options(FAST_MATH)
@@ -118,6 +119,19 @@ def launch_gather_neighbors(threads: int, x: wp.array, inputs: list) -> None:
         wp.launch_tiled(kernel, dim=[blocks], inputs=[x, *inputs], block_dim=BLOCK, device=x.device)
 
 
+@wp.func
+def append_listed(listed: wp.array(dtype=int), start: int, count: int, most: int, entry: int,
+                  overflow: wp.array(dtype=int)) -> int:
+    """``entry`` appended to a list of ``count`` from ``start`` while it has room for ``most``, else counted in
+    ``overflow`` (the edge and face lists': unlike particle_collision.add_candidate, a full list keeps what
+    came first); the list's new count."""
+    if count < most:
+        listed[start + count] = entry
+        return count + 1
+    wp.atomic_add(overflow, 0, 1)
+    return count
+
+
 @wp.kernel
 def gather_edge_candidates(x: wp.array(dtype=wp.vec3), midpoint: wp.array(dtype=wp.vec3),
                            edge_world: wp.array(dtype=int), edges: EdgeContacts, rules: EdgeRules, lists: ListState,
@@ -142,22 +156,8 @@ def gather_edge_candidates(x: wp.array(dtype=wp.vec3), midpoint: wp.array(dtype=
                 f = bucket_items[bucket * capacity + s]
                 ends_f = edges.ends[f]
                 if f != e and may_touch(rules, ends_e, ends_f) and pair_gap(edges.ends, x, e, f) < reach:
-                    if count < edges.max_neighbors:
-                        edges.neighbors[start + count] = f
-                        count += 1
-                    else:
-                        wp.atomic_add(lists.overflow, 0, 1)
+                    count = append_listed(edges.neighbors, start, count, edges.max_neighbors, f, lists.overflow)
     edges.counts[e] = sort_and_drop_repeats(edges.neighbors, start, count)
-
-
-@wp.func
-def add_face_pair(listed: wp.array(dtype=int), start: int, count: int, most: int, entry: int,
-                  overflow: wp.array(dtype=int)) -> int:
-    if count < most:
-        listed[start + count] = entry
-        return count + 1
-    wp.atomic_add(overflow, 0, 1)
-    return count
 
 
 @wp.kernel
@@ -189,8 +189,8 @@ def gather_vertex_faces(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules: 
                         a = x[t[0]]
                         b = x[t[1]]
                         c = x[t[2]]
-                        if vertex_face_gap(p, a, b, c) < reach:
-                            count = add_face_pair(faces.vertex_faces, start, count, faces.max_neighbors,
+                        if point_triangle_distance(p, a, b, c) < reach:
+                            count = append_listed(faces.vertex_faces, start, count, faces.max_neighbors,
                                                   2 * t_index + side_bit(p, a, b, c), lists.overflow)
     faces.vertex_counts[v] = sort_and_drop_repeats(faces.vertex_faces, start, count)
 
@@ -221,7 +221,7 @@ def gather_face_vertices(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules:
                 v = bucket_items[bucket * capacity + s]
                 if may_touch_face(rules, v, t):
                     p = x[v]
-                    if vertex_face_gap(p, a, b, c) < reach:
-                        count = add_face_pair(faces.face_vertices, start, count, faces.max_neighbors,
+                    if point_triangle_distance(p, a, b, c) < reach:
+                        count = append_listed(faces.face_vertices, start, count, faces.max_neighbors,
                                               2 * v + side_bit(p, a, b, c), lists.overflow)
     faces.face_counts[t_index] = sort_and_drop_repeats(faces.face_vertices, start, count)
