@@ -141,13 +141,50 @@ def test_a_pin_driven_from_python_goes_in_a_line_and_ends_where_it_was_sent(devi
     assert np.array_equal(sim.positions()[corner], goal.astype(np.float32))
     assert np.all(sim.velocities()[corner] == 0.0)
     turned = sim.control.pins["hand"]
-    turned.set_positions(turned.rest + [0.0, 0.5, 0.0])
+    turned.set_positions(turned.rest + [0.0, 0.4, 0.0])
     sim.step()
-    assert np.array_equal(sim.positions()[corner], (turned.rest[0] + [0.0, 0.5, 0.0]).astype(np.float32))
+    assert np.array_equal(sim.positions()[corner], (turned.rest[0] + [0.0, 0.4, 0.0]).astype(np.float32))
     with pytest.raises(ValueError, match=r"positions: finite points of shape \(1, 3\)"):
         turned.set_positions(np.zeros((2, 3)))
     with pytest.raises(KeyError, match="no pin named 'foot' \\(hand\\)"):
         sim.control.pins["foot"]
+
+
+def test_a_pin_sent_out_of_the_cloths_reach_is_refused_and_nothing_is_sent():
+    """The top corners of a 1 m cloth with a 10% stretch limit may end at most 1.1 m apart: a corner sent
+    to end 1.12 m from the other is refused (no solve could hold the limit, and substeps auto would double
+    the frame's substeps to the most it takes, to no avail), whether the other is where it is or was sent
+    for the same frame; 1.08 m is accepted."""
+    sim = hanging((wc.Pin(corners=("top-left",), name="hand"), wc.Pin(corners=("top-right",), name="other")))
+    hand, other = sim.control.pins["hand"], sim.control.pins["other"]
+    left, right = 8 * 9, 8 * 9 + 8
+    with pytest.raises(ValueError, match=re.escape(
+            "pin 'hand' sent too far: pins that 'cloth' can follow within its 10% stretch limit: its pinned "
+            f"particles {left} and {right} would be 1.12 m apart, across 1 m of cloth (at most 1.1 m)")):
+        hand.set_positions(hand.rest + [0.0, 0.5, 0.0])
+    assert not sim.control.started
+    sim.step()
+    assert np.array_equal(sim.positions()[left], np.float32([0.0, 1.0, 0.0]))
+    hand.set_positions(hand.rest + [0.0, 0.4, 0.0])
+    with pytest.raises(ValueError, match=f"particles {right} and {left} would be 1.12 m apart"):
+        other.set_positions(other.rest - [0.0, 0.1, 0.0])
+    sim.step()
+    assert np.array_equal(sim.positions()[[left, right]], np.float32([[0.0, 1.4, 0.0], [1.0, 1.0, 0.0]]))
+
+
+def test_a_scene_whose_pins_move_out_of_the_cloths_reach_is_refused():
+    """Two corners of a 1 m cloth with a 10% limit swung 0.06 m apart each way at most (1.12 m apart) are
+    refused with the pair and the time; 0.04 m each way (1.08 m) is accepted."""
+    def swinging(amplitude):
+        pins = tuple(wc.Pin(corners=(corner,), motion=wc.Oscillation(axis=(sign, 0.0, 0.0), amplitude=amplitude,
+                                                                      frequency=1.0, phase=0.0))
+                     for corner, sign in (("top-left", -1.0), ("top-right", 1.0)))
+        return hanging(pins)
+    with pytest.raises(wc.SceneError, match=re.escape(
+            "cloth[0].pins: expected pins that 'cloth' can follow within its 10% stretch limit: particles 72 and 80 "
+            "move 1.12 m apart at t = 0.25 s, across 1 m of cloth (at most 1.1 m)")):
+        swinging(0.06)
+    assert swinging(0.04).frame == 0
 
 
 @pytest.mark.parametrize("device", DEVICES)

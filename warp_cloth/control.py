@@ -25,6 +25,7 @@ from warp_cloth.kernels import motion
 
 from .cloth_grid import rotation_matrix
 from .collider_kinds import Meshes, upload
+from .pin_reach import sent_pins_past_reach
 from .scene import Scene, Vec3
 
 if TYPE_CHECKING:
@@ -77,9 +78,9 @@ class FollowControl:
 class PinControl:
     """One named pin's particles, sent from Python (see the module's docstring)."""
 
-    def __init__(self, control: Control, group: ControlGroup, rows: slice, rest: np.ndarray,
+    def __init__(self, name: str, control: Control, group: ControlGroup, rows: slice, rest: np.ndarray,
                  where: Callable[[], np.ndarray]) -> None:
-        self._control, self._group, self._rows, self._where = control, group, rows, where
+        self.name, self._control, self._group, self._rows, self._where = name, control, group, rows, where
         self.rest = rest  # (m, 3) the particles in the cloth's initial pose
 
     @property
@@ -94,11 +95,16 @@ class PinControl:
 
     def set_positions(self, positions) -> None:
         """Send each particle to its own point, ``positions`` (m, 3) in the pin's particle order, over the
-        next frame."""
+        next frame. A ValueError, nothing sent, where a hard pin would end farther from another hard pin of
+        its cloth (where that one is, or is sent to, for the same frame) than the cloth's stretch limit
+        lets it reach (``pin_reach.sent_pins_past_reach``)."""
         goal = np.asarray(positions, dtype=np.float64)
         if goal.shape != self.rest.shape or not np.isfinite(goal).all():
             raise ValueError(f"positions: finite points of shape {self.rest.shape} (the pin's particles), "
                              f"got shape {goal.shape}")
+        problem = self._control.past_reach(self._group, self._rows, goal)
+        if problem is not None:
+            raise ValueError(f"pin {self.name!r} sent too far: {problem}")
         self._control.send(self._group, self._rows, self._where()[self._rows], goal)
 
 
@@ -154,6 +160,7 @@ class Control:
     def __init__(self, model: Model, device_model: DeviceModel, state: DeviceState, scene: Scene,
                  frame: Callable[[], int], on_first_send: Callable[[], None]) -> None:
         self._fps, self._frame = scene.simulation.fps, frame
+        self._scene, self._model, self._state = scene, model, state
         self._on_first_send = on_first_send
         self.started = False
         self._groups: dict[str, ControlGroup] = {}
@@ -172,7 +179,7 @@ class Control:
             row = 0
             for name, first, end in named:
                 rows = slice(row, row + end - first)
-                controls[name] = PinControl(self, group, rows, rest_all[pins.index[first:end]],
+                controls[name] = PinControl(name, self, group, rows, rest_all[pins.index[first:end]],
                                             lambda where=where, index=index: where()[index])
                 row += end - first
         self.pins = Named("pin", controls)
@@ -194,6 +201,18 @@ class Control:
     def moves_meshes(self) -> bool:
         """Whether it can send mesh colliders (whose BVHs its passes then refit every substep)."""
         return bool(self._meshes)
+
+    def past_reach(self, group: ControlGroup, rows: slice, goal: np.ndarray) -> str | None:
+        """Where ``group``'s ``rows`` are hard pins sent to ``goal``: what is wrong if they would end out of
+        their cloth's reach of its other hard pins, those sent for the coming frame taken where they go."""
+        if group is not self._groups.get("pins"):
+            return None
+        where = self._state.x.numpy().astype(np.float64)
+        index = group.index.numpy()
+        coming = group.first_frame.numpy() == self._frame()
+        where[index[coming]] = group.goal.numpy()[coming]
+        where[index[rows]] = goal
+        return sent_pins_past_reach(self._scene, self._model, index[rows], where)
 
     def send(self, group: ControlGroup, rows: slice, now: np.ndarray, goal: np.ndarray) -> None:
         if not self.started:
