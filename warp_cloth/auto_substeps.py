@@ -9,6 +9,12 @@ the frame's solve figures and the blow-up guard, and ``judge`` says how it went:
   made again from its start (``FrameStart``, a copy on the device) with twice the substeps, up to the most
   a frame may take; a frame that misses there is kept, and the run goes on as with a set step (its
   summary says how many were kept so);
+- a stalled miss (made again with twice the substeps, the frame's solves missed by at least ``STALLED`` of
+  their last miss, ``miss_size``): more substeps do not help, because what the solve is asked cannot be
+  held (a sphere pushed through a cloth pinned on both sides past its strain limit: its miss stayed at 5.6
+  tolerances from 16 to 4096 substeps a frame, and at 10000, whose capped solves cannot settle, the cloth
+  blew up). The frame is kept and the next starts from the count before the doubling (the summary says
+  how many were kept so);
 - room (every solve within its tolerance in at most half its cap): the next frame tries 3/4 of the
   substeps (rounded up), never below the floor nor at or below a count that missed in the last
   ``MISS_MEMORY`` frames, so that the count does not bounce across the boundary every frame;
@@ -19,6 +25,7 @@ Nothing here reads a clock: the same scene chooses the same counts on every run.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import warp as wp
@@ -28,6 +35,10 @@ from .implicit import SolveStats
 MISS_MEMORY = 24  # frames a count that missed is remembered: the count does not come back down to it
 ROOM = 0.5  # a solve has room where it took at most this fraction of its cap
 MISS, HOLD, DOWN = "miss", "hold", "room"  # what a frame's solves and guard say (``judge``)
+# A frame made again with twice the substeps whose miss is at least this fraction of the last one's stalled:
+# halving the step shrinks the violation each substep makes, so a miss that is a matter of substeps falls
+# with them (the swing of tests/test_auto_substeps.py: 1.5 tolerances to within them).
+STALLED = 0.9
 
 
 @dataclass(frozen=True)
@@ -62,6 +73,21 @@ def judge(stats: SolveStats | None, flagged: bool, caps: SolveCaps) -> str:
     return DOWN if all(room for _, room in solves) else HOLD
 
 
+def miss_size(stats: SolveStats | None, flagged: bool, caps: SolveCaps) -> float:
+    """How far a frame's solves ended from their tolerances, in tolerances (the worst of them; inf where the
+    guard flagged the frame: more substeps are what steadies a step)."""
+    if flagged:
+        return math.inf
+    sizes = [0.0]
+    if stats is not None and caps.limit_passes is not None and stats.limit_solves and stats.limit_residual:
+        sizes.append(stats.limit_residual)
+    if stats is not None and caps.cg_iterations is not None and stats.cg_relative_residual is not None:
+        sizes.append(stats.cg_relative_residual / caps.cg_tolerance)
+    if stats is not None and caps.newton_iterations is not None and stats.newton_residual is not None:
+        sizes.append(stats.newton_residual / caps.newton_tolerance)
+    return max(sizes)
+
+
 @dataclass
 class SubstepChoice:
     """The substeps of the next frame (``substeps``), between the stable ``floor`` and the ``most`` a frame
@@ -74,15 +100,20 @@ class SubstepChoice:
     missed: dict[int, int] = field(default_factory=dict)
     frames: list[int] = field(default_factory=list)
     kept_missing: int = 0  # frames kept at ``most`` substeps though they missed
+    kept_stalled: int = 0  # frames kept though they missed, where twice the substeps did not shrink the miss
+    _tries: list[tuple[int, float]] = field(default_factory=list, repr=False)  # the frame's misses so far: (substeps, size)
 
     def __post_init__(self) -> None:
         self.substeps = self.substeps or self.floor
 
-    def redo(self, frame: int, verdict: str) -> int | None:
-        """After frame ``frame`` ran at ``substeps`` with ``verdict``: the substeps to make it again with (a
-        miss below the most), now the count; None: keep it."""
+    def redo(self, frame: int, verdict: str, miss: float = math.inf) -> int | None:
+        """After frame ``frame`` ran at ``substeps`` with ``verdict`` (missing by ``miss``, ``miss_size``): the
+        substeps to make it again with (a miss below the most, not stalled), now the count; None: keep it."""
         if verdict != MISS:
             return None
+        if self._tries and math.isfinite(miss) and miss >= STALLED * self._tries[-1][1]:
+            return None
+        self._tries.append((self.substeps, miss))
         self.missed[frame] = max(self.missed.get(frame, 0), self.substeps)
         if self.substeps >= self.most:
             return None
@@ -92,6 +123,16 @@ class SubstepChoice:
     def keep(self, frame: int, verdict: str) -> int:
         """Frame ``frame`` is kept at ``substeps`` with ``verdict``: the next frame's substeps."""
         self.frames.append(self.substeps)
+        stalled = verdict == MISS and self._tries and self._tries[-1][0] < self.substeps
+        tries, self._tries = self._tries, []
+        if stalled:
+            self.kept_stalled += 1
+            if len(tries) > 1:
+                self.missed[frame] = tries[-2][0]
+            else:
+                self.missed.pop(frame, None)
+            self.substeps = tries[-1][0]
+            return self.substeps
         self.kept_missing += verdict == MISS
         self.missed = {f: count for f, count in self.missed.items() if f > frame - MISS_MEMORY}
         if verdict == DOWN:

@@ -264,7 +264,7 @@ class Batch:
         return RunSummary(min(s.frames for s in summaries), particle_substeps // max(1, particles), particles,
                           sum(s.wall_seconds for s in summaries), stop is not None,
                           None if stop is None else stop.stop_signal, frame_substeps=alone.frame_substeps,
-                          kept_missing=alone.kept_missing)
+                          kept_missing=alone.kept_missing, kept_stalled=alone.kept_stalled)
 
     def _each_group(self, act) -> None:
         """``act`` on every group; a group whose worlds have all stopped is left, and once every world has

@@ -535,6 +535,10 @@ def _substeps_said(summary, sim) -> str:
     if summary.kept_missing:
         said += (f"; {counted(summary.kept_missing, 'frame')} kept at the most, {sim.auto.most}, with a solve "
                  "missing its tolerance or the guard's flag")
+    if summary.kept_stalled:
+        said += (f"; {counted(summary.kept_stalled, 'frame')} kept with a solve missing its tolerance that twice "
+                 "the substeps did not bring closer (what it holds cannot all be held: pins or colliders past "
+                 "the strain limit)")
     return said
 
 

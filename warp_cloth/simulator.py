@@ -18,7 +18,7 @@ import warp as wp
 
 from warp_cloth.kernels import guard
 
-from .auto_substeps import FrameStart, SolveCaps, SubstepChoice, judge
+from .auto_substeps import FrameStart, SolveCaps, SubstepChoice, judge, miss_size
 from .checkpoint import Checkpoint, load_checkpoint, restore, save_checkpoint
 from .collider_kinds import Meshes
 from .errors import SceneError, UnstableSimulation
@@ -88,6 +88,7 @@ class RunSummary:
     prepare_seconds: float = 0.0  # before the clock of ``wall_seconds``: kernels compiled or loaded (``prepare``)
     frame_substeps: tuple[int, ...] = ()  # with substeps auto: each frame's, as kept
     kept_missing: int = 0  # with substeps auto: frames kept at the most substeps a frame takes though they missed
+    kept_stalled: int = 0  # with substeps auto: frames kept though they missed, more substeps not shrinking the miss
 
     @property
     def particle_substeps_per_second(self) -> float:
@@ -456,7 +457,7 @@ class Simulator:
             status = self._guard_status_of(frame)
             stats = self._read_stats()
             verdict = judge(stats, bool(status.any()), caps)
-            more = self.auto.redo(frame, verdict)
+            more = self.auto.redo(frame, verdict, miss_size(stats, bool(status.any()), caps))
             if more is None:
                 break
             self.frame -= 1
@@ -683,7 +684,8 @@ class Simulator:
         begun: list[FrameWriter] = []
         written = 0
         start_substeps = self.substeps_run
-        start_frames, start_missing = (len(self.auto.frames), self.auto.kept_missing) if self.auto else (0, 0)
+        start_frames, start_missing, start_stalled = ((len(self.auto.frames), self.auto.kept_missing,
+                                                       self.auto.kept_stalled) if self.auto else (0, 0, 0))
         started = time.perf_counter()
         try:
             with StopOnSignal() as stop:
@@ -744,8 +746,9 @@ class Simulator:
         wall = time.perf_counter() - started
         chosen = tuple(self.auto.frames[start_frames:]) if self.auto else ()
         missing = self.auto.kept_missing - start_missing if self.auto else 0
+        stalled = self.auto.kept_stalled - start_stalled if self.auto else 0
         return RunSummary(written, self.substeps_run - start_substeps, self.model.particle_count, wall,
-                          stopped_by is not None, stopped_by, prepare_seconds, chosen, missing)
+                          stopped_by is not None, stopped_by, prepare_seconds, chosen, missing, stalled)
 
     def _frame_substeps(self, slot: int) -> None:
         status = self._guard_status[slot]
