@@ -324,15 +324,37 @@ def deepest_overlap(contacts: Contacts, i: int, x: wp.array(dtype=wp.vec3)) -> f
     return worst
 
 
+@wp.func
+def closest_listed(i: int, x: wp.array(dtype=wp.vec3), contacts: Contacts):
+    """Particle i's smallest distance / contact distance over its listed pairs, and that pair's other
+    particle (1e30 and -1 where it lists none)."""
+    xi = x[i]
+    smallest = float(1.0e30)
+    partner = int(-1)
+    for k in range(contacts.counts[i]):
+        j = contacts.neighbors[i * contacts.max_neighbors + k]
+        ratio = wp.length(xi - x[j]) / contact_distance(contacts.radius[i], contacts.radius[j], contacts.separation)
+        if ratio < smallest:
+            smallest = ratio
+            partner = j
+    return smallest, partner
+
+
 @wp.kernel
 def closest_contact_ratio(x: wp.array(dtype=wp.vec3), contacts: Contacts, world: wp.array(dtype=int),
                           ratio: wp.array(dtype=float)):
     """Diagnostic: each world's smallest distance / contact distance over the pairs of freshly made lists."""
     i = wp.tid()
-    xi = x[i]
-    smallest = float(1.0e30)
-    for k in range(contacts.counts[i]):
-        j = contacts.neighbors[i * contacts.max_neighbors + k]
-        smallest = wp.min(smallest, wp.length(xi - x[j]) / contact_distance(contacts.radius[i], contacts.radius[j],
-                                                                          contacts.separation))
+    smallest, partner = closest_listed(i, x, contacts)
     wp.atomic_min(ratio, world[i], smallest)
+
+
+@wp.kernel
+def closest_contact_partner(x: wp.array(dtype=wp.vec3), contacts: Contacts, ratio: wp.array(dtype=float),
+                            partner: wp.array(dtype=int)):
+    """Diagnostic: each particle's smallest distance / contact distance over its freshly listed pairs, and
+    that pair's other particle (1e30 and -1 where it lists none)."""
+    i = wp.tid()
+    smallest, j = closest_listed(i, x, contacts)
+    ratio[i] = smallest
+    partner[i] = j

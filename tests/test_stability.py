@@ -226,7 +226,7 @@ def test_unstable_run_keeps_every_written_frame_valid_and_writes_no_nan(tmp_path
 
 
 def test_coincident_particles_are_refused_with_a_clear_error():
-    with pytest.raises(wc.SceneError, match="cloths that start apart: .* 0.00 of their contact distance"):
+    with pytest.raises(wc.SceneError, match="cloths that start apart: .* start 0 m apart, 0.00 of their contact distance of "):
         wc.Simulator(hard_cases.coincident(), device="cpu")
 
 
@@ -241,8 +241,9 @@ def stacked_sheets(gap: float, radius: float) -> wc.Scene:
 def test_layers_that_start_inside_their_contact_distance_are_refused():
     # 1 cm apart at a contact distance of 2.1 x 6 mm: 0.79 of it, which the first substep would turn into
     # tens of m/s (the stacked drape of docs/notebook/layers.md); 1.3 cm apart they start outside it
-    with pytest.raises(wc.SceneError, match="cloths that start apart: .* 0.79 of their contact distance apart "
-                                            r"\(at least 1 needed"):
+    with pytest.raises(wc.SceneError, match=r"cloths that start apart: particle \d+ of 'sheet\d' and particle \d+ of "
+                                            r"'sheet\d' start 0.01 m apart, 0.79 of their contact distance of "
+                                            r"0.0126 m \(at least 1 needed"):
         wc.Simulator(stacked_sheets(0.01, 0.006), device="cpu")
     wc.Simulator(stacked_sheets(0.013, 0.006), device="cpu")
 

@@ -136,6 +136,23 @@ class NeighbourLists:
                   outputs=[ratio], device=x.device)
         return ratio.numpy()
 
+    def closest_pair(self, x: wp.array) -> tuple[float, int, int, float] | None:
+        """The closest approach of two particles that may collide, as a fraction of their contact distance,
+        the two particles and that distance in metres (None where no pair is listed); the lists remade from
+        ``x`` first (a diagnostic: it waits for the device)."""
+        self.remake_now(x)
+        ratio = wp.empty(self.n, dtype=float, device=x.device)
+        partner = wp.empty(self.n, dtype=int, device=x.device)
+        wp.launch(particle_collision.closest_contact_partner, dim=self.n, inputs=[x, self.contacts],
+                  outputs=[ratio, partner], device=x.device)
+        ratios, partners = ratio.numpy(), partner.numpy()
+        i = int(np.argmin(ratios))
+        if partners[i] < 0:
+            return None
+        j = int(partners[i])
+        radius = self.contacts.radius.numpy()
+        return float(ratios[i]), i, j, float(0.5 * self.contacts.separation * (radius[i] + radius[j]))
+
     @property
     def overflow(self) -> int:
         """Candidates that did not fit in a list or a hash bucket so far (waits for the device)."""

@@ -311,14 +311,19 @@ class Simulator:
 
     def _refuse_initial_overlap(self) -> None:
         """Cloths that start inside each other's (or their own) contact distance would be shot apart: refuse
-        them."""
-        ratio = self.closest_contact()
-        if ratio is not None and ratio < self.INITIAL_OVERLAP_LIMIT:
-            raise SceneError("cloth", f"cloths that start apart: two particles that collide start "
-                                      f"{ratio:.2f} of their contact distance apart (at least "
-                                      f"{self.INITIAL_OVERLAP_LIMIT:g} needed: the first substep would push them apart "
-                                      "at their overlap over a substep); move the cloths apart, make the "
-                                      "contact radius smaller or leave collision out", has_got=False)
+        them, naming the closest pair's cloths, particles and gap."""
+        closest = self.plan.lists.closest_pair(self.state.x) if self.plan.lists is not None else None
+        if closest is None or closest[0] >= self.INITIAL_OVERLAP_LIMIT:
+            return
+        ratio, i, j, distance = closest
+        model = self.model
+        names = [f"particle {p - model.offsets[c]} of '{self.scene.cloths[c].name}'"
+                 for p, c in ((i, int(model.cloth_id[i])), (j, int(model.cloth_id[j])))]
+        raise SceneError("cloth", f"cloths that start apart: {names[0]} and {names[1]} start {ratio * distance:.3g} m "
+                                  f"apart, {ratio:.2f} of their contact distance of {distance:.3g} m (at least "
+                                  f"{self.INITIAL_OVERLAP_LIMIT:g} needed: the first substep would push them apart "
+                                  "at their overlap over a substep); move the cloths apart, make the "
+                                  "contact radius smaller or leave collision out", has_got=False)
 
     def _refuse_start_inside_colliders(self) -> None:
         """A particle that starts deeper than half a cell below the ground or inside a static sphere is thrown
