@@ -3,7 +3,7 @@ a table that turns a quarter turn in a second, and exports it as USD; ``warp-clo
 as cloth on the table as an animated mesh collider; Blender imports the result, the shot with the simulation
 layered over it (``<output>.shot.usda``), and sees the cloth where our USD has it at every frame checked,
 resting on the table and turned with it, and the table where its own animation has it. Blender runs in its own
-process (it carries its own USD libraries). Skipped where bpy cannot be installed (it is in the test extra
+process (it carries its own USD libraries). The built-in garment scene's shot opens there too. Skipped where bpy cannot be installed (it is in the test extra
 for the Python versions its wheels exist for)."""
 
 import importlib.util
@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 from pxr import Usd, UsdGeom
 
+import warp_cloth as wc
 from conftest import run_cli_in_process
 
 pytestmark = pytest.mark.skipif(importlib.util.find_spec("bpy") is None, reason="bpy (Blender) is not installed")
@@ -134,3 +135,61 @@ def test_blender_shot_simulated_and_read_back_by_blender(tmp_path: Path):
     turned_table = table_turn.Get(24)[2] - table_turn.Get(6)[2]
     turned_cloth = corner_angle(blender_frames[24]) - corner_angle(blender_frames[6])
     assert turned_cloth == pytest.approx(turned_table, rel=0.1)
+
+
+READ_GARMENT = textwrap.dedent("""
+    import json, sys
+    import bpy
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.wm.usd_import(filepath=sys.argv[-2])
+    scene = bpy.context.scene
+    result = {"objects": sorted(o.name for o in scene.objects), "frames": {}}
+    for frame in [int(f) for f in sys.argv[-1].split(",")]:
+        scene.frame_set(frame)
+        result["frames"][frame] = {}
+        for name in ("Front", "Back", "Body"):
+            evaluated = scene.objects[name].evaluated_get(bpy.context.evaluated_depsgraph_get())
+            mesh = evaluated.to_mesh()
+            result["frames"][frame][name] = [list(evaluated.matrix_world @ v.co) for v in mesh.vertices]
+            evaluated.to_mesh_clear()
+    print("RESULT " + json.dumps(result))
+""")
+
+GARMENT_FRAMES = (0, 7, 14)  # the seams pulled shut over the first 12 (close_time 0.5 s at 24 fps)
+
+
+def test_the_garment_shot_opens_in_blender_with_the_skirt_sewn_round_the_body(tmp_path: Path):
+    """``warp-cloth run garment`` writes the shot (scenes/garment.usda) with the simulated skirt layered over it;
+    Blender imports it and sees both panels where our USD has them, the body where the shot animates it, and
+    the panels' seams shut by frame 14, as the simulation left them."""
+    code, out, err = run_cli_in_process("run", "garment", "--frames", str(GARMENT_FRAMES[-1]), "--out", "out",
+                                        "--device", "cpu", cwd=tmp_path)
+    assert code == 0, err
+    seen = json.loads(blender(READ_GARMENT, str(tmp_path / "out" / "garment.shot.usda"),
+                              ",".join(map(str, GARMENT_FRAMES))).split("RESULT ", 1)[1])
+    assert {"Front", "Back", "Body"} <= set(seen["objects"])
+
+    def z_up(points) -> np.ndarray:  # the stage is Y-up; Blender turns it Z-up on import
+        y_up = np.asarray(points, dtype=np.float64)
+        return np.stack([y_up[:, 0], -y_up[:, 2], y_up[:, 1]], axis=1)
+
+    ours = Usd.Stage.Open(str(tmp_path / "out" / "garment.usdc"))
+    shot = Usd.Stage.Open(str(tmp_path / "out" / "garment.shot.usda"))
+    body = UsdGeom.Mesh(shot.GetPrimAtPath("/World/Character/Body"))
+    for frame in GARMENT_FRAMES:
+        for panel in ("Front", "Back"):
+            points = UsdGeom.Mesh(ours.GetPrimAtPath(f"/World/{panel}")).GetPointsAttr().Get(frame)
+            np.testing.assert_allclose(seen["frames"][str(frame)][panel], z_up(points), atol=1e-5)
+        to_world = np.asarray(body.ComputeLocalToWorldTransform(frame), dtype=np.float64)
+        body_points = np.asarray(body.GetPointsAttr().Get(frame), dtype=np.float64) @ to_world[:3, :3] + to_world[3, :3]
+        np.testing.assert_allclose(seen["frames"][str(frame)]["Body"], z_up(body_points), atol=1e-5)
+
+    # the seams as Blender sees them: open at the start, shut (within a micrometre) once closed
+    sewn = wc.Simulator(wc.load_scene("garment"), device="cpu").model.sewn.pairs
+    front = len(seen["frames"]["0"]["Front"])
+
+    def seam_gap(frame: int) -> float:
+        points = np.array(seen["frames"][str(frame)]["Front"] + seen["frames"][str(frame)]["Back"])
+        assert len(points) > front
+        return float(np.linalg.norm(points[sewn[:, 0]] - points[sewn[:, 1]], axis=1).max())
+    assert seam_gap(0) > 0.02 and seam_gap(GARMENT_FRAMES[-1]) < 1e-5
