@@ -96,6 +96,58 @@ def test_a_tube_sewn_shut_around_a_sphere_hugs_it_within_its_limit_and_settles(t
     assert speeds[-1] < 0.01 < max(speeds[:12])
 
 
+def two_tubes(path: Path, turn: int, around: int = 12, radius: float = 0.1) -> Path:
+    """Two closed tubes of ``radius`` along Y, as a sleeve beside an armhole: ``near`` from y = 0 to 0.2, its
+    ring at 0.2 a point subset ``end``; ``far`` from 0.25 to 0.45, numbered the other way round and turned by
+    ``turn`` steps, its ring at 0.25 the subset ``start``. Each tube's two rings are its boundary loops."""
+    stage = Usd.Stage.CreateNew(str(path))
+    UsdGeom.SetStageMetersPerUnit(stage, 1.0)
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
+    for name, ys, sign, shift, ring, subset in (("near", (0.0, 0.1, 0.2), 1.0, 0, 2, "end"),
+                                                ("far", (0.25, 0.35, 0.45), -1.0, turn, 0, "start")):
+        theta = sign * 2.0 * np.pi * (np.arange(around) + shift) / around
+        points = [(radius * np.cos(t), y, radius * np.sin(t)) for y in ys for t in theta]
+        faces = [[u + around * v, (u + 1) % around + around * v, (u + 1) % around + around * (v + 1),
+                  u + around * (v + 1)] for v in range(len(ys) - 1) for u in range(around)]
+        mesh = UsdGeom.Mesh.Define(stage, f"/World/{name}")
+        mesh.CreatePointsAttr(points)
+        mesh.CreateFaceVertexCountsAttr([4] * len(faces))
+        mesh.CreateFaceVertexIndicesAttr([i for f in faces for i in f])
+        UsdGeom.Subset.CreateGeomSubset(mesh, subset, UsdGeom.Tokens.point,
+                                        Vt.IntArray([u + around * ring for u in range(around)]))
+    stage.Save()
+    return path
+
+
+def test_a_sleeves_loop_sewn_to_an_armholes_is_turned_round_to_its_nearest_pairs_and_closes(tmp_path):
+    """Closed loops are sewn loop to loop: the far tube's ring, numbered the other way round and turned 5 of
+    12 steps, is paired each particle with the one straight across (every pair 5 cm apart), and the seam shuts
+    over its close_time (0.5 s) and stays shut."""
+    path = two_tubes(tmp_path / "tubes.usda", turn=5)
+    cloths = tuple(wc.Cloth.from_mesh(path, prim=f"/World/{name}", name=name, limit=wc.Limit(0.1, 0.1))
+                   for name in ("near", "far"))
+    scene = wc.Scene(name="sleeve", simulation=wc.Simulation(frames=24, gravity=(0.0, 0.0, 0.0), drag=1.0),
+                     cloths=cloths, seams=(wc.Seam(wc.SeamSide("near", group="end"), wc.SeamSide("far", group="start")),))
+    (sewing,) = sew(scene)
+    assert sewing.a.tolist() == list(range(24, 36))  # round from its lowest index, towards its lower neighbour
+    near, far = np.array(cloths[0].surface().points), np.array(cloths[1].surface().points)
+    np.testing.assert_allclose(np.linalg.norm(near[sewing.a] - far[sewing.b], axis=1), 0.05, atol=1e-6)
+    sim = wc.Simulator(scene, device="cpu")
+    for frame in range(1, 25):
+        sim.step()
+        if frame >= 12:
+            assert seam_gap(sim) < 1e-4, frame
+
+
+def test_a_closed_loop_is_sewn_only_to_a_closed_loop(tmp_path):
+    path = two_tubes(tmp_path / "tubes.usda", turn=0)
+    cloths = (wc.Cloth.from_mesh(path, prim="/World/near", name="near"),
+              wc.Cloth(name="panel", resolution=(11, 2), size=(0.6, 0.2), origin=(0.0, 0.5, 0.0)))
+    scene = wc.Scene(cloths=cloths, seams=(wc.Seam(wc.SeamSide("near", group="end"), wc.SeamSide("panel", edge="bottom")),))
+    with pytest.raises(wc.SceneError, match=r"seam\[0\]\.b: expected a closed loop, as side a is"):
+        sew(scene)
+
+
 def test_grid_edges_pair_the_nearer_way_round_and_indices_in_the_order_given():
     """Panel b turned half round: its right edge runs down where a's runs up, so b's side is reversed and
     every pair starts 10 cm apart."""

@@ -2,8 +2,10 @@
 
 A seam's sides are selected in the cloths' initial pose and paired in order, the k-th particle of side a
 with the k-th of side b (``scene.Seam``): a side given by a grid's edge runs along it, one given by a mesh's
-group along the mesh's boundary from the end with the lower index, and where either side is not given by
-indices, b's order is reversed if that puts the pairs nearer at the start (the sum of their distances).
+group along the mesh's boundary from the end with the lower index (round a closed loop, such as a sleeve's
+end or an armhole, from its lowest index), and where either side is not given by indices, b's order is
+reversed if that puts the pairs nearer at the start (the sum of their distances), and a loop sewn to a loop
+is also turned round to where its pairs are nearest.
 Sides of different lengths are refused, not resampled. ``geometry_checks.validate`` checks the seams with
 ``sew``; the model builds its ``SewnPairs`` from it, which the strain-limit solve holds (model._limits) and
 particle contacts leave alone (``sewn_neighbourhood``).
@@ -50,15 +52,20 @@ def sew(scene: Scene) -> list[Sewing]:
     for k, seam in enumerate(scene.seams):
         key = f"seam[{k}]"
         ca, cb = names[seam.a.cloth], names[seam.b.cloth]
-        a = side_particles(scene.cloths[ca], seam.a, f"{key}.a")
-        b = side_particles(scene.cloths[cb], seam.b, f"{key}.b")
+        a, loop_a = side_particles(scene.cloths[ca], seam.a, f"{key}.a")
+        b, loop_b = side_particles(scene.cloths[cb], seam.b, f"{key}.b")
         if len(a) != len(b):
             raise SceneError(f"{key}.b", f"as many particles as side a's {len(a)} (sides are paired in order, not "
                                          "resampled)", len(b))
+        if loop_a != loop_b:
+            raise SceneError(f"{key}.b", "a closed loop, as side a is" if loop_a else
+                             "an open path, as side a is (a closed loop is sewn to a closed loop)", seam.b.group)
         if not (seam.a.indices and seam.b.indices):
-            pa, pb = initial_positions(scene.cloths[ca])[a], initial_positions(scene.cloths[cb])[b]
-            if np.linalg.norm(pa - pb[::-1], axis=1).sum() < np.linalg.norm(pa - pb, axis=1).sum():
-                b = b[::-1].copy()
+            pa, positions_b = initial_positions(scene.cloths[ca])[a], initial_positions(scene.cloths[cb])
+            orders = [b, b[::-1]]
+            if loop_a:
+                orders = [np.roll(order, shift) for order in orders for shift in range(len(b))]
+            b = min(orders, key=lambda order: np.linalg.norm(pa - positions_b[order], axis=1).sum()).copy()
         if ca == cb:
             _check_apart(scene.cloths[ca], a, b, key)
         sewings.append(Sewing(ca, cb, a, b))
@@ -83,8 +90,9 @@ def _check_apart(cloth: Cloth, a: np.ndarray, b: np.ndarray, key: str) -> None:
                               f"{int(b[first])} do)", has_got=False)
 
 
-def side_particles(cloth: Cloth, side: SeamSide, key: str) -> np.ndarray:
-    """The particles of one side (cloth-local), in the order they are paired."""
+def side_particles(cloth: Cloth, side: SeamSide, key: str) -> tuple[np.ndarray, bool]:
+    """The particles of one side (cloth-local), in the order they are paired, and whether they are a closed
+    loop of the mesh's boundary."""
     n = cloth.particle_count
     if side.indices:
         chosen = np.asarray(side.indices, dtype=np.int64)
@@ -93,17 +101,19 @@ def side_particles(cloth: Cloth, side: SeamSide, key: str) -> np.ndarray:
                 raise SceneError(f"{key}.indices[{k}]", f"a particle index < {n} (the cloth has {n})", i)
         if len(np.unique(chosen)) != len(chosen):
             raise SceneError(f"{key}.indices", "each particle once", list(side.indices))
-        return chosen
+        return chosen, False
     if side.edge is not None:
         nx, ny = cloth.resolution
         if side.edge in ("bottom", "top"):
-            return np.arange(nx + 1, dtype=np.int64) + (nx + 1) * (0 if side.edge == "bottom" else ny)
-        return (0 if side.edge == "left" else nx) + (nx + 1) * np.arange(ny + 1, dtype=np.int64)
+            return np.arange(nx + 1, dtype=np.int64) + (nx + 1) * (0 if side.edge == "bottom" else ny), False
+        return (0 if side.edge == "left" else nx) + (nx + 1) * np.arange(ny + 1, dtype=np.int64), False
     return _group_path(cloth, side.group, f"{key}.group")
 
 
-def _group_path(cloth: Cloth, group: str, key: str) -> np.ndarray:
-    """A mesh group's vertices on the mesh's boundary, in order along it from the end with the lower index."""
+def _group_path(cloth: Cloth, group: str, key: str) -> tuple[np.ndarray, bool]:
+    """A mesh group's vertices on the mesh's boundary, in order along it from the end with the lower index,
+    or round a closed loop from its lowest index towards its lower-numbered neighbour; and whether it is a
+    loop."""
     surface = cloth.surface()
     if group not in surface.groups:
         raise SceneError(key, "the name of a group of the cloth's mesh (a USD GeomSubset or point primvar, an OBJ "
@@ -120,18 +130,21 @@ def _group_path(cloth: Cloth, group: str, key: str) -> np.ndarray:
         neighbours[i].append(j)
         neighbours[j].append(i)
     ends = sorted(v for v, around in neighbours.items() if len(around) == 1)
-    if len(ends) != 2 or any(len(around) > 2 for around in neighbours.values()):
-        raise SceneError(key, "a group whose boundary vertices form one open path along the mesh's boundary "
-                              "(split a closed loop into two seams)", group)
-    path, previous = [ends[0]], -1
+    loop = not ends
+    if (len(ends) != 2 and not loop) or any(len(around) > 2 for around in neighbours.values()):
+        raise SceneError(key, "a group whose boundary vertices form one open path or one closed loop along the "
+                              "mesh's boundary", group)
+    first = ends[0] if not loop else min(neighbours)
+    path, previous = [first], -1 if not loop else max(neighbours[first])
     while len(path) < len(neighbours):
         following = [v for v in neighbours[path[-1]] if v != previous]
         previous = path[-1]
         path.append(following[0])
-    if path[-1] != ends[1]:
-        raise SceneError(key, "a group whose boundary vertices form one open path along the mesh's boundary "
-                              "(these form more than one)", group)
-    return np.asarray(path, dtype=np.int64)
+    if (not loop and path[-1] != ends[1]) or (loop and first not in neighbours[path[-1]]) or \
+            len(set(path)) != len(path):
+        raise SceneError(key, "a group whose boundary vertices form one open path or one closed loop along the "
+                              "mesh's boundary (these form more than one)", group)
+    return np.asarray(path, dtype=np.int64), loop
 
 
 def boundary_edges(face_counts: np.ndarray, face_indices: np.ndarray) -> np.ndarray:
