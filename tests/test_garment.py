@@ -6,6 +6,7 @@ within its 10% limit, solved to the limit solve's tolerance."""
 from pathlib import Path
 
 import numpy as np
+import pytest
 from pxr import Usd, UsdGeom
 
 import warp_cloth as wc
@@ -40,10 +41,10 @@ class ConvexBody:
         return (local @ self.normals.T - self.offsets).max(axis=1)
 
 
-def measure(frames: int) -> tuple[list[dict], float, wc.Simulator]:
+def measure(frames: int, device: str = "cpu") -> tuple[list[dict], float, wc.Simulator]:
     """Each frame's largest seam gap, closest particle to the body, crossing triangle pairs and worst strain;
     the contact distance; the simulator after ``frames`` frames."""
-    sim = wc.Simulator(wc.load_scene("garment"), device="cpu")
+    sim = wc.Simulator(wc.load_scene("garment"), device=device)
     body, crossings = ConvexBody(SHOT), TriangleIntersections(sim)
     pairs, edges, rest = sim.model.sewn.pairs, sim.model.edges, sim.model.edge_rest
     measured = []
@@ -59,8 +60,9 @@ def measure(frames: int) -> tuple[list[dict], float, wc.Simulator]:
     return measured, contact, sim
 
 
-def test_garment_seams_shut_outside_the_body_without_crossings_within_its_limit():
-    measured, contact, sim = measure(FRAMES)
+@pytest.mark.parametrize("device", ["cpu", pytest.param("cuda", marks=pytest.mark.cuda)])
+def test_garment_seams_shut_outside_the_body_without_crossings_within_its_limit(device):
+    measured, contact, sim = measure(FRAMES, device)
     close_frame = round(0.5 * sim.scene.simulation.fps)  # the seams' default close_time, 0.5 s
     tolerance = sim.scene.simulation.limit_tolerance
     for m in measured:
