@@ -1,0 +1,67 @@
+"""Candidate lists that fill up (kernels/candidate_lists.py): a full list keeps the nearest candidates."""
+
+import numpy as np
+import warp as wp
+
+import warp_cloth as wc
+from warp_cloth import passes, state
+from warp_cloth.kernels import edge_collision
+
+QUADS = 8
+HELD = 5  # entries an edge's list holds here: fewer than the candidates of most edges
+
+
+@wp.kernel
+def every_pair_gap(ends: wp.array(dtype=wp.vec2i), x: wp.array(dtype=wp.vec3), gap: wp.array2d(dtype=float)):
+    e, f = wp.tid()
+    gap[e, f] = edge_collision.pair_gap(ends, x, e, f)
+
+
+def crossed_quads(sim: wc.Simulator) -> np.ndarray:
+    """The one-quad cloths turned about a vertical axis through the middle, each by another angle, their
+    corners at random heights within the edge lists' reach: every edge's candidates are the other quads'
+    edges it crosses, seen from above, each at another gap."""
+    rng = np.random.default_rng(3)
+    rest = sim.model.positions.reshape(QUADS, 4, 3)
+    corners = rest - rest.mean(axis=1, keepdims=True)
+    reach = sim.plan.lists.edges.reach
+    x = np.empty_like(rest)
+    for k in range(QUADS):
+        turn = np.pi / 2 * k / QUADS
+        c, s = np.cos(turn), np.sin(turn)
+        x[k, :, 0] = c * corners[k, :, 0] - s * corners[k, :, 2]
+        x[k, :, 2] = s * corners[k, :, 0] + c * corners[k, :, 2]
+        x[k, :, 1] = rng.uniform(0.0, 0.8 * reach, 4)
+    return x.reshape(-1, 3)
+
+
+def test_a_full_edge_list_keeps_the_nearest_candidates(monkeypatch):
+    """Eight one-quad cloths crossed over each other: an edge has up to 35 candidates within reach, its list
+    holds 5, and holds the 5 nearest (by their gaps, worked out for every pair as the pass does), whatever
+    order the hash finds them in."""
+    monkeypatch.setattr(state, "EDGE_NEIGHBORS", HELD)
+    monkeypatch.setattr(passes, "EDGE_NEIGHBORS", HELD)
+    quads = tuple(wc.Cloth(name=f"q{k}", resolution=(1, 1), size=(0.1, 0.1), orientation="horizontal",
+                           origin=(-0.05, float(k), 0.05), limit=wc.Limit()) for k in range(QUADS))
+    scene = wc.Scene(name="crossed", cloths=quads,
+                     collision=wc.Collision(radius=0.004, edges=True, self_collision=False))
+    sim = wc.Simulator(scene, device="cpu", graph=False)
+    sim.state.x.assign(crossed_quads(sim))
+    sim.plan.lists.remake_now(sim.state.x)
+    ends = sim.device_model.contacts.edges.ends
+    m = ends.shape[0]
+    gap = wp.zeros((m, m), dtype=float, device="cpu")
+    wp.launch(every_pair_gap, dim=(m, m), inputs=[ends, sim.state.x, gap], device="cpu")
+    gap = gap.numpy()
+    quad = ends.numpy()[:, 0] // 4
+    counts = sim.state.edges.counts.numpy()
+    listed = sim.state.edges.neighbors.numpy().reshape(m, HELD)
+    reach = sim.plan.lists.edges.reach
+    overfull = 0
+    for e in range(m):
+        candidates = np.flatnonzero((quad != quad[e]) & (gap[e] < reach))
+        nearest = candidates[np.argsort(gap[e, candidates], kind="stable")][:HELD]
+        assert sorted(listed[e, :counts[e]]) == sorted(nearest), e
+        overfull += len(candidates) > HELD
+    assert overfull > m // 2 and sim.plan.lists.overflow > 0
+
