@@ -61,15 +61,15 @@ class EdgeListState:
 
 
 # Candidates an edge's list holds (the nearest; overflow is counted with the particles'): twice the most that
-# lay within reach of an edge in the stacked drape (14: 3 sheets of 24^2 and 32^2, 2 m, 4 mm radius, edge
-# contacts, face contacts and the bounds, 60 frames; docs/notebook/layers.md).
+# lay within reach of an edge in the stacked drape (14, read at every frame's end: 3 sheets of 24^2 over 30
+# frames and of 32^2 over 60, 2 m, 4 mm radius, edge and face contacts and the bounds; docs/notebook/layers.md).
 EDGE_NEIGHBORS = 32
 # Edges a bucket of their hash holds: as many as a bucket's count can (spatial_hash.COUNT_MASK). A cell is
 # wider than the longest edge, so it holds some 9 edges of each layer of a grid (all triangle sides long
 # enough, the drape's) and every layer of a stack, and a bucket holds the cells of another block whose hash
-# is the same whatever the table's size: the fullest bucket held 44 to 69 edges in the 3-sheet drape above
+# is the same whatever the table's size: the fullest bucket held 44 to 89 edges in the 3-sheet drape above
 # (at 64, the edges past it were left out of the hash, so out of every list), and holds 80 to 100 in 5 flat
-# sheets of 24^2 to 128^2 (counted at rest with the hash's function).
+# sheets of 24^2 to 128^2, 4 mm radius (counted at rest with the hash's function).
 EDGE_BUCKET_CAPACITY = COUNT_MASK
 
 BUCKET_CAPACITY = 16  # particles a spatial-hash bucket holds (overflow is counted, tests keep it 0)
