@@ -125,8 +125,8 @@ def dropped_in_three_frames(scene: wc.Scene) -> int:
 
 def test_a_stack_of_sheets_drops_no_edge_candidates(monkeypatch):
     """Six sheets of 8^2 stacked: a cell of the edge hash (wider than a triangle's diagonal) holds some 12
-    edges of each, 72 in all, which the buckets of 64 edges that the hash had left out (and so out of every
-    list); at the chosen sizes nothing is dropped."""
+    edges of each, 72 in all; buckets of 64 (the old size) left edges out of the hash, and so out of every
+    list, and at the chosen sizes nothing is dropped."""
     scene = stacked_sheets(6, 8)
     assert dropped_in_three_frames(scene) == 0
     monkeypatch.setattr(state, "EDGE_BUCKET_CAPACITY", 64)
