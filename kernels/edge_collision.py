@@ -22,7 +22,8 @@ class EdgeContacts:
     ends: wp.array(dtype=wp.vec2i)  # (m,) each contact edge's two particles
     incident_offsets: wp.array(dtype=int)  # (n + 1,) the contact edges at each particle (CSR)
     incident: wp.array(dtype=int)
-    neighbors: wp.array(dtype=int)  # (m * max_neighbors,) each edge's candidates, in index order
+    neighbors: wp.array(dtype=int)  # (m * max_neighbors,) each edge's candidates (the nearest where more are
+    # within reach than fit), in index order
     counts: wp.array(dtype=int)  # (m,)
     max_neighbors: int
     thickness: float  # how far apart the pass holds two edges

@@ -7,6 +7,7 @@ import functools
 
 import warp as wp
 
+from .candidate_lists import keeping_nearest
 from .edge_collision import EdgeContacts, EdgeRules, may_touch, pair_gap
 from .face_collision import FaceContacts, side_bit
 from .face_collision import may_touch as may_touch_face
@@ -119,17 +120,62 @@ def launch_gather_neighbors(threads: int, x: wp.array, inputs: list) -> None:
         wp.launch_tiled(kernel, dim=[blocks], inputs=[x, *inputs], block_dim=BLOCK, device=x.device)
 
 
+@wp.struct
+class EdgeListOwner:
+    x: wp.array(dtype=wp.vec3)
+    ends: wp.array(dtype=wp.vec2i)
+    e: int
+
+
 @wp.func
-def append_listed(listed: wp.array(dtype=int), start: int, count: int, most: int, entry: int,
-                  overflow: wp.array(dtype=int)) -> int:
-    """``entry`` appended to a list of ``count`` from ``start`` while it has room for ``most``, else counted in
-    ``overflow`` (the edge and face lists': unlike particle_collision.add_candidate, a full list keeps what
-    came first); the list's new count."""
-    if count < most:
-        listed[start + count] = entry
-        return count + 1
-    wp.atomic_add(overflow, 0, 1)
-    return count
+def edge_list_owner(x: wp.array(dtype=wp.vec3), ends: wp.array(dtype=wp.vec2i), e: int) -> EdgeListOwner:
+    owner = EdgeListOwner()
+    owner.x = x
+    owner.ends = ends
+    owner.e = e
+    return owner
+
+
+@wp.func
+def listed_edge_gap(owner: EdgeListOwner, f: int) -> float:
+    return pair_gap(owner.ends, owner.x, owner.e, f)
+
+
+@wp.struct
+class FaceListOwner:
+    """A vertex's list (entries 2 t + side) or a triangle's (entries 2 v + side): ``index`` the vertex or
+    the triangle."""
+    x: wp.array(dtype=wp.vec3)
+    triangles: wp.array(dtype=wp.vec3i)
+    index: int
+
+
+@wp.func
+def face_list_owner(x: wp.array(dtype=wp.vec3), triangles: wp.array(dtype=wp.vec3i), index: int) -> FaceListOwner:
+    owner = FaceListOwner()
+    owner.x = x
+    owner.triangles = triangles
+    owner.index = index
+    return owner
+
+
+@wp.func
+def listed_triangle_gap(vertex: FaceListOwner, code: int) -> float:
+    t = vertex.triangles[code >> 1]
+    x = vertex.x
+    return point_triangle_distance(x[vertex.index], x[t[0]], x[t[1]], x[t[2]])
+
+
+@wp.func
+def listed_vertex_gap(triangle: FaceListOwner, code: int) -> float:
+    t = triangle.triangles[triangle.index]
+    x = triangle.x
+    return point_triangle_distance(x[code >> 1], x[t[0]], x[t[1]], x[t[2]])
+
+
+insert_edge = keeping_nearest(listed_edge_gap)
+insert_triangle = keeping_nearest(listed_triangle_gap)
+insert_vertex = keeping_nearest(listed_vertex_gap)
 
 
 @wp.kernel
@@ -139,7 +185,7 @@ def gather_edge_candidates(x: wp.array(dtype=wp.vec3), midpoint: wp.array(dtype=
                            bucket_size: wp.array(dtype=int), bucket_items: wp.array(dtype=int)):
     """Each edge's candidates from the hash of its midpoint's 27 cells (each bucket once; ``inv_cell[0]``
     the cells' inverse width this remake), where ``rebuild`` is set: edges that may touch it whose segments
-    lie within ``reach`` (``pair_gap``: each lists the other), in index order."""
+    lie within ``reach`` (``pair_gap``: each lists the other; the nearest where more than fit), in index order."""
     if lists.rebuild[0] == 0:
         return
     e = wp.tid()
@@ -148,6 +194,7 @@ def gather_edge_candidates(x: wp.array(dtype=wp.vec3), midpoint: wp.array(dtype=
     world = edge_world[e]
     stamp = stamp_of(lists.epoch[0])
     start = e * edges.max_neighbors
+    owner = edge_list_owner(x, edges.ends, e)
     count = int(0)
     for k in range(27):
         bucket = neighbour_bucket(center, world, k, mask)
@@ -155,8 +202,11 @@ def gather_edge_candidates(x: wp.array(dtype=wp.vec3), midpoint: wp.array(dtype=
             for s in range(wp.min(count_in(bucket_size[bucket], stamp), capacity)):
                 f = bucket_items[bucket * capacity + s]
                 ends_f = edges.ends[f]
-                if f != e and may_touch(rules, ends_e, ends_f) and pair_gap(edges.ends, x, e, f) < reach:
-                    count = append_listed(edges.neighbors, start, count, edges.max_neighbors, f, lists.overflow)
+                if f != e and may_touch(rules, ends_e, ends_f):
+                    gap = pair_gap(edges.ends, x, e, f)
+                    if gap < reach:
+                        count = insert_edge(edges.neighbors, start, count, edges.max_neighbors, f, gap,
+                                            lists.overflow, owner)
     edges.counts[e] = sort_and_drop_repeats(edges.neighbors, start, count)
 
 
@@ -165,9 +215,10 @@ def gather_vertex_faces(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules: 
                         reach: float, owned_offsets: wp.array(dtype=int), owned: wp.array(dtype=int),
                         inv_cell: wp.array(dtype=float), mask: int, capacity: int, bucket_size: wp.array(dtype=int),
                         bucket_items: wp.array(dtype=int)):
-    """Each vertex's candidate triangles, where ``rebuild`` is set: those it may touch within ``reach``, as
-    2 t + the side it lies on, in index order. The hash holds the particles (cells ``inv_cell[0]``, wider
-    than the reach plus any triangle's side), each triangle found from its first vertex (``owned``)."""
+    """Each vertex's candidate triangles, where ``rebuild`` is set: those it may touch within ``reach``
+    (the nearest where more than fit), as 2 t + the side it lies on, in index order. The hash holds the
+    particles (cells ``inv_cell[0]``, wider than the reach plus any triangle's side), each triangle found from
+    its first vertex (``owned``)."""
     if lists.rebuild[0] == 0:
         return
     v = wp.tid()
@@ -176,6 +227,7 @@ def gather_vertex_faces(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules: 
     world = rules.world[v]
     stamp = stamp_of(lists.epoch[0])
     start = v * faces.max_neighbors
+    owner = face_list_owner(x, faces.triangles, v)
     count = int(0)
     for k in range(27):
         bucket = neighbour_bucket(center, world, k, mask)
@@ -189,9 +241,10 @@ def gather_vertex_faces(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules: 
                         a = x[t[0]]
                         b = x[t[1]]
                         c = x[t[2]]
-                        if point_triangle_distance(p, a, b, c) < reach:
-                            count = append_listed(faces.vertex_faces, start, count, faces.max_neighbors,
-                                                  2 * t_index + side_bit(p, a, b, c), lists.overflow)
+                        gap = point_triangle_distance(p, a, b, c)
+                        if gap < reach:
+                            count = insert_triangle(faces.vertex_faces, start, count, faces.max_neighbors,
+                                                    2 * t_index + side_bit(p, a, b, c), gap, lists.overflow, owner)
     faces.vertex_counts[v] = sort_and_drop_repeats(faces.vertex_faces, start, count)
 
 
@@ -213,6 +266,7 @@ def gather_face_vertices(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules:
     world = rules.world[t[0]]
     stamp = stamp_of(lists.epoch[0])
     start = t_index * faces.max_neighbors
+    owner = face_list_owner(x, faces.triangles, t_index)
     count = int(0)
     for k in range(27):
         bucket = neighbour_bucket(center, world, k, mask)
@@ -221,7 +275,8 @@ def gather_face_vertices(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules:
                 v = bucket_items[bucket * capacity + s]
                 if may_touch_face(rules, v, t):
                     p = x[v]
-                    if point_triangle_distance(p, a, b, c) < reach:
-                        count = append_listed(faces.face_vertices, start, count, faces.max_neighbors,
-                                              2 * v + side_bit(p, a, b, c), lists.overflow)
+                    gap = point_triangle_distance(p, a, b, c)
+                    if gap < reach:
+                        count = insert_vertex(faces.face_vertices, start, count, faces.max_neighbors,
+                                              2 * v + side_bit(p, a, b, c), gap, lists.overflow, owner)
     faces.face_counts[t_index] = sort_and_drop_repeats(faces.face_vertices, start, count)

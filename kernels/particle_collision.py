@@ -16,6 +16,8 @@ conditional node: docs/benchmarks.md).
 
 import warp as wp
 
+from .candidate_lists import keeping_nearest
+
 wp.set_module_options({"fast_math": True})  # as the gathering kernels (see gathering.py)
 
 # Candidates are listed within this many contact distances: a wider skin remakes the lists less often and
@@ -101,33 +103,38 @@ def is_candidate(contacts: Contacts, rules: PairRules, i: int, j: int, x: wp.arr
     return may_collide(rules, i, j)
 
 
+@wp.struct
+class ParticleListOwner:
+    x: wp.array(dtype=wp.vec3)
+    i: int
+
+
+@wp.func
+def particle_list_owner(x: wp.array(dtype=wp.vec3), i: int) -> ParticleListOwner:
+    owner = ParticleListOwner()
+    owner.x = x
+    owner.i = i
+    return owner
+
+
+@wp.func
+def squared_distance(owner: ParticleListOwner, j: int) -> float:
+    return wp.length_sq(owner.x[j] - owner.x[owner.i])
+
+
+insert_particle = keeping_nearest(squared_distance)
+
+
 @wp.func
 def add_candidate(contacts: Contacts, rules: PairRules, lists: ListState, i: int, j: int, x: wp.array(dtype=wp.vec3),
                   count: int) -> int:
-    """Appends j to i's list if it is a candidate; returns the list's new length. A full list counts an
-    overflow and keeps the nearer of j and its farthest entry: what it leaves out is then farther than all
-    it holds, so a pair in contact is not left out for farther candidates listed first (in the pile with
-    the lists' reach at 3 contact distances, lists filled in index order left out touching pairs, which no
-    pass then separated and every solve ran to its cap)."""
+    """Puts j in i's list if it is a candidate (a full list keeps the nearest: candidate_lists.py); returns
+    the list's new length."""
     if not is_candidate(contacts, rules, i, j, x):
         return count
-    start = i * contacts.max_neighbors
-    if count < contacts.max_neighbors:
-        contacts.neighbors[start + count] = j
-        return count + 1
-    wp.atomic_add(lists.overflow, 0, 1)
-    farthest = int(-1)
-    farthest_sq = wp.length_sq(x[j] - x[i])
-    for k in range(count):
-        held = contacts.neighbors[start + k]
-        if held == j:
-            return count
-        d_sq = wp.length_sq(x[held] - x[i])
-        if d_sq > farthest_sq:
-            farthest, farthest_sq = k, d_sq
-    if farthest >= 0:
-        contacts.neighbors[start + farthest] = j
-    return count
+    owner = particle_list_owner(x, i)
+    return insert_particle(contacts.neighbors, i * contacts.max_neighbors, count, contacts.max_neighbors, j,
+                           squared_distance(owner, j), lists.overflow, owner)
 
 
 @wp.func

@@ -69,7 +69,7 @@ def lab_hooks(faces: FaceSettings | None = None) -> Iterator[None]:
         FACES = before
 
 
-FACE_NEIGHBORS = 32  # pairs a vertex's or a triangle's list holds (more are counted in the lists' overflow)
+FACE_NEIGHBORS = 32  # pairs a vertex's or a triangle's list holds (the nearest; more are counted in its overflow)
 BUCKET_CAPACITY = 64  # particles a bucket holds: its cells are wider than a triangle
 
 

@@ -10,6 +10,7 @@ import numpy as np
 import warp as wp
 
 from warp_cloth.kernels.particle_collision import ListState
+from warp_cloth.kernels.spatial_hash import COUNT_MASK
 
 from .collider_kinds import Spheres
 from .device_model import DeviceModel
@@ -59,8 +60,17 @@ class EdgeListState:
     CARRIED = ("neighbors", "counts")  # what the next substep reads before it writes
 
 
-EDGE_NEIGHBORS = 32  # candidates an edge's list holds (overflow is counted with the particles')
-EDGE_BUCKET_CAPACITY = 64  # edges a bucket of their hash holds: its cells are wider than an edge is long
+# Candidates an edge's list holds (the nearest; overflow is counted with the particles'): twice the most that
+# lay within reach of an edge in the stacked drape (14, read at every frame's end: 3 sheets of 24^2 over 30
+# frames and of 32^2 over 60, 2 m, 4 mm radius, edge and face contacts and the bounds; docs/notebook/layers.md).
+EDGE_NEIGHBORS = 32
+# Edges a bucket of their hash holds: as many as a bucket's count can (spatial_hash.COUNT_MASK). A cell is
+# wider than the longest edge, so it holds some 9 edges of each layer of a grid (all triangle sides long
+# enough, the drape's) and every layer of a stack, and a bucket holds the cells of another block whose hash
+# is the same whatever the table's size: the fullest bucket held 44 to 89 edges in the 3-sheet drape above
+# (at 64, the edges past it were left out of the hash, so out of every list), and holds 80 to 100 in 5 flat
+# sheets of 24^2 to 128^2, 4 mm radius (counted at rest with the hash's function).
+EDGE_BUCKET_CAPACITY = COUNT_MASK
 
 BUCKET_CAPACITY = 16  # particles a spatial-hash bucket holds (overflow is counted, tests keep it 0)
 # Particles up to which the lists are made by checking all pairs, which costs less there than the hash
@@ -81,8 +91,8 @@ def hash_table_size(particles: int) -> int:
 
 
 def edge_hash_table_size(edges: int) -> int:
-    """Buckets of the edges' spatial hash: a cell holds some five edges of a layer (it is over two edges
-    wide), so half as many buckets as edges leave most buckets to one cell."""
+    """Buckets of the edges' spatial hash: a cell holds some 9 edges of a layer (it is over one and a half
+    grid cells wide), so half as many buckets as edges leave most buckets to one cell."""
     return hash_table_size(edges // 4)
 
 

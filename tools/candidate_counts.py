@@ -1,0 +1,81 @@
+"""How many candidates the edge contacts' lists (and the lab's face lists) really hold in the stacked drape, and
+how full the edge hash's buckets get: the lists and the buckets made long enough never to fill (``--room``,
+``--bucket``, at most spatial_hash.COUNT_MASK), read at the end of every frame (the lists of that frame's last
+remake). What sized ``state.EDGE_NEIGHBORS`` and ``EDGE_BUCKET_CAPACITY`` (docs/notebook/layers.md).
+
+    python tools/candidate_counts.py --sheets 3 --n 32 --frames 60 --faces on --json docs/results/x.json
+
+The scene is tools/stacked_drape.py's, with edge contacts and the lab's displacement bounds.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import warp as wp
+
+import warp_cloth as wc
+import warp_cloth.face_contacts as face_contacts
+import warp_cloth.neighbour_lists as neighbour_lists
+import warp_cloth.passes as passes
+import warp_cloth.state as state
+from stacked_drape import stacked_drape_scene
+from warp_cloth.displacement_bounds import BoundSettings, lab_hooks
+from warp_cloth.kernels.spatial_hash import COUNT_BITS, COUNT_MASK
+from warp_cloth.lab.bench import environment
+
+
+def fullest_bucket(bucket_size: wp.array) -> int:
+    """The most a bucket of the latest table holds (its stamp the latest)."""
+    sizes = bucket_size.numpy()
+    stamps = sizes >> COUNT_BITS
+    return int((sizes & COUNT_MASK)[stamps == stamps.max()].max())
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--sheets", type=int, default=3)
+    parser.add_argument("--n", type=int, default=32)
+    parser.add_argument("--frames", type=int, default=60)
+    parser.add_argument("--radius", type=float, default=0.004)
+    parser.add_argument("--faces", default="on", help="the lab's face contacts: off, on or thickness=T")
+    parser.add_argument("--room", type=int, default=512, help="entries every list holds")
+    parser.add_argument("--bucket", type=int, default=COUNT_MASK, help="edges a bucket of the edge hash holds")
+    parser.add_argument("--device", default="cpu")
+    parser.add_argument("--json", default=None)
+    args = parser.parse_args()
+    wp.config.log_level = wp.LOG_ERROR
+    wc.set_verbose(False)
+    state.EDGE_NEIGHBORS = passes.EDGE_NEIGHBORS = face_contacts.FACE_NEIGHBORS = args.room
+    state.EDGE_BUCKET_CAPACITY = neighbour_lists.EDGE_BUCKET_CAPACITY = args.bucket
+    scene = stacked_drape_scene(args.sheets, args.n, frames=args.frames, radius=args.radius, edges=True)
+    with lab_hooks(BoundSettings.parse("on")), face_contacts.lab_hooks(face_contacts.FaceSettings.parse(args.faces)):
+        sim = wc.Simulator(scene, device=args.device)
+    lists = sim.plan.lists
+    sim.prepare()
+    rows, started = [], time.perf_counter()
+    for frame in range(1, args.frames + 1):
+        sim.step()
+        row = {"frame": frame, "edge_list": int(lists.edges.state.counts.numpy().max()),
+               "edge_bucket": fullest_bucket(lists.edges.state.bucket_size), "dropped": lists.overflow}
+        if lists.faces is not None:
+            faces = lists.faces
+            row |= {"vertex_list": int(faces.args.vertex_counts.numpy().max()),
+                    "triangle_list": int(faces.args.face_counts.numpy().max()),
+                    "face_bucket": fullest_bucket(faces.bucket_size)}
+        rows.append(row)
+        print(row, flush=True)
+    most = {key: max(row[key] for row in rows) for key in rows[0] if key != "frame"}
+    print("most over the frames:", most)
+    if args.json:
+        with open(args.json, "w") as out:
+            json.dump({"environment": environment(args.device), "settings": vars(args), "edges": lists.edges.m,
+                       "reach": lists.edges.reach, "longest": lists.edges.longest, "most": most,
+                       "seconds": time.perf_counter() - started, "per_frame": rows}, out, indent=1)
+            out.write("\n")
+
+
+if __name__ == "__main__":
+    main()
