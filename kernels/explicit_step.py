@@ -1,13 +1,14 @@
-"""The explicit step as one gathering pass: spring forces, external forces and one explicit or symplectic
-Euler step; where the plan asks, ending with the contacts' start (the rigid colliders, the velocities
-contacts start from, the lists' remake check), and that start alone where the step before cannot end
-with it. See gathering.py for the form of a gathering kernel.
+"""The explicit step as one gathering pass: spring and bending forces, external forces and one explicit or
+symplectic Euler step; where the plan asks, ending with the contacts' start (the rigid colliders, the
+velocities contacts start from, the lists' remake check), and that start alone where the step before cannot
+end with it. See gathering.py for the form of a gathering kernel.
 """
 
 import functools
 
 import warp as wp
 
+from .bending import Bending, bending_forces
 from .colliders import RigidColliders, collide_particle
 from .forces import ExternalForces, external_acceleration
 from .gathering import FAST_MATH, gathering_kernel, gathers
@@ -21,6 +22,7 @@ wp.set_module_options(FAST_MATH)
 @wp.struct
 class ExplicitStepArgs:
     springs: Springs
+    bending: Bending
     forces: ExternalForces
     inv_mass: wp.array(dtype=float)
     h: float
@@ -51,7 +53,7 @@ def gather_spring_forces(step: ExplicitStepArgs, i: int, first: int, stride: int
                          v: wp.array(dtype=wp.vec3)) -> wp.vec3:
     if not gathers(step, i):
         return wp.vec3(0.0)
-    return spring_forces(step.springs, i, first, stride, x, v)
+    return spring_forces(step.springs, i, first, stride, x, v) + bending_forces(step.bending, i, first, stride, x, v)
 
 
 @wp.func

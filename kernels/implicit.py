@@ -2,11 +2,12 @@
 the Newton loop's bookkeeping.
 
 Unknown: the velocity change dv of a step, from (M - h df/dv - h^2 df/dx) dv = rhs. The right-hand side,
-the products with that matrix and its diagonal blocks are gathers over each particle's springs (the
-Jacobians of kernels/springs.py, rebuilt from positions on the fly: no matrix is ever assembled), with the
-external forces' part (kernels/forces.py): the system's kernels, last below. Pinned particles (inverse
-mass 0) are held by Baraff & Witkin's filter: their dv is prescribed and their rows are zeroed in every
-residual and search direction, so the solve never moves them.
+the products with that matrix and its diagonal blocks are gathers over each particle's springs and bending
+stencils (the Jacobians of kernels/springs.py, rebuilt from positions on the fly, and the constant ones of
+kernels/bending.py: no matrix is ever assembled), with the external forces' part (kernels/forces.py): the
+system's kernels, last below. Pinned particles (inverse mass 0) are held by Baraff & Witkin's filter: their
+dv is prescribed and their rows are zeroed in every residual and search direction, so the solve never
+moves them.
 
 Each world (warp_cloth/batch.py; a scene alone is one) runs its own Newton loop: ``newton[w]`` = [on (0 once
 converged), steps taken this substep]. The worst values over the worlds since the host last read them are
@@ -16,6 +17,7 @@ in ``stats`` = [CG iterations, r.z / r0.z0 at the end of a solve, Newton steps, 
 
 import warp as wp
 
+from .bending import Bending, add_bending_diagonal, add_bending_times, bending_forces, bending_stiffness_times
 from .forces import ExternalForces, external_acceleration, external_damping, external_stiffness
 from .springs import Springs, add_system_diagonal, add_system_times, spring_forces, stiffness_times_motion
 
@@ -80,6 +82,7 @@ def record_newton(partial: wp.array(dtype=float), lanes: int, free_particles: wp
 @wp.struct
 class SpringSystemArgs:
     springs: Springs
+    bending: Bending
     forces: ExternalForces
     mass: wp.array(dtype=float)
     inv_mass: wp.array(dtype=float)
@@ -99,11 +102,12 @@ def newton_rhs(y: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), v0: wp.ar
         rhs[i] = wp.vec3(0.0)
         return
     m = args.mass[i]
-    f = spring_forces(args.springs, i, 0, 1, y, v)
+    f = spring_forces(args.springs, i, 0, 1, y, v) + bending_forces(args.bending, i, 0, 1, y, v)
     f = f + m * external_acceleration(args.forces, i, y[i], v[i])
     out = args.h * f - m * (v[i] - v0[i])
     if linearized_at_start != 0:
-        out = out - (args.h * args.h) * stiffness_times_motion(args.springs, i, y, v0)
+        out = out - (args.h * args.h) * (stiffness_times_motion(args.springs, i, y, v0)
+                                         + bending_stiffness_times(args.bending, i, v0))
         if args.forces.pin_rate.shape[0] > 0:
             out = out - (args.h * args.h * m * external_stiffness(args.forces, i)) * v0[i]
     rhs[i] = out
@@ -129,7 +133,8 @@ def system_times(y: wp.array(dtype=wp.vec3), p: wp.array(dtype=wp.vec3), active:
     if args.inv_mass[i] == 0.0:
         out[i] = wp.vec3(0.0)
         return
-    out[i] = add_system_times(args.springs, i, y, p, args.h, mass_term(args, i) * p[i])
+    total = add_system_times(args.springs, i, y, p, args.h, mass_term(args, i) * p[i])
+    out[i] = add_bending_times(args.bending, i, p, args.h, total)
 
 
 @wp.kernel(module="unique")  # without fast math, as the rest of the implicit solve
@@ -140,4 +145,5 @@ def block_jacobi_inverse(y: wp.array(dtype=wp.vec3), args: SpringSystemArgs, inv
         inverse[i] = wp.mat33(0.0)
         return
     block = add_system_diagonal(args.springs, i, y, args.h, mass_term(args, i) * wp.identity(n=3, dtype=float))
+    block = add_bending_diagonal(args.bending, i, args.h, block)
     inverse[i] = wp.inverse(block)

@@ -20,6 +20,35 @@ SPRING_KINDS = ("structural", "shear", "bend")
 
 
 @dataclass(frozen=True)
+class BendStencils:
+    """A material's bending linear in the curvature (materials.py; kernels/bending.py): per stencil, three
+    particles along a row straight at rest, their weights and the stencil's stiffness and damping."""
+
+    particles: np.ndarray  # (b, 3) int: ends and middle in the row's order
+    weights: np.ndarray  # (b, 3) 1/m^2: the second difference over the row's spacings
+    stiffness: np.ndarray  # (b,) N m^3
+    damping: np.ndarray  # (b,) N m^3 s
+
+    def shifted(self, offset: int) -> "BendStencils":
+        return BendStencils(self.particles + offset, self.weights, self.stiffness, self.damping)
+
+    @staticmethod
+    def joined(parts: "list[BendStencils]") -> "BendStencils":
+        return BendStencils(*(np.concatenate([getattr(p, key) for p in parts])
+                              for key in ("particles", "weights", "stiffness", "damping")))
+
+    def incidences(self, particle_count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(offsets (n + 1,), stencil, place): each particle's incidences in order, as kernels/bending.py
+        gathers them."""
+        owner = self.particles.reshape(-1)
+        entry = np.arange(len(owner))
+        order = np.lexsort((entry, owner))
+        offsets = np.zeros(particle_count + 1, dtype=np.int32)
+        np.cumsum(np.bincount(owner, minlength=particle_count), out=offsets[1:])
+        return offsets, (entry[order] // 3).astype(np.int32), (entry[order] % 3).astype(np.int32)
+
+
+@dataclass(frozen=True)
 class DerivedSprings:
     """Per spring of a cloth made of a material (materials.derive_springs), in its ``ClothMesh``'s order."""
 
@@ -27,6 +56,8 @@ class DerivedSprings:
     damping: np.ndarray  # (s,) N s/m
     stretch_limit: np.ndarray | None  # (s,) fraction of the rest length; None: the material sets none
     compression_limit: np.ndarray | None
+    bending: BendStencils | None = None  # the stencils that bend the cloth in place of bend springs
+    stenciled: np.ndarray | None = None  # (s,) bool: the bend springs the stencils replace (left out of the model)
 
 
 @dataclass(frozen=True)

@@ -17,6 +17,7 @@ from warp_cloth.kernels.edge_collision import EdgeRules
 from warp_cloth.kernels.forces import ExternalForces
 from warp_cloth.kernels.limits import StrainLimits
 from warp_cloth.kernels.particle_collision import Contacts, PairRules
+from warp_cloth.kernels.bending import Bending
 from warp_cloth.kernels.springs import Springs
 from warp_cloth.kernels.wind import Wind
 
@@ -131,6 +132,7 @@ class DeviceModel:
         self.wind = self._wind(model, scene.wind)
         self.compensated = simulation.compensated
         self.springs = self._springs(model, n)
+        self.bending = self._bending(model, n)
         self.limits = self._limits(model)
         self.seams = self._seams(model)  # None: no seam
         self.attachments = self._attachments(model)  # None: no cloth has attachments to its pins
@@ -177,6 +179,25 @@ class DeviceModel:
         springs.damping = upload(model.springs.damping, float, device)
         springs.flags = upload(model.springs.flags, int, device)
         return springs
+
+    def _bending(self, model: Model, n: int) -> Bending:
+        """The bending stencils and their incidences (offsets all zero and the rest empty without them)."""
+        device, bending = self.device, Bending()
+        stencils = model.bending
+        if stencils is None:
+            bending.offsets = wp.zeros(n + 1, dtype=int, device=device)
+            bending.stencil = bending.place = bending.particles = wp.zeros(0, dtype=int, device=device)
+            bending.weights = bending.stiffness = bending.damping = wp.zeros(0, dtype=float, device=device)
+            return bending
+        offsets, stencil, place = stencils.incidences(n)
+        bending.offsets = upload(offsets, int, device)
+        bending.stencil = upload(stencil, int, device)
+        bending.place = upload(place, int, device)
+        bending.particles = upload(stencils.particles.reshape(-1), int, device)
+        bending.weights = upload(stencils.weights.reshape(-1), float, device)
+        bending.stiffness = upload(stencils.stiffness, float, device)
+        bending.damping = upload(stencils.damping, float, device)
+        return bending
 
     def _limits(self, model: Model) -> StrainLimits | None:
         if model.limits is None:

@@ -76,7 +76,8 @@ class BackwardEuler:
         self.world_start = model.world_start
         self.pins = model.pins
         self.system = implicit.SpringSystemArgs()
-        self.system.springs, self.system.forces = model.springs, model.forces(state.wind)
+        self.system.springs, self.system.bending = model.springs, model.bending
+        self.system.forces = model.forces(state.wind)
         self.system.mass, self.system.inv_mass, self.system.h = model.mass, model.inv_mass, model.h
         vec = lambda: wp.zeros(n, dtype=wp.vec3, device=device)  # noqa: E731
         self.dv, self.r, self.z, self.p, self.ap = vec(), vec(), vec(), vec(), vec()

@@ -92,7 +92,7 @@ class ExplicitIntegrator:
 
     def step_args(self, model: DeviceModel, state: DeviceState) -> explicit_step.ExplicitStepArgs:
         args = explicit_step.ExplicitStepArgs()
-        args.springs, args.forces = model.springs, model.forces(state.wind)
+        args.springs, args.bending, args.forces = model.springs, model.bending, model.forces(state.wind)
         args.inv_mass, args.h = model.inv_mass, model.h
         args.semi_implicit = int(self.symplectic)
         args.rounded_away = state.rounded_away

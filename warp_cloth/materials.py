@@ -31,15 +31,32 @@ largest of E_u, E_v, 4 G), E_u and E_v along the threads and 4 G on the bias, so
 triangles is pulled and sheared exactly as the material says (its diagonals turning freely, as a
 pantograph's). A quad's side takes c^2 a_u + s^2 a_v.
 
-Bending. A bend spring spans two edges of length L/2 across a hinge; bent to a curvature kappa along it,
-an unstretched row shortens it by the strain eps = L^2 kappa^2 / 32 (the chord of two edges turned
-kappa L/2 apart), so its energy 1/2 k L eps^2 per area A it stands for gives the moment
-M = k L^5 kappa^3 / (512 A). Springs that only push back when shortened cannot give M = B kappa at every
-curvature; k makes the slope of M over 0.5 to 1.5 1/cm, the range in which the Kawabata tester (KES-FB2)
-measures B, equal B: k = 512 B A / (L^5 S), S = k1^2 + k1 k2 + k2^2 of that range's ends. Then
-M = B kappa^3 / S whatever the resolution. A spring stands for the mean of its ends' areas (on a grid a
-cell, half of one along the border; on a grid of triangles, whose bend springs run three ways, the three
-together bend an eighth stiffer than B). Along a direction at angle t to the warp, B = c^2 B_u + s^2 B_v.
+Bending. Linear in the curvature, M = B kappa at every curvature, wherever a bend spring spans a row
+straight at rest (a grid's, and a mesh's across an edge between two quads of one row): the spring's two
+ends p, q and the particle m between them (joined to both by sides, on the segment p-q) make a stencil
+(kernels/bending.py). With spacings L1 = |m - p| and L2 = |q - m|, the weights w = 2 (1/(L1 (L1 + L2)),
+-1/(L1 L2), 1/(L2 (L1 + L2))) make d = w_p x_p + w_m x_m + w_q x_q the second derivative of the row along its
+length, which for a row bent to a curvature kappa (unstretched) is kappa times the row's normal, and zero
+for any straight row, however it lies. The stencil stands for the area A of its middle particle (on a
+grid a cell: its width across the row times the length it owns along it; half of one along the border),
+so its energy 1/2 k |d|^2 equals the plate's 1/2 B kappa^2 A for k = B A: a bend of kappa in the row's
+direction costs 1/2 B kappa^2 per unit area, the moment per unit width M = B kappa, whatever the resolution
+or the curvature. Rows across (a grid's columns) bend the other direction; a twist bends no straight row,
+so it costs nothing (as it cost the springs nothing). A dashpot of ``damping`` seconds (c = damping x k)
+damps its rate. Along a direction at angle t to the warp, B = c^2 B_u + s^2 B_v.
+
+Where a bend spring has no straight row under it (across a triangle's edge, or a row curved as modelled,
+for which a fixed-weight stencil would not be at rest), it stays a spring: it spans two edges of length
+L/2 across a hinge; bent to a curvature kappa along it, an unstretched row shortens it by the strain
+eps = L^2 kappa^2 / 32 (the chord of two edges turned kappa L/2 apart), so its energy 1/2 k L eps^2 per
+area A it stands for gives the moment M = k L^5 kappa^3 / (512 A). Springs that only push back when
+shortened cannot give M = B kappa at every curvature; k makes the slope of M over 0.5 to 1.5 1/cm, the range
+in which the Kawabata tester (KES-FB2) measures B, equal B: k = 512 B A / (L^5 S), S = k1^2 + k1 k2 + k2^2
+of that range's ends. Then M = B kappa^3 / S whatever the resolution: at a fold of 3 cm radius about 1/29
+of B, at 1 cm about 1/3, so that gentle folds were left to the mesh (the drape coefficient moved by 2 to 8
+points from 30 to 60 cells, docs/guide/scene-reference.md). A spring stands for the mean of its ends'
+areas (on a grid of triangles, whose bend springs run three ways, the three together bend an eighth
+stiffer than B).
 
 Damping. Each spring's dashpot is ``damping`` seconds of its elastic response: b = damping x k / L
 (stiffness-proportional, Rayleigh's), a strain rate then pulls as that much strain would.
@@ -59,7 +76,8 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from .checks import check_fields
-from .cloth_mesh import BEND, SHEAR, STRUCTURAL, ClothMesh, DerivedSprings, lumped_masses
+from .adjacency import Adjacency
+from .cloth_mesh import BEND, SHEAR, STRUCTURAL, BendStencils, ClothMesh, DerivedSprings, lumped_masses
 from .errors import SceneError
 from .fabric_presets import PRESETS
 from .mesh_io import face_areas, face_edges, face_starts
@@ -75,7 +93,8 @@ _RANGES = {"density": (1e-6, 1e3, "kg/m^2"), "stretch": (1e-3, 1e8, "N/m"), "she
            "bending": (1e-12, 10.0, "N m"), "damping": (0.0, 1.0, "s"), "friction": (0.0, 10.0, "")}
 _REQUIRED = ("density", "stretch", "shear", "bending")
 # In which regime a material's springs act, elastic part and dashpot (the kernels' regimes, model.regime_flags):
-# sides and diagonals both ways, as a membrane does; bend springs only when shortened, as the seed's.
+# sides and diagonals both ways, as a membrane does; bend springs (those no stencil replaces) only when
+# shortened, as the seed's.
 REGIMES = {STRUCTURAL: ("both", "both"), SHEAR: ("both", "both"), BEND: ("compression", "compression")}
 
 
@@ -169,6 +188,12 @@ def derive_springs(material: Material, rest_points: np.ndarray, mesh: ClothMesh)
     bending = warp[bends] * bend_u + (1 - warp[bends]) * bend_v
     stiffness[bends] = 512.0 * bending * _bend_areas(rest_points, counts, indices, pairs[bends]) / (
         rests[bends] ** 5 * _KES_SLOPE)
+    middle = _straight_middles(rest_points, pairs[sides], pairs[bends])
+    straight = middle >= 0
+    stenciled = np.zeros(len(pairs), dtype=bool)
+    stenciled[np.nonzero(bends)[0][straight]] = True
+    stencils = _stencils(rest_points, counts, indices, pairs[bends][straight], middle[straight], bending[straight],
+                         material.damping)
 
     stretch_limit = compression_limit = None
     if material.stretch_limit is not None:
@@ -177,7 +202,43 @@ def derive_springs(material: Material, rest_points: np.ndarray, mesh: ClothMesh)
     if material.compression_limit is not None:
         c_u, c_v = along(material.compression_limit)
         compression_limit = warp * c_u + (1 - warp) * c_v
-    return DerivedSprings(stiffness, material.damping * stiffness / rests, stretch_limit, compression_limit)
+    return DerivedSprings(stiffness, material.damping * stiffness / rests, stretch_limit, compression_limit,
+                          stencils if straight.any() else None, stenciled)
+
+
+def _straight_middles(points, sides, bends) -> np.ndarray:
+    """For each bend spring p-q, a particle m joined to both by sides and on the segment p-q at rest (within
+    1e-6 of its length); -1 where there is none."""
+    n = len(points)
+    adjacency = Adjacency.of(sides, n)
+    side_keys = np.sort(_keys(sides, n))
+    p, q = bends[:, 0], bends[:, 1]
+    degree = adjacency.offsets[p + 1] - adjacency.offsets[p]
+    owner = np.repeat(np.arange(len(bends)), degree)
+    entry = np.repeat(adjacency.offsets[p] - np.cumsum(degree) + degree, degree) + np.arange(int(degree.sum()))
+    m = adjacency.other[entry].astype(np.int64)
+    ends = np.stack([m, q[owner]], axis=1)
+    found = np.searchsorted(side_keys, _keys(ends, n))
+    joined = side_keys[np.minimum(found, len(side_keys) - 1)] == _keys(ends, n)
+    chord = points[q[owner]] - points[p[owner]]
+    offset = points[m] - points[p[owner]]
+    length2 = np.einsum("si,si->s", chord, chord)
+    along = np.einsum("si,si->s", offset, chord)
+    off_line = np.linalg.norm(np.cross(chord, offset), axis=1)
+    on_segment = joined & (along > 0) & (along < length2) & (off_line <= 1e-6 * length2)
+    middle = np.full(len(bends), -1, dtype=np.int64)
+    middle[owner[on_segment][::-1]] = m[on_segment][::-1]  # the first found, where several are
+    return middle
+
+
+def _stencils(points, counts, indices, bends, middle, bending, damping: float) -> BendStencils:
+    """The stencils p, m, q of the straight bend springs (see the module's docstring)."""
+    p, q = bends[:, 0], bends[:, 1]
+    l1 = np.linalg.norm(points[middle] - points[p], axis=1)
+    l2 = np.linalg.norm(points[q] - points[middle], axis=1)
+    weights = 2.0 * np.stack([1.0 / (l1 * (l1 + l2)), -1.0 / (l1 * l2), 1.0 / (l2 * (l1 + l2))], axis=1)
+    stiffness = bending * lumped_masses(points, counts, indices, 1.0)[middle]
+    return BendStencils(np.stack([p, middle, q], axis=1), weights, stiffness, damping * stiffness)
 
 
 def _side_stiffness(material: Material, tensors, points, counts, indices, wanted) -> np.ndarray:

@@ -5,9 +5,9 @@ Each frame's row: its number and time; the worst stretch and compression of the 
 edges (every edge, springs or not, as fractions: 0.1 is 10%); the closest contact (with particle collision:
 the closest pair the simulation has listed, as a fraction of its contact distance; measuring it changes
 nothing in the run); the crossing triangle pairs (where the run's ``--check`` counts them); kinetic energy,
-potential energy (gravity's, from y = 0 along the gravity of the cloth's world, plus the springs' elastic
-energy, 1/2 k L (l/L - 1)^2 for each spring in the regime it acts in) and the springs' part of it, in
-joules; the substeps' solves since the frame before (the converged strain limit solve's mean and most
+potential energy (gravity's, from y = 0 along the gravity of the cloth's world, plus the elastic energy:
+1/2 k L (l/L - 1)^2 for each spring in the regime it acts in, and 1/2 k |d|^2 for each of a material's
+bending stencils, kernels/bending.py) and the elastic part of it, in joules; the substeps' solves since the frame before (the converged strain limit solve's mean and most
 passes a substep, the implicit step's most CG iterations); the frame's substeps (with substeps auto, those
 it was kept at); and the frame's wall time, from the end of the frame before (simulation and the writers
 before this one).
@@ -125,7 +125,7 @@ class MetricsWriter(StagedOutput):
         row["closest_contact"] = "" if contacts is None or contacts.min() >= 1e29 else float(contacts.min())
         row["crossing_pairs"] = "" if self.check is None else self.check.last_intersections
         row["kinetic_energy"] = 0.5 * float(np.sum(self._masses * np.sum(v * v, axis=1)))
-        spring_energy = _spring_energy(model.springs, x)
+        spring_energy = _spring_energy(model.springs, x) + _bending_energy(model.bending, x)
         row["potential_energy"] = -float(np.sum(self._masses * np.sum(self._gravity * x, axis=1))) + spring_energy
         row["spring_energy"] = spring_energy
         stats = sim.solver_stats()
@@ -175,6 +175,14 @@ def _spring_energy(springs, x: np.ndarray) -> float:
     strain = np.linalg.norm(x[springs.pairs[:, 0]] - x[springs.pairs[:, 1]], axis=1) / springs.rest - 1.0
     acts = np.where(strain > 0, springs.flags & int(ELASTIC_TENSION), springs.flags & int(ELASTIC_COMPRESSION))
     return float(np.sum(np.where(acts != 0, 0.5 * springs.stiffness * springs.rest * strain * strain, 0.0)))
+
+
+def _bending_energy(bending, x: np.ndarray) -> float:
+    """1/2 k |d|^2 over the bending stencils, d = sum_r w_r x_r."""
+    if bending is None:
+        return 0.0
+    curvature = np.einsum("sr,srk->sk", bending.weights, x[bending.particles].astype(np.float64))
+    return float(np.sum(0.5 * bending.stiffness * np.einsum("sk,sk->s", curvature, curvature)))
 
 
 def read_metrics(path: str | Path) -> dict[str, np.ndarray]:

@@ -16,7 +16,7 @@ from warp_cloth.kernels import springs as spring_kernels
 
 from .adjacency import Adjacency
 from .cloth_grid import build_grid
-from .cloth_mesh import BEND, SHEAR, STRUCTURAL, ClothMesh, enclosing_radii, rest_adjacent_pairs
+from .cloth_mesh import BEND, SHEAR, STRUCTURAL, BendStencils, ClothMesh, enclosing_radii, rest_adjacent_pairs
 from .keyed_motion import collider_keys, keyed_at, keyed_points
 from .mesh_cloth import build_mesh_cloth
 from .mesh_io import load_transform_motion, triangle_sides
@@ -230,6 +230,7 @@ class Model:
     friction: np.ndarray | None = None  # (n,) float32 each particle's cloth's material's coefficient, 0 where it
     # sets none; None: no cloth's material sets one
     sewn: SewnPairs | None = None  # the seams' pairs; None: no seam
+    bending: BendStencils | None = None  # the materials' bending stencils, every cloth's; None: none
 
     @property
     def particle_world(self) -> np.ndarray:
@@ -290,7 +291,14 @@ def build_model(scene: Scene, worlds: Worlds | None = None) -> Model:
     return Model(meshes, tuple(offsets), positions, velocities, masses, inv_mass, cloth_id, springs, limits,
                  pins, _spheres(scene, begins), _contacts(scene, meshes, sewn), edges, edge_rest, edge_kind,
                  _mesh_colliders(scene, begins), _wind_faces(meshes, offsets) if scene.wind is not None else None,
-                 pin_animations, worlds, _friction(scene, meshes), sewn)
+                 pin_animations, worlds, _friction(scene, meshes), sewn, _bending(meshes, offsets))
+
+
+def _bending(meshes, offsets) -> BendStencils | None:
+    """Every cloth's bending stencils (a material's), numbered as the model's particles."""
+    parts = [g.derived.bending.shifted(offset) for g, offset in zip(meshes, offsets)
+             if g.derived is not None and g.derived.bending is not None]
+    return BendStencils.joined(parts) if parts else None
 
 
 def _friction(scene: Scene, meshes) -> np.ndarray | None:
@@ -318,6 +326,8 @@ def _springs(scene: Scene, meshes, offsets, n: int) -> Springs | None:
             if not kind.enabled:
                 continue
             sel = mesh.spring_kind == kind_id
+            if mesh.derived is not None and mesh.derived.stenciled is not None:
+                sel &= ~mesh.derived.stenciled  # bent by its stencils instead
             count = int(sel.sum())
             rest = mesh.rest_lengths[sel]
             derived = mesh.derived

@@ -24,6 +24,11 @@ One mode ``x'' = -w^2 x - c x'`` stepped with h:
   guarantees. So ``h < min(rho, 2 / C)``; with an undamped spring, the step at which the fastest mode grows
   at most 2x over the run, ``2 ln 2 / (T W^2)``.
 
+A material's bending stencil (kernels/bending.py) adds ``k w w^T`` to K (and ``c w w^T`` to C) in every
+direction; with ``a_r = |w_r| / sqrt(m_r)``, ``(sum_r w_r u_r)^2 <= (sum_r a_r) (sum_r a_r y_r^2)``
+(Cauchy-Schwarz), so it adds ``k a_r sum_s a_s`` to the diagonal of particle r's S_r (and ``c`` times that
+to D_r); its damping time c / k is the material's ``damping``.
+
 A soft pin counts as a spring of zero length to a held point (``k`` where a spring has ``k/L0``). Every
 enabled spring counts, in whatever regime it acts (a bend spring acts only when compressed, but a
 compressed cloth has them all). Strain limits and collisions are projections: they add no stiffness.
@@ -42,6 +47,7 @@ import numpy as np
 
 from .errors import SceneError
 from .integrators import integrator_for
+from .cloth_mesh import BendStencils
 from .model import (FLAG_DAMPING_COMPRESSION, FLAG_DAMPING_TENSION, FLAG_ELASTIC_COMPRESSION,
                     FLAG_ELASTIC_TENSION, Model, build_model)
 from .scene import Scene, Simulation
@@ -130,11 +136,12 @@ def _ms(seconds: float) -> str:
 
 def stable_step(positions: np.ndarray, inv_mass: np.ndarray, pairs: np.ndarray, rest: np.ndarray,
                 stiffness: np.ndarray, damping: np.ndarray, flags: np.ndarray, integrator: str, drag: float = 0.0,
-                duration: float = 10.0) -> StabilityBound:
+                duration: float = 10.0, bending: BendStencils | None = None) -> StabilityBound:
     """The largest stable step of ``integrator`` (named as a scene names it: one with a bound, as
     "explicit" or "symplectic") on springs ``pairs`` between particles at ``positions`` of inverse mass
-    ``inv_mass`` (0: held), springs with the model's regime ``flags``; ``duration`` (s) is the run's length,
-    used only by forward Euler with undamped springs. See the module's docstring for the derivation."""
+    ``inv_mass`` (0: held), springs with the model's regime ``flags``, and the ``bending`` stencils;
+    ``duration`` (s) is the run's length, used only by forward Euler with undamped springs. See the module's
+    docstring for the derivation."""
     bound = integrator_for(integrator).stable_step
     if bound is None:
         raise ValueError(f"no stability bound for integrator {integrator!r}")
@@ -145,24 +152,42 @@ def stable_step(positions: np.ndarray, inv_mass: np.ndarray, pairs: np.ndarray, 
     moving = free[pairs[:, 0]] | free[pairs[:, 1]]
     axial = np.where(elastic, stiffness.astype(np.float64) / rest, 0.0)
     dashpot = np.where(damped, damping.astype(np.float64), 0.0)
-    w2 = _largest_rate(positions, pairs, axial, inv_mass)
-    c = _largest_rate(positions, pairs, dashpot, inv_mass) + drag
+    stencil_k, stencil_c = _stencil_rates(bending, inv_mass)
+    w2 = _largest_rate(positions, pairs, axial, inv_mass, stencil_k)
+    c = _largest_rate(positions, pairs, dashpot, inv_mass, stencil_c) + drag
     # A spring's damping time b L0 / k counts where its dashpot acts in its elastic regime.
     both = (((flags & FLAG_ELASTIC_TENSION) != 0) & ((flags & FLAG_DAMPING_TENSION) != 0)) | \
            (((flags & FLAG_ELASTIC_COMPRESSION) != 0) & ((flags & FLAG_DAMPING_COMPRESSION) != 0))
     stiff = elastic & moving & (axial > 0)  # a knit's sides may carry nothing (materials.py)
     rho = np.where(both, dashpot, 0.0)[stiff] / axial[stiff] if stiff.any() else np.array([math.inf])
+    if bending is not None and stencil_k.any():
+        rho = np.append(rho, float((bending.damping / bending.stiffness).min()))
     rho_min = float(rho.min())
     step, limited_by = bound(w2, c, rho_min, duration)
     return StabilityBound(integrator, step, math.sqrt(w2), c, rho_min, limited_by)
 
 
-def _largest_rate(positions: np.ndarray, pairs: np.ndarray, weight: np.ndarray, inv_mass: np.ndarray) -> float:
+def _stencil_rates(bending: BendStencils | None, inv_mass: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per particle, what the bending stencils add to the diagonal of S_r and of D_r (the module's
+    docstring)."""
+    k_rate, c_rate = np.zeros(len(inv_mass)), np.zeros(len(inv_mass))
+    if bending is None:
+        return k_rate, c_rate
+    a = np.abs(bending.weights) * np.sqrt(inv_mass.astype(np.float64)[bending.particles])
+    share = a * a.sum(axis=1, keepdims=True)
+    k_rate += np.bincount(bending.particles.reshape(-1), (share * bending.stiffness[:, None]).reshape(-1), len(inv_mass))
+    c_rate += np.bincount(bending.particles.reshape(-1), (share * bending.damping[:, None]).reshape(-1), len(inv_mass))
+    return k_rate, c_rate
+
+
+def _largest_rate(positions: np.ndarray, pairs: np.ndarray, weight: np.ndarray, inv_mass: np.ndarray,
+                  isotropic: np.ndarray) -> float:
     """An upper bound of the largest eigenvalue of M^-1 A, A the springs' ``weight`` (n n^T) pattern over
-    the free particles: max over them of lambda_max(sum over their springs ij of
-    weight (w_i + sqrt(w_i w_j)) n n^T), w the inverse masses (a held particle, w = 0, does not move)."""
+    the free particles and ``isotropic`` (each particle's, times I) on its diagonal: max over them of
+    lambda_max(sum over their springs ij of weight (w_i + sqrt(w_i w_j)) n n^T) + isotropic, w the inverse
+    masses (a held particle, w = 0, does not move)."""
     free = inv_mass > 0
-    if not free.any() or not weight.any():
+    if not free.any() or not (weight.any() or isotropic.any()):
         return 0.0
     n = len(inv_mass)
     d = positions[pairs[:, 1]].astype(np.float64) - positions[pairs[:, 0]]
@@ -179,7 +204,7 @@ def _largest_rate(positions: np.ndarray, pairs: np.ndarray, weight: np.ndarray, 
             direction = np.where(length > 0, unit[:, a] * unit[:, b], 1.0 if a == b else 0.0)
             summed = np.bincount(i, end_i * direction, n) + np.bincount(j, end_j * direction, n)
             block[:, a, b] = block[:, b, a] = summed
-    return float(np.linalg.eigvalsh(block[free])[:, -1].max())
+    return float((np.linalg.eigvalsh(block[free])[:, -1] + isotropic[free]).max())
 
 
 def model_bound(model: Model, sim: Simulation) -> StabilityBound | None:
@@ -196,7 +221,7 @@ def model_bound(model: Model, sim: Simulation) -> StabilityBound | None:
                   springs.flags)
     if model.pins is not None and model.pins.soft.any():
         arrays = _with_soft_pins(model, *arrays)
-    return stable_step(*arrays, sim.integrator, sim.drag, duration)
+    return stable_step(*arrays, sim.integrator, sim.drag, duration, model.bending)
 
 
 def _with_soft_pins(model: Model, positions, inv_mass, pairs, rest, stiffness, damping, flags) -> tuple:

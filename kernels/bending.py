@@ -1,0 +1,77 @@
+"""Bending linear in the curvature: a material's three-particle stencils (warp_cloth/materials.py derives
+them), and their Jacobians for the implicit solve.
+
+A stencil p, m, q along a straight row at rest has weights w (1/m^2, summing to zero, the second
+difference over its spacings) so that its curvature vector d = sum_r w_r x_r is the curvature of the row
+times its normal; its energy 1/2 k |d|^2 and dashpot 1/2 c |sum_r w_r v_r|^2 give each of its particles
+r the force -w_r (k d + c sum_s w_s v_s). Linear in the positions: the stiffness Jacobian is the constant
+k w_r w_s I between particles r and s, and the damping one c w_r w_s I.
+
+Gathered per particle, as the springs are: ``offsets`` lists each particle's incidences, each naming a
+stencil and the particle's place in it, so every particle sums its own forces without atomics.
+"""
+
+import warp as wp
+
+
+@wp.struct
+class Bending:
+    offsets: wp.array(dtype=int)  # (n + 1,) particle i's incidences are offsets[i]:offsets[i + 1]
+    stencil: wp.array(dtype=int)  # per incidence: the stencil
+    place: wp.array(dtype=int)  # per incidence: the particle's place in it, 0, 1 or 2
+    particles: wp.array(dtype=int)  # (3 s,) each stencil's particles
+    weights: wp.array(dtype=float)  # (3 s,) 1/m^2
+    stiffness: wp.array(dtype=float)  # (s,) N m^3: the bending stiffness times the area the stencil stands for
+    damping: wp.array(dtype=float)  # (s,) N m^3 s
+
+
+@wp.func
+def stencil_sum(bending: Bending, s: int, u: wp.array(dtype=wp.vec3)) -> wp.vec3:
+    """sum_r w_r u_r over stencil s."""
+    total = wp.vec3(0.0)
+    for r in range(3):
+        total = total + bending.weights[3 * s + r] * u[bending.particles[3 * s + r]]
+    return total
+
+
+@wp.func
+def bending_forces(bending: Bending, i: int, first: int, stride: int, x: wp.array(dtype=wp.vec3),
+                   v: wp.array(dtype=wp.vec3)) -> wp.vec3:
+    """Sum of the stencils' forces on particle i from its incidences offsets[i] + first, + stride, ..."""
+    f = wp.vec3(0.0)
+    for k in range(bending.offsets[i] + first, bending.offsets[i + 1], stride):
+        s = bending.stencil[k]
+        w = bending.weights[3 * s + bending.place[k]]
+        f = f - w * (bending.stiffness[s] * stencil_sum(bending, s, x) + bending.damping[s] * stencil_sum(bending, s, v))
+    return f
+
+
+@wp.func
+def add_bending_times(bending: Bending, i: int, p: wp.array(dtype=wp.vec3), h: float, total: wp.vec3) -> wp.vec3:
+    """``total`` plus the stencils' part of particle i's row of the step's matrix (h D + h^2 K) times p."""
+    for k in range(bending.offsets[i], bending.offsets[i + 1]):
+        s = bending.stencil[k]
+        w = bending.weights[3 * s + bending.place[k]]
+        total = total + (w * (h * bending.damping[s] + h * h * bending.stiffness[s])) * stencil_sum(bending, s, p)
+    return total
+
+
+@wp.func
+def add_bending_diagonal(bending: Bending, i: int, h: float, block: wp.mat33) -> wp.mat33:
+    """``block`` plus the stencils' part of particle i's 3x3 diagonal block of the step's matrix."""
+    scale = float(0.0)
+    for k in range(bending.offsets[i], bending.offsets[i + 1]):
+        s = bending.stencil[k]
+        w = bending.weights[3 * s + bending.place[k]]
+        scale = scale + w * w * (h * bending.damping[s] + h * h * bending.stiffness[s])
+    return block + scale * wp.identity(n=3, dtype=float)
+
+
+@wp.func
+def bending_stiffness_times(bending: Bending, i: int, u: wp.array(dtype=wp.vec3)) -> wp.vec3:
+    """Particle i's row of the stencils' K u."""
+    total = wp.vec3(0.0)
+    for k in range(bending.offsets[i], bending.offsets[i + 1]):
+        s = bending.stencil[k]
+        total = total + (bending.weights[3 * s + bending.place[k]] * bending.stiffness[s]) * stencil_sum(bending, s, u)
+    return total
