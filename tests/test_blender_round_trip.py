@@ -50,13 +50,13 @@ READ_RESULT = textwrap.dedent("""
     import json, sys
     import bpy
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    bpy.ops.wm.usd_import(filepath=sys.argv[-2])
+    bpy.ops.wm.usd_import(filepath=sys.argv[-3])
     scene = bpy.context.scene
     result = {"objects": sorted(o.name for o in scene.objects), "frames": {}}
-    for frame in [int(f) for f in sys.argv[-1].split(",")]:
+    for frame in [int(f) for f in sys.argv[-2].split(",")]:
         scene.frame_set(frame)
         result["frames"][frame] = {}
-        for name in ("Plane", "Cube"):  # the sheet's and the table's meshes, as Blender exported them
+        for name in sys.argv[-1].split(","):  # the objects whose meshes are read, world-space
             evaluated = scene.objects[name].evaluated_get(bpy.context.evaluated_depsgraph_get())
             mesh = evaluated.to_mesh()
             result["frames"][frame][name] = [list(evaluated.matrix_world @ v.co) for v in mesh.vertices]
@@ -108,8 +108,8 @@ def test_blender_shot_simulated_and_read_back_by_blender(tmp_path: Path):
     code, out, err = run_cli_in_process("run", "shot.toml", "--out", "out", cwd=tmp_path)
     assert code == 0, err
     assert "Z-up stage turned Y-up" in err  # Blender's stage is Z-up; the run said what it converted
-    seen = json.loads(blender(READ_RESULT, str(tmp_path / "out" / "shot.shot.usda"),
-                              ",".join(map(str, FRAMES))).split("RESULT ", 1)[1])
+    seen = json.loads(blender(READ_RESULT, str(tmp_path / "out" / "shot.shot.usda"), ",".join(map(str, FRAMES)),
+                              "Plane,Cube").split("RESULT ", 1)[1])  # the sheet's and the table's, as Blender named them
     assert {"Sheet", "Table"} <= set(seen["objects"])  # the shot's own objects
 
     stage = Usd.Stage.Open(str(tmp_path / "out" / "shot.usdc"))
@@ -137,24 +137,6 @@ def test_blender_shot_simulated_and_read_back_by_blender(tmp_path: Path):
     assert turned_cloth == pytest.approx(turned_table, rel=0.1)
 
 
-READ_GARMENT = textwrap.dedent("""
-    import json, sys
-    import bpy
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    bpy.ops.wm.usd_import(filepath=sys.argv[-2])
-    scene = bpy.context.scene
-    result = {"objects": sorted(o.name for o in scene.objects), "frames": {}}
-    for frame in [int(f) for f in sys.argv[-1].split(",")]:
-        scene.frame_set(frame)
-        result["frames"][frame] = {}
-        for name in ("Front", "Back", "Body"):
-            evaluated = scene.objects[name].evaluated_get(bpy.context.evaluated_depsgraph_get())
-            mesh = evaluated.to_mesh()
-            result["frames"][frame][name] = [list(evaluated.matrix_world @ v.co) for v in mesh.vertices]
-            evaluated.to_mesh_clear()
-    print("RESULT " + json.dumps(result))
-""")
-
 GARMENT_FRAMES = (0, 7, 14)  # the seams pulled shut over the first 12 (close_time 0.5 s at 24 fps)
 
 
@@ -165,8 +147,8 @@ def test_the_garment_shot_opens_in_blender_with_the_skirt_sewn_round_the_body(tm
     code, out, err = run_cli_in_process("run", "garment", "--frames", str(GARMENT_FRAMES[-1]), "--out", "out",
                                         "--device", "cpu", cwd=tmp_path)
     assert code == 0, err
-    seen = json.loads(blender(READ_GARMENT, str(tmp_path / "out" / "garment.shot.usda"),
-                              ",".join(map(str, GARMENT_FRAMES))).split("RESULT ", 1)[1])
+    seen = json.loads(blender(READ_RESULT, str(tmp_path / "out" / "garment.shot.usda"),
+                              ",".join(map(str, GARMENT_FRAMES)), "Front,Back,Body").split("RESULT ", 1)[1])
     assert {"Front", "Back", "Body"} <= set(seen["objects"])
 
     def z_up(points) -> np.ndarray:  # the stage is Y-up; Blender turns it Z-up on import
