@@ -16,6 +16,7 @@ from warp_cloth.cloth_lines import cloth_lines, mesh_chains
 from warp_cloth.diagnostics import ContactGaps, TriangleIntersections
 from warp_cloth.lab.bench_meshes import as_mesh_cloth
 from warp_cloth.limit_solve import lab_hooks
+from warp_cloth.scene_file import scene_from_dict
 from warp_cloth.line_solve import LineSolves, line_segments, longest_line, slot_layout
 from warp_cloth.model import build_model
 from warp_cloth.strain import StrainMonitor
@@ -192,3 +193,15 @@ def test_the_hanging_cloth_comes_to_rest_under_the_line_solve_as_under_the_defau
     for _ in range(480):
         sim.step()
     assert np.linalg.norm(sim.velocities(), axis=1).max() < 0.01
+
+
+def test_a_scene_whose_only_limited_springs_are_a_seams_has_no_lines_and_keeps_the_jacobi_solve():
+    data = {"name": "sewn", "cloth": [{"name": "a", "resolution": [4, 4], "size": [0.4, 0.4]},
+                                       {"name": "b", "resolution": [4, 4], "size": [0.4, 0.4],
+                                        "origin": [0.9, 0.4, 0.0], "rotation": [0.0, 0.0, 180.0]}],
+            "seam": [{"a": {"cloth": "a", "edge": "right"}, "b": {"cloth": "b", "edge": "right"}}]}
+    scene = scene_from_dict(data)
+    with lab_hooks(line_solve=True):
+        sim = wc.Simulator(scene, device="cpu")
+    assert cloth_lines(sim.model, scene) == [] and sim.model.limits is not None
+    assert sim.plan.projection.later_body is None  # the default's Jacobi pairs
