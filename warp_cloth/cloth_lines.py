@@ -113,7 +113,7 @@ def colour_lines(lines: list[np.ndarray], free: np.ndarray) -> np.ndarray:
 
 def cloth_lines(model: Model, scene: Scene) -> list[Family]:
     """The scene's families of lines: a grid cloth's rows, columns, diagonals and antidiagonals, a mesh
-    cloth's coloured chains; the cloths' k-th families solved as one."""
+    cloth's coloured chains; the cloths' k-th families solved as one (none where no cloth is limited)."""
     springs = model.springs
     n = model.particle_count
     limited = np.isfinite(springs.limit_max)
@@ -130,6 +130,8 @@ def cloth_lines(model: Model, scene: Scene) -> list[Family]:
 
     families: list[list[tuple[np.ndarray, np.ndarray]]] = []  # per family its lines: particles, slots
     for c, cloth in enumerate(scene.cloths):
+        if cloth.limit is None:  # its springs are not limited (a seam's may be: they are no line)
+            continue
         offset = model.offsets[c]
         if cloth.mesh is None:
             grouped = [list(chains) for chains in grid_chains(*cloth.resolution).values()]

@@ -101,8 +101,8 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
     follows a projection; with fixed passes, one edge pass before them) and the contact velocities; without
     it, the strain limit's passes or the colliders alone; the clock last, where something moves with it.
     ``solve``: how the limits and contacts are solved; ``threads``: per particle on the gathering passes
-    (None: by size); ``lines``: the line solves of the cloths' lines where ``solve.line_solve``, made once
-    for every plan a simulator builds (line_solve.LineSolves); ``bounds``: the lab's displacement bounds
+    (None: by size); ``lines``: the line solves of the cloths' lines where ``solve.line_solve`` and a cloth
+    is limited, made once for every plan a simulator builds (line_solve.LineSolves); ``bounds``: the lab's displacement bounds
     (displacement_bounds.py, made once per simulator), measured first and clamping the step after the solves
     (before the contact velocities); ``control``: the passes that put what a script sent from Python
     (control.py's ``Control.passes``) after the colliders' motion (``"colliders"``), with the soft pins' motion
@@ -149,7 +149,7 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
         edge_passes = [edge_separation_pass(model, state, chosen, rigid)] if state.edges is not None else []
         if faces is not None:
             edge_passes.append(faces.separation_pass(model, chosen, rigid))
-        if converged and model.limits is not None and solve.line_solve:
+        if converged and model.limits is not None and lines is not None:
             projection = line_contact_projection(model, state, solve, chosen, rigid, edge_passes, lines)
             passes.append(projection)
         elif converged:
@@ -160,9 +160,8 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
         if bounds is not None:
             passes.append(bounds.clamp)
         passes.append(contact_velocities(model, state, chosen))
-    elif model.limits is not None and converged and solve.line_solve:
-        projection = ConvergedProjection(model, state, solve, line_round(model, lines, rigid), rigid,
-                                         counted=1)
+    elif model.limits is not None and converged and lines is not None:
+        projection = line_projection(model, state, solve, chosen, rigid, lines)
         passes.append(projection)
     elif model.limits is not None and converged:
         projection = ConvergedProjection(model, state, solve, [limit_pass(model, chosen, rigid, None, 1)] * 2, rigid)
@@ -201,6 +200,17 @@ def line_round(model: DeviceModel, lines: LineSolves, rigid: RigidColliders | No
     """A round of the lab's line solve (line_solve.py): the families of ``lines``, then the attachments and the
     colliders, each in place."""
     return [lines, HoldAndCollide(model, rigid)]
+
+
+def line_projection(model: DeviceModel, state: DeviceState, solve: LimitSolveSettings, threads: int,
+                    rigid: RigidColliders | None, lines: LineSolves) -> ConvergedProjection:
+    """The converged solve of the strain limits by line solves (the lab's, ``solve.line_solve``): a Jacobi pair
+    first, and where it leaves a limit out of tolerance, line rounds (each counted as one pass toward the cap)
+    to the end. The pair ends every solve of a cloth at rest: rounds alone, exact along their lines, kept the
+    hanging cloth swinging at 0.1 m/s after 480 frames, where the pair first lets it settle as the default
+    does (docs/notebook/strain-solve.md, "A Jacobi pair before the lines")."""
+    return ConvergedProjection(model, state, solve, [limit_pass(model, threads, rigid, None, 1)] * 2, rigid,
+                               later_body=line_round(model, lines, rigid), later_counted=1, switch_at=2)
 
 
 def line_contact_projection(model: DeviceModel, state: DeviceState, solve: LimitSolveSettings, threads: int,
