@@ -19,9 +19,10 @@ from .spatial_hash import cell_of, count_in, first_visit, neighbour_bucket, stam
 
 wp.set_module_options(FAST_MATH)
 
-# The edge and face gathers reject a candidate whose box lies farther than the reach before its exact test,
-# which costs several times more; a box is rejected only this factor past the reach, so that float32's
-# rounding (far below 1%) leaves every pair at the reach to the exact test alone and the lists the same.
+# The edge and face gathers reject a candidate that a cheap bound (its midpoint's or first vertex's distance,
+# its box's) puts out of reach before its exact test, which costs several times more; a bound rejects only
+# this factor past it, so that float32's rounding (far below 1%) leaves every pair at the reach to the exact
+# test alone and the lists as they were without the bounds.
 BOX_SLACK = wp.constant(1.01)
 
 
