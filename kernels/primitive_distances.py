@@ -18,7 +18,7 @@ numbered one's thread.
 import warp as wp
 
 from .edge_collision import closest_points
-from .spatial_hash import BOUND_SLACK, cell_gap_sq, cell_of, count_in, neighbour_bucket, stamp_of
+from .spatial_hash import cell_of, count_in, neighbour_bucket, stamp_of
 
 
 @wp.struct
@@ -113,12 +113,8 @@ def nearest_to_triangles(x: wp.array(dtype=wp.vec3), mesh: Primitives, grid: Dis
     world = mesh.world[v]
     reach = radius + longest[0]
     center = cell_of(p, grid.inv_cell[0])
-    scaled = p * grid.inv_cell[0]
-    cells_reach = BOUND_SLACK * reach * grid.inv_cell[0]
     stamp = stamp_of(grid.epoch[0])
     for k in range(27):
-        if cell_gap_sq(scaled, k) >= cells_reach * cells_reach:  # nothing within reach in that cell
-            continue
         bucket = neighbour_bucket(center, world, k, grid.mask)
         for s in range(wp.min(count_in(grid.bucket_size[bucket], stamp), grid.capacity)):
             q = grid.bucket_items[bucket * grid.capacity + s]
@@ -152,12 +148,8 @@ def nearest_between_edges(x: wp.array(dtype=wp.vec3), mesh: Primitives, grid: Di
     world = mesh.world[a]
     reach = radius + 0.5 * (wp.length(pb - pa) + longest[0])
     center = cell_of(middle, grid.inv_cell[0])
-    scaled = middle * grid.inv_cell[0]
-    cells_reach = BOUND_SLACK * reach * grid.inv_cell[0]
     stamp = stamp_of(grid.epoch[0])
     for k in range(27):
-        if cell_gap_sq(scaled, k) >= cells_reach * cells_reach:
-            continue
         bucket = neighbour_bucket(center, world, k, grid.mask)
         for s in range(wp.min(count_in(grid.bucket_size[bucket], stamp), grid.capacity)):
             c = grid.bucket_items[bucket * grid.capacity + s]

@@ -41,33 +41,10 @@ def neighbour_bucket(center: wp.vec3i, world: int, k: int, mask: int) -> int:
     return bucket_of(center + wp.vec3i(k % 3 - 1, (k / 3) % 3 - 1, k / 9 - 1), world, mask)
 
 
-# A cheap bound (a cell's distance, a candidate's midpoint or box) rejects only this factor past the distance
-# it stands for, so that float32's rounding (far below 1%) leaves every pair at that distance to the exact
-# test alone, and what is found is what was found without the bound.
-BOUND_SLACK = wp.constant(1.01)
-
-
 @wp.func
-def cell_gap_sq(scaled: wp.vec3, k: int) -> float:
-    """The squared distance, in cell widths, from a point (``scaled``: its coordinates times the cells' inverse
-    width) to the k-th of the 27 cells around its own."""
-    offset = wp.vec3i(k % 3 - 1, (k / 3) % 3 - 1, k / 9 - 1)
-    gap = float(0.0)
-    for axis in range(3):
-        within = scaled[axis] - wp.floor(scaled[axis])
-        if offset[axis] < 0:
-            gap += within * within
-        elif offset[axis] > 0:
-            gap += (1.0 - within) * (1.0 - within)
-    return gap
-
-
-@wp.func
-def first_visit_within(center: wp.vec3i, world: int, k: int, bucket: int, mask: int, scaled: wp.vec3,
-                       reach_sq: float) -> bool:
-    """Whether no cell before the k-th of the 27 around ``center`` that a query visits (those closer than
-    ``reach_sq``, ``cell_gap_sq``'s measure, to the point ``scaled``) hashes to ``bucket``, so that a query
-    visits each bucket once. Two cells share a bucket only where their places in the block (their
+def first_visit(center: wp.vec3i, world: int, k: int, bucket: int, mask: int) -> bool:
+    """Whether no cell before the k-th of the 27 around ``center`` hashes to ``bucket`` (so that a query
+    visits each bucket once). Two cells share a bucket only where their places in the block (their
     coordinates' parities) agree, so the only cells to compare are the earlier ones among the k-th with
     some of its -1 and +1 offsets turned over (at most 7; all 26 earlier cells were hashed before)."""
     offset = wp.vec3i(k % 3 - 1, (k / 3) % 3 - 1, k / 9 - 1)
@@ -81,18 +58,11 @@ def first_visit_within(center: wp.vec3i, world: int, k: int, bucket: int, mask: 
         for axis in range(3):
             if (turned >> axis) & 1 != 0:
                 other[axis] = -other[axis]
-        earlier = (other[0] + 1) + 3 * (other[1] + 1) + 9 * (other[2] + 1)
-        if earlier < k and cell_gap_sq(scaled, earlier) < reach_sq:
+        if (other[0] + 1) + 3 * (other[1] + 1) + 9 * (other[2] + 1) < k:
             if bucket_of(center + other, world, mask) == bucket:
                 return False
         turned = (turned - 1) & moving
     return True
-
-
-@wp.func
-def first_visit(center: wp.vec3i, world: int, k: int, bucket: int, mask: int) -> bool:
-    """``first_visit_within`` for a query of all 27 cells (no cell is 4 widths away)."""
-    return first_visit_within(center, world, k, bucket, mask, wp.vec3(0.0), 4.0)
 
 
 COUNT_BITS = 7  # a bucket's size: its stamp above these bits, its count (up to the capacity) in them

@@ -423,42 +423,30 @@ def test_a_block_of_2x2x2_cells_hashes_to_one_run_of_8_buckets():
 
 
 @wp.kernel
-def first_visits(points: wp.array(dtype=wp.vec3), reach_sq: float, world: int, mask: int,
-                 visited: wp.array(dtype=int), brute_force: wp.array(dtype=int), gaps: wp.array(dtype=float)):
-    """For each point and each of the 27 cells around its own: whether ``first_visit_within`` visits its
-    bucket, whether no earlier cell that the query visits has the same bucket (every earlier cell hashed),
-    and the cell's ``cell_gap_sq``."""
+def first_visits(centers: wp.array(dtype=wp.vec3i), world: int, mask: int, visited: wp.array(dtype=int),
+                 brute_force: wp.array(dtype=int)):
+    """For each centre and each of its 27 cells: whether ``first_visit`` visits its bucket, and whether no
+    earlier cell's bucket is the same (every earlier cell hashed)."""
     i, k = wp.tid()
-    scaled = points[i]
-    center = spatial_hash.cell_of(scaled, 1.0)
-    bucket = spatial_hash.neighbour_bucket(center, world, k, mask)
-    visited[i * 27 + k] = int(spatial_hash.first_visit_within(center, world, k, bucket, mask, scaled, reach_sq))
+    bucket = spatial_hash.neighbour_bucket(centers[i], world, k, mask)
+    visited[i * 27 + k] = int(spatial_hash.first_visit(centers[i], world, k, bucket, mask))
     first = int(1)
     for earlier in range(k):
-        if spatial_hash.cell_gap_sq(scaled, earlier) < reach_sq:
-            if spatial_hash.neighbour_bucket(center, world, earlier, mask) == bucket:
-                first = 0
+        if spatial_hash.neighbour_bucket(centers[i], world, earlier, mask) == bucket:
+            first = 0
     brute_force[i * 27 + k] = first
-    gaps[i * 27 + k] = spatial_hash.cell_gap_sq(scaled, k)
 
 
 @pytest.mark.parametrize("mask", [7, 15, 63, 1023])
-def test_a_query_visits_each_bucket_of_its_cells_within_reach_once(mask):
-    rng = np.random.default_rng(mask)
-    points = rng.uniform(-1000.0, 1000.0, (20000, 3)).astype(np.float32)
-    cells = np.floor(points)
-    offsets = np.array([(k % 3 - 1, (k // 3) % 3 - 1, k // 9 - 1) for k in range(27)])
-    low = cells[:, None, :] + offsets[None, :, :]  # each of the 27 cells, one unit wide
-    box_gap = np.maximum(np.maximum(low - points[:, None, :], points[:, None, :] - (low + 1.0)), 0.0)
-    for world, reach_sq in ((0, 4.0), (3, 4.0), (1, 0.8), (2, 0.3)):
+def test_a_query_visits_each_bucket_of_its_27_cells_once(mask):
+    centers = wp.array(np.random.default_rng(mask).integers(-1000, 1000, (20000, 3)).astype(np.int32),
+                       dtype=wp.vec3i)
+    for world in (0, 3):
         visited, brute_force = wp.zeros(20000 * 27, dtype=int), wp.zeros(20000 * 27, dtype=int)
-        gaps = wp.zeros(20000 * 27, dtype=float)
-        wp.launch(first_visits, (20000, 27), inputs=[wp.array(points, dtype=wp.vec3), reach_sq, world, mask],
-                  outputs=[visited, brute_force, gaps])
+        wp.launch(first_visits, (20000, 27), inputs=[centers, world, mask], outputs=[visited, brute_force])
         np.testing.assert_array_equal(visited.numpy(), brute_force.numpy())
-        np.testing.assert_allclose(gaps.numpy(), (box_gap ** 2).sum(axis=2).ravel(), atol=1e-3)
-        if mask == 7 and reach_sq == 4.0:  # one run of 8 buckets: the 27 cells share 8, the case being tested
-            assert brute_force.numpy().sum() == 8 * 20000
+    if mask == 7:  # one run of 8 buckets: cells of one parity share theirs, the case being tested
+        assert brute_force.numpy().sum() == 8 * 20000
 
 
 def test_a_new_epoch_starts_the_hash_table_empty_without_clearing_it():
