@@ -14,10 +14,16 @@ from .face_collision import may_touch as may_touch_face
 from .gathering import BLOCK, FAST_MATH, sum_over_threads, thread_layout
 from .particle_collision import (Contacts, ListState, PairRules, add_candidate, is_candidate,
                                  sort_and_drop_repeats)
-from .primitive_distances import point_triangle_distance
+from .primitive_distances import box_gap_sq, point_triangle_distance
 from .spatial_hash import cell_of, count_in, first_visit, neighbour_bucket, stamp_of
 
 wp.set_module_options(FAST_MATH)
+
+# The edge and face gathers reject a candidate that a cheap bound (its midpoint's or first vertex's distance,
+# its box's) puts out of reach before its exact test, which costs several times more; a bound rejects only
+# this factor past it, so that float32's rounding (far below 1%) leaves every pair at the reach to the exact
+# test alone and the lists as they were without the bounds.
+BOX_SLACK = wp.constant(1.01)
 
 
 @wp.struct
@@ -190,23 +196,36 @@ def gather_edge_candidates(x: wp.array(dtype=wp.vec3), midpoint: wp.array(dtype=
         return
     e = wp.tid()
     ends_e = edges.ends[e]
-    center = cell_of(midpoint[e], inv_cell[0])
+    middle = midpoint[e]
+    center = cell_of(middle, inv_cell[0])
     world = edge_world[e]
     stamp = stamp_of(lists.epoch[0])
     start = e * edges.max_neighbors
     owner = edge_list_owner(x, edges.ends, e)
+    p = x[ends_e[0]]
+    q = x[ends_e[1]]
+    low = wp.min(p, q)
+    high = wp.max(p, q)
+    box_reach_sq = (BOX_SLACK * reach) * (BOX_SLACK * reach)
+    # an edge within reach has its midpoint within half of both lengths plus the reach, and no edge is longer
+    # than the cells' width less the reach
+    near = BOX_SLACK * 0.5 * (wp.length(q - p) + 1.0 / inv_cell[0] + reach)
     count = int(0)
     for k in range(27):
         bucket = neighbour_bucket(center, world, k, mask)
         if first_visit(center, world, k, bucket, mask):
             for s in range(wp.min(count_in(bucket_size[bucket], stamp), capacity)):
                 f = bucket_items[bucket * capacity + s]
-                ends_f = edges.ends[f]
-                if f != e and may_touch(rules, ends_e, ends_f):
-                    gap = pair_gap(edges.ends, x, e, f)
-                    if gap < reach:
-                        count = insert_edge(edges.neighbors, start, count, edges.max_neighbors, f, gap,
-                                            lists.overflow, owner)
+                if wp.length_sq(midpoint[f] - middle) < near * near:
+                    ends_f = edges.ends[f]
+                    p_f = x[ends_f[0]]
+                    q_f = x[ends_f[1]]
+                    if box_gap_sq(low, high, wp.min(p_f, q_f), wp.max(p_f, q_f)) < box_reach_sq:
+                        if f != e and may_touch(rules, ends_e, ends_f):
+                            gap = pair_gap(edges.ends, x, e, f)
+                            if gap < reach:
+                                count = insert_edge(edges.neighbors, start, count, edges.max_neighbors, f, gap,
+                                                    lists.overflow, owner)
     edges.counts[e] = sort_and_drop_repeats(edges.neighbors, start, count)
 
 
@@ -228,23 +247,28 @@ def gather_vertex_faces(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules: 
     stamp = stamp_of(lists.epoch[0])
     start = v * faces.max_neighbors
     owner = face_list_owner(x, faces.triangles, v)
+    near = BOX_SLACK / inv_cell[0]  # a triangle within reach has its first vertex within reach plus its side
+    box_reach_sq = (BOX_SLACK * reach) * (BOX_SLACK * reach)
     count = int(0)
     for k in range(27):
         bucket = neighbour_bucket(center, world, k, mask)
         if first_visit(center, world, k, bucket, mask):
             for s in range(wp.min(count_in(bucket_size[bucket], stamp), capacity)):
                 q = bucket_items[bucket * capacity + s]
-                for o in range(owned_offsets[q], owned_offsets[q + 1]):
-                    t_index = owned[o]
-                    t = faces.triangles[t_index]
-                    if may_touch_face(rules, v, t):
+                if wp.length_sq(x[q] - p) < near * near:
+                    for o in range(owned_offsets[q], owned_offsets[q + 1]):
+                        t_index = owned[o]
+                        t = faces.triangles[t_index]
                         a = x[t[0]]
                         b = x[t[1]]
                         c = x[t[2]]
-                        gap = point_triangle_distance(p, a, b, c)
-                        if gap < reach:
-                            count = insert_triangle(faces.vertex_faces, start, count, faces.max_neighbors,
-                                                    2 * t_index + side_bit(p, a, b, c), gap, lists.overflow, owner)
+                        if box_gap_sq(p, p, wp.min(wp.min(a, b), c), wp.max(wp.max(a, b), c)) < box_reach_sq:
+                            if may_touch_face(rules, v, t):
+                                gap = point_triangle_distance(p, a, b, c)
+                                if gap < reach:
+                                    count = insert_triangle(faces.vertex_faces, start, count, faces.max_neighbors,
+                                                            2 * t_index + side_bit(p, a, b, c), gap, lists.overflow,
+                                                            owner)
     faces.vertex_counts[v] = sort_and_drop_repeats(faces.vertex_faces, start, count)
 
 
@@ -267,16 +291,20 @@ def gather_face_vertices(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules:
     stamp = stamp_of(lists.epoch[0])
     start = t_index * faces.max_neighbors
     owner = face_list_owner(x, faces.triangles, t_index)
+    low = wp.min(wp.min(a, b), c)
+    high = wp.max(wp.max(a, b), c)
+    box_reach_sq = (BOX_SLACK * reach) * (BOX_SLACK * reach)
     count = int(0)
     for k in range(27):
         bucket = neighbour_bucket(center, world, k, mask)
         if first_visit(center, world, k, bucket, mask):
             for s in range(wp.min(count_in(bucket_size[bucket], stamp), capacity)):
                 v = bucket_items[bucket * capacity + s]
-                if may_touch_face(rules, v, t):
-                    p = x[v]
-                    gap = point_triangle_distance(p, a, b, c)
-                    if gap < reach:
-                        count = insert_vertex(faces.face_vertices, start, count, faces.max_neighbors,
-                                              2 * v + side_bit(p, a, b, c), gap, lists.overflow, owner)
+                p = x[v]
+                if box_gap_sq(p, p, low, high) < box_reach_sq:
+                    if may_touch_face(rules, v, t):
+                        gap = point_triangle_distance(p, a, b, c)
+                        if gap < reach:
+                            count = insert_vertex(faces.face_vertices, start, count, faces.max_neighbors,
+                                                  2 * v + side_bit(p, a, b, c), gap, lists.overflow, owner)
     faces.face_counts[t_index] = sort_and_drop_repeats(faces.face_vertices, start, count)

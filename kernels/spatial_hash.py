@@ -44,10 +44,24 @@ def neighbour_bucket(center: wp.vec3i, world: int, k: int, mask: int) -> int:
 @wp.func
 def first_visit(center: wp.vec3i, world: int, k: int, bucket: int, mask: int) -> bool:
     """Whether no cell before the k-th of the 27 around ``center`` hashes to ``bucket`` (so that a query
-    visits each bucket once)."""
-    for earlier in range(k):
-        if neighbour_bucket(center, world, earlier, mask) == bucket:
-            return False
+    visits each bucket once). Two cells share a bucket only where their places in the block (their
+    coordinates' parities) agree, so the only cells to compare are the earlier ones among the k-th with
+    some of its -1 and +1 offsets turned over (at most 7; all 26 earlier cells were hashed before)."""
+    offset = wp.vec3i(k % 3 - 1, (k / 3) % 3 - 1, k / 9 - 1)
+    moving = int(0)
+    for axis in range(3):
+        if offset[axis] != 0:
+            moving = moving | (1 << axis)
+    turned = moving
+    while turned != 0:
+        other = wp.vec3i(offset[0], offset[1], offset[2])
+        for axis in range(3):
+            if (turned >> axis) & 1 != 0:
+                other[axis] = -other[axis]
+        if (other[0] + 1) + 3 * (other[1] + 1) + 9 * (other[2] + 1) < k:
+            if bucket_of(center + other, world, mask) == bucket:
+                return False
+        turned = (turned - 1) & moving
     return True
 
 

@@ -422,6 +422,33 @@ def test_a_block_of_2x2x2_cells_hashes_to_one_run_of_8_buckets():
     assert np.mean(by_world[0] == by_world[1]) < 0.03
 
 
+@wp.kernel
+def first_visits(centers: wp.array(dtype=wp.vec3i), world: int, mask: int, visited: wp.array(dtype=int),
+                 brute_force: wp.array(dtype=int)):
+    """For each centre and each of its 27 cells: whether ``first_visit`` visits its bucket, and whether no
+    earlier cell's bucket is the same (every earlier cell hashed)."""
+    i, k = wp.tid()
+    bucket = spatial_hash.neighbour_bucket(centers[i], world, k, mask)
+    visited[i * 27 + k] = int(spatial_hash.first_visit(centers[i], world, k, bucket, mask))
+    first = int(1)
+    for earlier in range(k):
+        if spatial_hash.neighbour_bucket(centers[i], world, earlier, mask) == bucket:
+            first = 0
+    brute_force[i * 27 + k] = first
+
+
+@pytest.mark.parametrize("mask", [7, 15, 63, 1023])
+def test_a_query_visits_each_bucket_of_its_27_cells_once(mask):
+    centers = wp.array(np.random.default_rng(mask).integers(-1000, 1000, (20000, 3)).astype(np.int32),
+                       dtype=wp.vec3i)
+    for world in (0, 3):
+        visited, brute_force = wp.zeros(20000 * 27, dtype=int), wp.zeros(20000 * 27, dtype=int)
+        wp.launch(first_visits, (20000, 27), inputs=[centers, world, mask], outputs=[visited, brute_force])
+        np.testing.assert_array_equal(visited.numpy(), brute_force.numpy())
+    if mask == 7:  # one run of 8 buckets: cells of one parity share theirs, the case being tested
+        assert brute_force.numpy().sum() == 8 * 20000
+
+
 def test_a_new_epoch_starts_the_hash_table_empty_without_clearing_it():
     def insert(points, epoch, rebuild=1):
         wp.launch(spatial_hash.insert_points, len(points),
