@@ -11,6 +11,7 @@ import pytest
 import warp_cloth as wc
 from conftest import run_cli, run_cli_in_process
 from warp_cloth.fabric_presets import PRESETS
+from warp_cloth.cloth_mesh import BendStencils
 from warp_cloth.model import build_model
 
 STRAIN = 1e-3
@@ -170,14 +171,16 @@ def test_a_grid_bent_round_a_cylinder_stores_the_plates_bending_energy(axis):
     assert energy == pytest.approx(expected, rel=2e-3)
 
 
-def _tip_sag(preset: str, length: float, resolution: tuple[int, int]) -> float:
+def _tip_sag(preset: str, length: float, resolution: tuple[int, int], mesh: Path | None = None) -> float:
     """How far below its clamp the free end of a strip of ``preset``, ``length`` x 1 cm, hangs (clamped along
     its first fifth), at rest under gravity: the model's static equations (each spring in its regimes, and
-    the bending stencils), solved by Newton's method with a Levenberg-Marquardt shift."""
-    model = build_model(_scene(resolution=resolution, size=[length, 0.01], material=preset))
+    the bending stencils), solved by Newton's method with a Levenberg-Marquardt shift. A grid of quads, or
+    ``mesh``, the same grid as an OBJ (``write_grid_obj``)."""
+    cloth = {"mesh": str(mesh)} if mesh is not None else {"resolution": resolution, "size": [length, 0.01]}
+    model = build_model(_scene(material=preset, **cloth))
     springs, x = model.springs, model.positions.astype(float)
     pairs, rest, k = springs.pairs, springs.rest.astype(float), springs.stiffness.astype(float)
-    bending = model.bending
+    bending = model.bending or BendStencils(np.zeros((0, 4), dtype=int), np.zeros((0, 4)), np.zeros(0), np.zeros(0))
     column = np.arange(len(x)) % (resolution[0] + 1)
     free = np.repeat(column > resolution[0] // 5, 3)
     weight = model.masses.astype(float) * 9.81
