@@ -77,5 +77,6 @@ def bending_stiffness_times(bending: Bending, i: int, u: wp.array(dtype=wp.vec3)
     total = wp.vec3(0.0)
     for k in range(bending.offsets[i], bending.offsets[i + 1]):
         s = bending.stencil[k]
-        total = total + (bending.weights[STENCIL_WIDTH * s + bending.place[k]] * bending.stiffness[s]) * stencil_sum(bending, s, u)
+        w = bending.weights[STENCIL_WIDTH * s + bending.place[k]]
+        total = total + (w * bending.stiffness[s]) * stencil_sum(bending, s, u)
     return total

@@ -25,7 +25,7 @@ class BendStencils:
     particles (a row's three and a zero weight, or a hinge's four), their weights and the stencil's
     stiffness and damping."""
 
-    particles: np.ndarray  # (b, 4) int: a row's ends and middle in its order (and the middle again); a hinge's edge, then its two far corners
+    particles: np.ndarray  # (b, 4) int: a row's ends and middle in order, the middle again; a hinge's edge, far corners
     weights: np.ndarray  # (b, 4) 1/m^2: whose sum over the particles is the curvature vector
     stiffness: np.ndarray  # (b,) N m^3
     damping: np.ndarray  # (b,) N m^3 s

@@ -32,7 +32,8 @@ triangles is pulled and sheared exactly as the material says (its diagonals turn
 pantograph's). A quad's side takes c^2 a_u + s^2 a_v.
 
 Bending. Linear in the curvature, M = B kappa at every curvature, wherever a bend spring spans a row
-straight at rest (a grid's, and a mesh's across an edge between two quads of one row): the spring's two
+straight at rest (a grid's, and a mesh's across an edge between two quads of one row; not one between two
+triangles, which a hinge bends, below): the spring's two
 ends p, q and the particle m between them (joined to both by sides, on the segment p-q) make a stencil
 (kernels/bending.py). With spacings L1 = |m - p| and L2 = |q - m|, the weights w = 2 (1/(L1 (L1 + L2)),
 -1/(L1 L2), 1/(L2 (L1 + L2))) make d = w_p x_p + w_m x_m + w_q x_q the second derivative of the row along its
@@ -45,8 +46,25 @@ or the curvature. Rows across (a grid's columns) bend the other direction; a twi
 so it costs nothing (as it cost the springs nothing). A dashpot of ``damping`` seconds (c = damping x k)
 damps its rate. Along a direction at angle t to the warp, B = c^2 B_u + s^2 B_v.
 
-Where a bend spring has no straight row under it (across a triangle's edge, or a row curved as modelled,
-for which a fixed-weight stencil would not be at rest), it stays a spring: it spans two edges of length
+Between two triangles flat at rest (a mesh of triangles, the drape specimen's rim), a hinge bends them in
+place of the bend spring joining their far corners, straight or not (Bergou, Wardetzky, Harmon, Zorin,
+Grinspun 2006, "A Quadratic Bending Model for Inextensible Surfaces"): the edge x0-x1, the far corners x2
+and x3, the weights (c1 + c1', c0 + c0', -(c0 + c1), -(c0' + c1')) / (A0 + A1), c0 and c1 the cotangents
+of the first triangle's angles at x0 and x1, c0' and c1' the second's, A0 and A1 their areas. They vanish
+on any flat placement of the rest state, and for a dihedral angle theta |d| = |e| theta / (A0 + A1);
+k = B (A0 + A1), B along the direction across the edge, stores 1/2 B kappa^2 per unit area on a cylinder
+of right triangles (or equilateral ones), converging as the cell squared. (Bergou's 3 / (A0 + A1), the
+area of an edge being a third of its two triangles', stores three times that on both: measured,
+tests/test_bending_hinges.py.) The model takes the rest state flat, as every cloth here is but the
+garment's panels (quads curved as modelled, which keep their springs): two triangles turned more than
+``_FLAT`` at rest keep their spring. A hinge across a side of a cell mixes the row's bend with the twist
+between the cell's two rows, which the diagonal's hinge takes the other way: a strip of triangles that
+twists a little bends for less, and Peirce's cantilever of triangles sags 6 to 16% further than the
+elastica, the more the finer (the bend springs: 23 to 49%; the rows' stencils on quads: within 0.3%), so
+the rows keep their stencils wherever quads give them.
+
+Where a bend spring has neither (across an edge beside a quad with no straight row under it, or between
+faces curved as modelled, for which fixed weights would not be at rest), it stays a spring: it spans two edges of length
 L/2 across a hinge; bent to a curvature kappa along it, an unstretched row shortens it by the strain
 eps = L^2 kappa^2 / 32 (the chord of two edges turned kappa L/2 apart), so its energy 1/2 k L eps^2 per
 area A it stands for gives the moment M = k L^5 kappa^3 / (512 A). Springs that only push back when
@@ -267,12 +285,14 @@ def _hinges(material: Material, tensors, points, counts, indices, bends) -> tupl
     at_0_in_1, at_1_in_1 = _cotangent(x1 - x0, x3 - x0), _cotangent(x0 - x1, x3 - x1)
     cotangents = np.stack([at_1_in_0 + at_1_in_1, at_0_in_0 + at_0_in_1, -(at_0_in_0 + at_1_in_0),
                            -(at_0_in_1 + at_1_in_1)], axis=1)
-    area = 0.5 * (np.linalg.norm(np.cross(x1 - x0, x2 - x0), axis=1) + np.linalg.norm(np.cross(x1 - x0, x3 - x0), axis=1))
-    dihedral = np.linalg.norm(np.einsum("sr,srk->sk", cotangents, points[particles]), axis=1) / np.linalg.norm(x1 - x0, axis=1)
-    replaced = np.isin(_keys(bends, n), _keys(particles[:, 2:], n)[dihedral < _FLAT])
-    keep = (dihedral < _FLAT) & np.isin(_keys(particles[:, 2:], n), _keys(bends, n))
+    area = 0.5 * (np.linalg.norm(np.cross(x1 - x0, x2 - x0), axis=1)
+                  + np.linalg.norm(np.cross(x1 - x0, x3 - x0), axis=1))
+    turned = np.linalg.norm(np.einsum("sr,srk->sk", cotangents, points[particles]), axis=1)
+    flat = turned < _FLAT * np.linalg.norm(x1 - x0, axis=1)  # |K x| = |e| theta
+    replaced = np.isin(_keys(bends, n), _keys(particles[:, 2:], n)[flat])
+    keep = flat & np.isin(_keys(particles[:, 2:], n), _keys(bends, n))
     particles, cotangents, area = particles[keep], cotangents[keep], area[keep]
-    across = 1.0 - np.nan_to_num(_warp_share(tensors, points, particles[:, :2]), nan=0.5)  # cos^2 of the bend's direction
+    across = 1.0 - np.nan_to_num(_warp_share(tensors, points, particles[:, :2]), nan=0.5)  # cos^2, the bend's direction
     bend_u, bend_v = along(material.bending)
     stiffness = (across * bend_u + (1.0 - across) * bend_v) * area
     return BendStencils(particles, cotangents / area[:, None], stiffness, material.damping * stiffness), replaced
