@@ -64,17 +64,17 @@ elastica, the more the finer (the bend springs: 23 to 49%; the rows' stencils on
 the rows keep their stencils wherever quads give them.
 
 Where a bend spring has neither (across an edge beside a quad with no straight row under it, or between
-faces curved as modelled, for which fixed weights would not be at rest), it stays a spring: it spans two edges of length
-L/2 across a hinge; bent to a curvature kappa along it, an unstretched row shortens it by the strain
-eps = L^2 kappa^2 / 32 (the chord of two edges turned kappa L/2 apart), so its energy 1/2 k L eps^2 per
+faces curved as modelled, for which fixed weights would not be at rest), it stays a spring: it spans two
+edges of length L/2 across a hinge; bent to a curvature kappa along it, an unstretched row shortens it by
+the strain eps = L^2 kappa^2 / 32 (the chord of two edges turned kappa L/2 apart), so its energy 1/2 k L eps^2 per
 area A it stands for gives the moment M = k L^5 kappa^3 / (512 A). Springs that only push back when
 shortened cannot give M = B kappa at every curvature; k makes the slope of M over 0.5 to 1.5 1/cm, the range
 in which the Kawabata tester (KES-FB2) measures B, equal B: k = 512 B A / (L^5 S), S = k1^2 + k1 k2 + k2^2
 of that range's ends. Then M = B kappa^3 / S whatever the resolution: at a fold of 3 cm radius about 1/29
 of B, at 1 cm about 1/3, so that gentle folds were left to the mesh (the drape coefficient moved by 2 to 8
 points from 30 to 60 cells, docs/guide/scene-reference.md). A spring stands for the mean of its ends'
-areas (on a grid of triangles, whose bend springs run three ways, the three together bend an eighth
-stiffer than B).
+areas (on a grid of triangles, now bent by hinges, whose bend springs ran three ways, the three together
+bent an eighth stiffer than B).
 
 Damping. Each spring's dashpot is ``damping`` seconds of its elastic response: b = damping x k / L
 (stiffness-proportional, Rayleigh's), a strain rate then pulls as that much strain would.
