@@ -1,9 +1,11 @@
-"""Bending linear in the curvature: a material's three-particle stencils (warp_cloth/materials.py derives
-them), and their Jacobians for the implicit solve.
+"""Bending linear in the curvature: a material's stencils (warp_cloth/materials.py derives them), and
+their Jacobians for the implicit solve.
 
-A stencil p, m, q along a straight row at rest has weights w (1/m^2, summing to zero, the second
-difference over its spacings) so that its curvature vector d = sum_r w_r x_r is the curvature of the row
-times its normal; its energy 1/2 k |d|^2 and dashpot 1/2 c |sum_r w_r v_r|^2 give each of its particles
+A stencil names STENCIL_WIDTH particles and their weights w (1/m^2), which sum to zero and make the
+curvature vector d = sum_r w_r x_r vanish at the flat rest state, and grow as the curvature there times the
+cloth's normal: three particles p, m, q along a straight row (the second difference over its spacings,
+the fourth weight zero), or the four of a hinge, two triangles sharing an edge (Bergou et al. 2006). Its
+energy 1/2 k |d|^2 and dashpot 1/2 c |sum_r w_r v_r|^2 give each of its particles
 r the force -w_r (k d + c sum_s w_s v_s). Linear in the positions: the stiffness Jacobian is the constant
 k w_r w_s I between particles r and s, and the damping one c w_r w_s I.
 
@@ -13,14 +15,16 @@ stencil and the particle's place in it, so every particle sums its own forces wi
 
 import warp as wp
 
+STENCIL_WIDTH = wp.constant(4)  # particles a stencil names (a row's fourth weight is zero)
+
 
 @wp.struct
 class Bending:
     offsets: wp.array(dtype=int)  # (n + 1,) particle i's incidences are offsets[i]:offsets[i + 1]
     stencil: wp.array(dtype=int)  # per incidence: the stencil
-    place: wp.array(dtype=int)  # per incidence: the particle's place in it, 0, 1 or 2
-    particles: wp.array(dtype=int)  # (3 s,) each stencil's particles
-    weights: wp.array(dtype=float)  # (3 s,) 1/m^2
+    place: wp.array(dtype=int)  # per incidence: the particle's place in it, 0 to STENCIL_WIDTH - 1
+    particles: wp.array(dtype=int)  # (STENCIL_WIDTH s,) each stencil's particles
+    weights: wp.array(dtype=float)  # (STENCIL_WIDTH s,) 1/m^2
     stiffness: wp.array(dtype=float)  # (s,) N m^3: the bending stiffness times the area the stencil stands for
     damping: wp.array(dtype=float)  # (s,) N m^3 s
 
@@ -29,8 +33,8 @@ class Bending:
 def stencil_sum(bending: Bending, s: int, u: wp.array(dtype=wp.vec3)) -> wp.vec3:
     """sum_r w_r u_r over stencil s."""
     total = wp.vec3(0.0)
-    for r in range(3):
-        total = total + bending.weights[3 * s + r] * u[bending.particles[3 * s + r]]
+    for r in range(STENCIL_WIDTH):
+        total = total + bending.weights[STENCIL_WIDTH * s + r] * u[bending.particles[STENCIL_WIDTH * s + r]]
     return total
 
 
@@ -41,7 +45,7 @@ def bending_forces(bending: Bending, i: int, first: int, stride: int, x: wp.arra
     f = wp.vec3(0.0)
     for k in range(bending.offsets[i] + first, bending.offsets[i + 1], stride):
         s = bending.stencil[k]
-        w = bending.weights[3 * s + bending.place[k]]
+        w = bending.weights[STENCIL_WIDTH * s + bending.place[k]]
         f = f - w * (bending.stiffness[s] * stencil_sum(bending, s, x) + bending.damping[s] * stencil_sum(bending, s, v))
     return f
 
@@ -51,7 +55,7 @@ def add_bending_times(bending: Bending, i: int, p: wp.array(dtype=wp.vec3), h: f
     """``total`` plus the stencils' part of particle i's row of the step's matrix (h D + h^2 K) times p."""
     for k in range(bending.offsets[i], bending.offsets[i + 1]):
         s = bending.stencil[k]
-        w = bending.weights[3 * s + bending.place[k]]
+        w = bending.weights[STENCIL_WIDTH * s + bending.place[k]]
         total = total + (w * (h * bending.damping[s] + h * h * bending.stiffness[s])) * stencil_sum(bending, s, p)
     return total
 
@@ -62,7 +66,7 @@ def add_bending_diagonal(bending: Bending, i: int, h: float, block: wp.mat33) ->
     scale = float(0.0)
     for k in range(bending.offsets[i], bending.offsets[i + 1]):
         s = bending.stencil[k]
-        w = bending.weights[3 * s + bending.place[k]]
+        w = bending.weights[STENCIL_WIDTH * s + bending.place[k]]
         scale = scale + w * w * (h * bending.damping[s] + h * h * bending.stiffness[s])
     return block + scale * wp.identity(n=3, dtype=float)
 
@@ -73,5 +77,6 @@ def bending_stiffness_times(bending: Bending, i: int, u: wp.array(dtype=wp.vec3)
     total = wp.vec3(0.0)
     for k in range(bending.offsets[i], bending.offsets[i + 1]):
         s = bending.stencil[k]
-        total = total + (bending.weights[3 * s + bending.place[k]] * bending.stiffness[s]) * stencil_sum(bending, s, u)
+        w = bending.weights[STENCIL_WIDTH * s + bending.place[k]]
+        total = total + (w * bending.stiffness[s]) * stencil_sum(bending, s, u)
     return total

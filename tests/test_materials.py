@@ -11,6 +11,7 @@ import pytest
 import warp_cloth as wc
 from conftest import run_cli, run_cli_in_process
 from warp_cloth.fabric_presets import PRESETS
+from warp_cloth.cloth_mesh import BendStencils
 from warp_cloth.model import build_model
 
 STRAIN = 1e-3
@@ -170,14 +171,16 @@ def test_a_grid_bent_round_a_cylinder_stores_the_plates_bending_energy(axis):
     assert energy == pytest.approx(expected, rel=2e-3)
 
 
-def _tip_sag(preset: str, length: float, resolution: tuple[int, int]) -> float:
+def _tip_sag(preset: str, length: float, resolution: tuple[int, int], mesh: Path | None = None) -> float:
     """How far below its clamp the free end of a strip of ``preset``, ``length`` x 1 cm, hangs (clamped along
     its first fifth), at rest under gravity: the model's static equations (each spring in its regimes, and
-    the bending stencils), solved by Newton's method with a Levenberg-Marquardt shift."""
-    model = build_model(_scene(resolution=resolution, size=[length, 0.01], material=preset))
+    the bending stencils), solved by Newton's method with a Levenberg-Marquardt shift. A grid of quads, or
+    ``mesh``, the same grid as an OBJ (``write_grid_obj``)."""
+    cloth = {"mesh": str(mesh)} if mesh is not None else {"resolution": resolution, "size": [length, 0.01]}
+    model = build_model(_scene(material=preset, **cloth))
     springs, x = model.springs, model.positions.astype(float)
     pairs, rest, k = springs.pairs, springs.rest.astype(float), springs.stiffness.astype(float)
-    bending = model.bending
+    bending = model.bending or BendStencils(np.zeros((0, 4), dtype=int), np.zeros((0, 4)), np.zeros(0), np.zeros(0))
     column = np.arange(len(x)) % (resolution[0] + 1)
     free = np.repeat(column > resolution[0] // 5, 3)
     weight = model.masses.astype(float) * 9.81
@@ -281,27 +284,31 @@ def test_a_clamped_strip_sags_as_the_elastica_at_any_resolution(preset, length):
         assert _tip_sag(preset, length, (cells, cells // 10)) == pytest.approx(expected, rel=0.004 * (10 / cells) ** 2)
 
 
+@pytest.mark.parametrize("triangles", [False, True], ids=["rows", "hinges"])
 @pytest.mark.parametrize("integrator", ["symplectic", "implicit"])
-def test_the_simulated_strip_comes_to_rest_where_its_static_equations_put_it(integrator):
+def test_the_simulated_strip_comes_to_rest_where_its_static_equations_put_it(tmp_path, integrator, triangles):
     """The bending stencils' kernels (the explicit step's forces; the implicit system's forces, products and
-    diagonal blocks) agree with the energy the static solve above minimises: a clamped strip of denim, run
-    to rest under air drag, hangs where the static equations put it (within 1e-4, its tip still jittering at
-    about 1 cm/s with the explicit step's undamped springs)."""
+    diagonal blocks) agree with the energy the static solve above minimises: a clamped strip of denim, a
+    grid (bent by its rows' stencils) or the same grid's mesh of triangles (by its hinges), run to rest under
+    air drag, hangs where the static equations put it (within 1e-4, its tip still jittering at about 1 cm/s
+    with the explicit step's undamped springs)."""
     nx, ny, length = 20, 2, 0.05
+    mesh = write_grid_obj(tmp_path / "strip.obj", nx, ny, length, 0.01, triangles=True) if triangles else None
+    shape = ({"mesh": str(mesh), "rotation": [-90.0, 0.0, 0.0]} if triangles
+             else {"resolution": [nx, ny], "size": [length, 0.01], "orientation": "horizontal"})
     held = [x + (nx + 1) * y for y in range(ny + 1) for x in range(nx // 5 + 1)]
     simulation = {"fps": 24, "frames": 72, "integrator": integrator, "drag": 10.0}
     material = {"preset": "denim"}
     if integrator == "implicit":
         simulation["substeps"], material["damping"] = 8, 0.002
     scene = wc.scene_from_dict({"name": "strip", "simulation": simulation, "cloth": [
-        {"resolution": [nx, ny], "size": [length, 0.01], "orientation": "horizontal", "origin": [0.0, 0.5, 0.0],
-         "material": material, "pins": [{"indices": held}]}]})
+        {**shape, "origin": [0.0, 0.5, 0.0], "material": material, "pins": [{"indices": held}]}]})
     sim = wc.Simulator(scene, device="cpu")
     start = sim.positions()[:, 1].copy()
     sim.run(72)
     tip = np.arange(sim.model.particle_count) % (nx + 1) == nx
-    assert float((start - sim.positions()[:, 1])[tip].mean()) == pytest.approx(_tip_sag("denim", length, (nx, ny)),
-                                                                             rel=1e-4)
+    assert float((start - sim.positions()[:, 1])[tip].mean()) == pytest.approx(
+        _tip_sag("denim", length, (nx, ny), mesh), rel=1e-4)
 
 
 def test_a_preset_scene_loads_and_runs(tmp_path):

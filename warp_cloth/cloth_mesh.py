@@ -21,11 +21,12 @@ SPRING_KINDS = ("structural", "shear", "bend")
 
 @dataclass(frozen=True)
 class BendStencils:
-    """A material's bending linear in the curvature (materials.py; kernels/bending.py): per stencil, three
-    particles along a row straight at rest, their weights and the stencil's stiffness and damping."""
+    """A material's bending linear in the curvature (materials.py; kernels/bending.py): per stencil, four
+    particles (a row's three and a zero weight, or a hinge's four), their weights and the stencil's
+    stiffness and damping."""
 
-    particles: np.ndarray  # (b, 3) int: ends and middle in the row's order
-    weights: np.ndarray  # (b, 3) 1/m^2: the second difference over the row's spacings
+    particles: np.ndarray  # (b, 4) int: a row's ends and middle in order, the middle again; a hinge's edge, far corners
+    weights: np.ndarray  # (b, 4) 1/m^2: whose sum over the particles is the curvature vector
     stiffness: np.ndarray  # (b,) N m^3
     damping: np.ndarray  # (b,) N m^3 s
 
@@ -38,14 +39,15 @@ class BendStencils:
                               for key in ("particles", "weights", "stiffness", "damping")))
 
     def incidences(self, particle_count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(offsets (n + 1,), stencil, place): each particle's incidences in order, as kernels/bending.py
-        gathers them."""
-        owner = self.particles.reshape(-1)
-        entry = np.arange(len(owner))
+        """(offsets (n + 1,), stencil, place): each particle's incidences in order (those of weight zero left
+        out), as kernels/bending.py gathers them."""
+        width = self.particles.shape[1]
+        entry = np.nonzero(self.weights.reshape(-1) != 0.0)[0]
+        owner = self.particles.reshape(-1)[entry]
         order = np.lexsort((entry, owner))
         offsets = np.zeros(particle_count + 1, dtype=np.int32)
         np.cumsum(np.bincount(owner, minlength=particle_count), out=offsets[1:])
-        return offsets, (entry[order] // 3).astype(np.int32), (entry[order] % 3).astype(np.int32)
+        return offsets, (entry[order] // width).astype(np.int32), (entry[order] % width).astype(np.int32)
 
 
 @dataclass(frozen=True)
