@@ -53,16 +53,18 @@ def mesh_chains(pairs: np.ndarray, points: np.ndarray) -> list[np.ndarray]:
     link = np.full(len(ends), -1, dtype=np.int64)
     order = np.argsort(ends, kind="stable")
     bounds = np.searchsorted(ends[order], np.arange(len(points) + 1))
-    for v in np.nonzero(np.diff(bounds) >= 2)[0]:
-        halves = order[bounds[v]:bounds[v + 1]]
-        cosines = outward[halves] @ outward[halves].T
-        i, j = np.triu_indices(len(halves), 1)
-        for k in np.argsort(cosines[i, j], kind="stable"):
-            a, b = halves[i[k]], halves[j[k]]
-            if cosines[i[k], j[k]] >= CONTINUING_COSINE:
-                break
-            if link[a] < 0 and link[b] < 0:
-                link[a], link[b] = b, a
+    degree = np.diff(bounds)
+    for d in np.unique(degree[degree >= 2]).tolist():  # the vertices of each degree together
+        at = bounds[:-1][degree == d]
+        halves = order[at[:, None] + np.arange(d)]  # (vertices, d)
+        cosines = np.einsum("vik,vjk->vij", outward[halves], outward[halves])
+        i, j = np.triu_indices(d, 1)
+        pair_cosines = cosines[:, i, j]
+        for k in np.argsort(pair_cosines, axis=1, kind="stable").T:  # each vertex's k-th most opposite pair
+            rows = np.arange(len(at))
+            a, b = halves[rows, i[k]], halves[rows, j[k]]
+            joined = (pair_cosines[rows, k] < CONTINUING_COSINE) & (link[a] < 0) & (link[b] < 0)
+            link[a[joined]], link[b[joined]] = b[joined], a[joined]
     done = np.zeros(len(pairs), dtype=bool)
     chains = []
     # open chains from their unpaired ends, then what is left, the closed ones
