@@ -163,7 +163,8 @@ class LineSolves:
         if segment < 2:
             raise ValueError(f"line segments of {segment} springs: at least 2")
         self.model = model
-        self.name = f"line solves ({len(lines)} families)"
+        self.name = (f"line solves ({len(lines)} families, each {newton_steps} times: eliminate_segments, "
+                     "solve_separators, finish_segments)")
         self.hold_margin, self.newton_steps = hold_margin, newton_steps
         self.segment, self.interleaved = segment, interleaved
         self.families = []
@@ -198,7 +199,7 @@ class LineSolves:
 class HoldAndCollide:
     """The attachments to the pins, then the rigid colliders, in place."""
 
-    name = "attachments+colliders"
+    name = "pins+colliders"
 
     def __init__(self, model: DeviceModel, rigid: RigidColliders | None) -> None:
         self.model = model

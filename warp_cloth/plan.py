@@ -149,7 +149,7 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
         edge_passes = [edge_separation_pass(model, state, chosen, rigid)] if state.edges is not None else []
         if faces is not None:
             edge_passes.append(faces.separation_pass(model, chosen, rigid))
-        if converged and model.limits is not None and lines is not None:
+        if converged and model.limits is not None and lines is not None and solve.line_contacts:
             projection = line_contact_projection(model, state, solve, chosen, rigid, edge_passes, lines)
             passes.append(projection)
         elif converged:
