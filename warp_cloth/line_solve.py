@@ -1,9 +1,9 @@
-"""The lab's line solve of the strain limits (issue 33; kernels/line_solve.py): the families of lines that
-cloth_lines.py finds, and a round of it as the passes a converged solve repeats in place of the Jacobi limit
-pass (``limit_solve.lab_hooks(line_solve=True)``): the families, their lines cut into segments a thread
-each and stored in the layout this module chooses for the device, then the attachments and the colliders
-(with particle collision, warp_cloth/plan.py follows it with the contacts' separating passes). Off unless
-the lab asks for it."""
+"""The line solve of the strain limits (issue 33; kernels/line_solve.py): the families of lines that
+cloth_lines.py finds, and a round of it as the passes a converged solve repeats after its first Jacobi pair
+(plan.line_projection, for cloths without particle collision; ``limit_solve.lab_hooks(line_solve=False)``
+turns it off): the families, their lines cut into segments a thread each and stored in the layout this module
+chooses for the device, then the pins and the colliders (with particle collision, only where the lab asks,
+``line_contacts``: warp_cloth/plan.py follows it with the contacts' separating passes)."""
 
 from __future__ import annotations
 
