@@ -1,4 +1,4 @@
-"""The strain limits of a cloth's lines solved directly (the lab's alternative to the Jacobi limit pass; issue
+"""The strain limits of a cloth's lines solved directly (after the converged solve's first Jacobi pair; issue
 33). A line is a chain of limited springs (on a grid a row, a column or a diagonal) whose ends are its only
 pinned particles. A spring out of its range, or within ``hold_margin`` (a fraction of the limit's length) of
 either end of it, is held: the first at the nearer end of the range, the second at its current length; the

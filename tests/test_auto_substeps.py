@@ -14,6 +14,7 @@ import pytest
 import warp_cloth as wc
 from warp_cloth.auto_substeps import DOWN, HOLD, MISS, MISS_MEMORY, SolveCaps, SubstepChoice, judge
 from warp_cloth.implicit import SolveStats
+from warp_cloth.limit_solve import lab_hooks
 from warp_cloth.metrics import read_metrics
 
 from conftest import run_cli_in_process
@@ -54,6 +55,14 @@ motion = { axis = [0.0, 0.0, 1.0], amplitude = 0.1, frequency = 0.5, phase = 0.0
 FLOOR, MISSED_AT = 10, 12  # the floor, and the frame that misses there
 
 
+@pytest.fixture(autouse=True)
+def jacobi_passes():
+    """The limit solved by Jacobi passes alone: the default's line rounds hold these scenes at the floor (the
+    test below), and these tests need frames that miss."""
+    with lab_hooks(line_solve=False):
+        yield
+
+
 @pytest.fixture(scope="module")
 def swing(tmp_path_factory) -> wc.Scene:
     path = tmp_path_factory.mktemp("auto") / "swing.toml"
@@ -92,6 +101,14 @@ def test_a_frame_whose_solve_misses_is_made_again_with_more_substeps_and_none_en
     fixed = wc.Simulator(with_simulation(swing, frames=MISSED_AT, substeps=FLOOR), device="cpu")
     fixed.run()
     assert fixed.solver_stats(since_start=True).limit_residual > 1.0
+
+
+def test_the_default_solve_holds_the_swing_at_the_floor_where_the_jacobi_passes_miss(swing):
+    with lab_hooks():  # the default: a Jacobi pair, then line rounds
+        sim = wc.Simulator(with_simulation(swing, frames=MISSED_AT + 4), device="cpu")
+    summary = sim.run()
+    assert summary.frame_substeps == (FLOOR,) * (MISSED_AT + 4) and summary.substeps == FLOOR * (MISSED_AT + 4)
+    assert sim.solver_stats(since_start=True).limit_residual <= 1.0  # within tolerance at 4 passes a substep
 
 
 def test_frames_with_room_come_down_to_just_above_the_count_that_missed(swing):

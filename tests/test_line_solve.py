@@ -102,7 +102,7 @@ def test_rounds_of_line_solves_with_self_collision_hold_the_limit_and_keep_the_c
     scene = hard_cases.twisted()  # released from a twist onto the ground, folding onto itself
     scene = dataclasses.replace(scene, simulation=dataclasses.replace(
         scene.simulation, limit_solve="converged", limit_tolerance=0.005))
-    with pytest.warns(wc.UnstableStepWarning), lab_hooks(chebyshev_rho=0.0, line_solve=True):
+    with pytest.warns(wc.UnstableStepWarning), lab_hooks(chebyshev_rho=0.0, line_solve=True, line_contacts=True):
         sim = wc.Simulator(scene, device="cpu")
     assert "line solves" in str(sim.plan) and "separation" in str(sim.plan)
     monitor = StrainMonitor()

@@ -204,7 +204,7 @@ def test_an_accelerated_solve_adds_its_extrapolation_and_no_other_launch_a_pair(
 
 def test_the_printed_plan_names_every_launch_of_the_solve_and_says_the_simulator_runs_the_guard(launches):
     # Each kernel of the solve's loop that a substep launches is printed under the loop, by the kernel's
-    # name; its passes by theirs (limit_pass: "limits+colliders").
+    # name; its passes by theirs (limit_pass: "limits+colliders", hold_and_collide: "pins+colliders").
     sim = wc.Simulator(wc.load_scene("sphere_push"), device="cpu")
     launches.clear()
     sim.substep()
@@ -220,13 +220,19 @@ def test_the_printed_plan_names_every_launch_of_the_solve_and_says_the_simulator
         "          chebyshev_step_and_colliders",
         "          projection_residual",
         "          continue_chebyshev_solve (the loop's bookkeeping)",
+        "        after 2 passes, each iteration instead:",
+        "          line solves (4 families, each 2 times: eliminate_segments, solve_separators, finish_segments)",
+        "          pins+colliders",
+        "          chebyshev_step_and_colliders",
+        "          projection_residual",
+        "          continue_chebyshev_solve (the loop's bookkeeping)",
         "   4. clock",
         "not in the plan: after each substep of a frame (Simulator.step and run, not Simulator.substep)",
         "the simulator checks the state for a blow-up (check_state)",
         "before the first substep of a run that starts fresh (not restored from a checkpoint), the",
         "simulator projects the cloths that start past their strain limits onto them (limit_violations,",
         "then a converged solve of the limits+colliders pass), keeping the velocities the scene gives"]
-    passes = {"move_spheres", "explicit_step", "limit_pass", "advance_clock"}
+    passes = {"move_spheres", "explicit_step", "limit_pass", "hold_and_collide", "advance_clock"}
     assert all(kernel in printed for kernel in set(launches) - passes)
     pile = str(wc.Simulator(wc.load_scene("pile"), device="cpu").plan)
     assert "        after 200 passes, each iteration instead:\n          limits\n          separation+colliders\n" in pile

@@ -51,14 +51,14 @@ from warp_cloth.stability import at_substeps
 
 WHOLE_LINES = 1 << 30  # a segment longer than any line (the layout keeps only the longest's slots)
 # method: the hooks its simulator is built with
-METHODS = {"jacobi": {}, "lines": {"line_solve": True, "chebyshev_rho": 0.0, "line_segment": WHOLE_LINES},
-           "lines+chebyshev": {"line_solve": True, "line_segment": WHOLE_LINES},
-           "lines-segments": {"line_solve": True, "chebyshev_rho": 0.0, "line_segment": 32},
-           "lines-segments-contiguous": {"line_solve": True, "chebyshev_rho": 0.0, "line_segment": 32,
+METHODS = {"jacobi": {"line_solve": False}, "lines": {"line_solve": True, "line_contacts": True, "chebyshev_rho": 0.0, "line_segment": WHOLE_LINES},
+           "lines+chebyshev": {"line_solve": True, "line_contacts": True, "line_segment": WHOLE_LINES},
+           "lines-segments": {"line_solve": True, "line_contacts": True, "chebyshev_rho": 0.0, "line_segment": 32},
+           "lines-segments-contiguous": {"line_solve": True, "line_contacts": True, "chebyshev_rho": 0.0, "line_segment": 32,
                                          "line_interleaved": False},
-           "lines-segments-interleaved": {"line_solve": True, "chebyshev_rho": 0.0, "line_segment": 32,
+           "lines-segments-interleaved": {"line_solve": True, "line_contacts": True, "chebyshev_rho": 0.0, "line_segment": 32,
                                           "line_interleaved": True},
-           "lines-held-all": {"line_solve": True, "chebyshev_rho": 0.0, "line_hold_margin": 1.0,
+           "lines-held-all": {"line_solve": True, "line_contacts": True, "chebyshev_rho": 0.0, "line_hold_margin": 1.0,
                               "line_newton_steps": 1, "line_segment": WHOLE_LINES}}
 
 

@@ -1,4 +1,4 @@
-"""The lines of a scene's cloths for the lab's line solve (issue 33; line_solve.py): chains of limited springs
+"""The lines of a scene's cloths for the line solve (issue 33; line_solve.py): chains of limited springs
 cut at pins, grouped into families whose lines share no free particle, so that one launch solves a family.
 
 A grid cloth's families are its rows, columns and the two diagonal families of its shear springs, found from

@@ -34,15 +34,18 @@ CHEBYSHEV_RHO: float | None = None
 # contact cannot shorten, and seed_default's solves stalled at the cap there 2 to 4 tolerances out, where
 # the sequential ones converge (docs/notebook/strain-solve.md).
 JOINT_PASSES = 200
-# rounds of line solves (warp_cloth/line_solve.py, the lines from warp_cloth/cloth_lines.py) in place of the
-# limit's Jacobi passes (with particle collision, each round followed by the contacts' separating passes;
-# warp_cloth/plan.py): the lab's alternative of issue 33, off by default; with the springs held within
-# LINE_HOLD_MARGIN of a limit (1: every spring) and LINE_NEWTON_STEPS linearised steps a line a round
+# the converged solve of cloths without particle collision: a Jacobi pair, then, where it leaves a limit out,
+# rounds of line solves (warp_cloth/line_solve.py, the lines from warp_cloth/cloth_lines.py; plan.line_projection):
+# the default (LINE_SOLVE), which the lab turns off to measure the Jacobi passes alone. With particle
+# collision the Jacobi passes stay unless the lab asks for line rounds there too (LINE_CONTACTS: each round
+# followed by the contacts' separating passes; slower than the joint passes on pile). The springs are held
+# within LINE_HOLD_MARGIN of a limit (1: every spring), LINE_NEWTON_STEPS linearised steps a line a round
 # (kernels/line_solve.py), a thread a segment of LINE_SEGMENT springs (at least the longest line: whole
 # lines), the per-slot arrays stored interleaved where LINE_INTERLEAVED, else contiguous; None leaves either
 # to the device where the simulator builds the solves (line_solve.LineSolves.of: CUDA segments of 32,
 # interleaved; the CPU whole lines, contiguous).
-LINE_SOLVE = False
+LINE_SOLVE = True
+LINE_CONTACTS = False
 LINE_HOLD_MARGIN = 0.02
 LINE_NEWTON_STEPS = 2
 LINE_SEGMENT: int | None = None
@@ -50,24 +53,24 @@ LINE_INTERLEAVED: bool | None = None
 
 
 @contextmanager
-def lab_hooks(chebyshev_rho: float | None = None, joint_passes: int = JOINT_PASSES, line_solve: bool = False,
-              line_hold_margin: float = LINE_HOLD_MARGIN, line_newton_steps: int = LINE_NEWTON_STEPS,
+def lab_hooks(chebyshev_rho: float | None = None, joint_passes: int = JOINT_PASSES, line_solve: bool = True,
+              line_contacts: bool = False, line_hold_margin: float = LINE_HOLD_MARGIN, line_newton_steps: int = LINE_NEWTON_STEPS,
               line_segment: int | None = LINE_SEGMENT,
               line_interleaved: bool | None = LINE_INTERLEAVED) -> Iterator[None]:
     """Simulators built inside take these hooks' values (the lab's and tests', never a scene's); the line
     solve's segment and layout, where None, are the device's (CUDA: segments of 32, interleaved; CPU: whole
     lines, contiguous)."""
-    global CHEBYSHEV_RHO, JOINT_PASSES, LINE_SOLVE, LINE_HOLD_MARGIN, LINE_NEWTON_STEPS, LINE_SEGMENT
-    global LINE_INTERLEAVED
-    before = (CHEBYSHEV_RHO, JOINT_PASSES, LINE_SOLVE, LINE_HOLD_MARGIN, LINE_NEWTON_STEPS, LINE_SEGMENT,
-              LINE_INTERLEAVED)
-    (CHEBYSHEV_RHO, JOINT_PASSES, LINE_SOLVE, LINE_HOLD_MARGIN, LINE_NEWTON_STEPS, LINE_SEGMENT,
-     LINE_INTERLEAVED) = (chebyshev_rho, joint_passes, line_solve, line_hold_margin, line_newton_steps,
-                          line_segment, line_interleaved)
+    global CHEBYSHEV_RHO, JOINT_PASSES, LINE_SOLVE, LINE_CONTACTS, LINE_HOLD_MARGIN, LINE_NEWTON_STEPS
+    global LINE_SEGMENT, LINE_INTERLEAVED
+    before = (CHEBYSHEV_RHO, JOINT_PASSES, LINE_SOLVE, LINE_CONTACTS, LINE_HOLD_MARGIN, LINE_NEWTON_STEPS,
+              LINE_SEGMENT, LINE_INTERLEAVED)
+    (CHEBYSHEV_RHO, JOINT_PASSES, LINE_SOLVE, LINE_CONTACTS, LINE_HOLD_MARGIN, LINE_NEWTON_STEPS, LINE_SEGMENT,
+     LINE_INTERLEAVED) = (chebyshev_rho, joint_passes, line_solve, line_contacts, line_hold_margin,
+                          line_newton_steps, line_segment, line_interleaved)
     try:
         yield
     finally:
-        (CHEBYSHEV_RHO, JOINT_PASSES, LINE_SOLVE, LINE_HOLD_MARGIN, LINE_NEWTON_STEPS, LINE_SEGMENT,
+        (CHEBYSHEV_RHO, JOINT_PASSES, LINE_SOLVE, LINE_CONTACTS, LINE_HOLD_MARGIN, LINE_NEWTON_STEPS, LINE_SEGMENT,
          LINE_INTERLEAVED) = before
 
 
@@ -83,7 +86,8 @@ class LimitSolveSettings:
     max_passes: int
     chebyshev_rho: float | None
     joint_passes: int
-    line_solve: bool = False
+    line_solve: bool = LINE_SOLVE
+    line_contacts: bool = LINE_CONTACTS
     line_hold_margin: float = LINE_HOLD_MARGIN
     line_newton_steps: int = LINE_NEWTON_STEPS
     line_segment: int | None = LINE_SEGMENT
@@ -94,7 +98,8 @@ class LimitSolveSettings:
         """The settings of a scene's ``[simulation]`` as the simulator resolved it (its cap chosen)."""
         return cls(simulation.limit_solve == "converged", simulation.limit_iterations, simulation.limit_tolerance,
                    simulation.limit_max_passes, CHEBYSHEV_RHO, JOINT_PASSES,
-                   LINE_SOLVE and simulation.limit_solve == "converged", LINE_HOLD_MARGIN, LINE_NEWTON_STEPS,
+                   LINE_SOLVE and simulation.limit_solve == "converged", LINE_CONTACTS, LINE_HOLD_MARGIN,
+                   LINE_NEWTON_STEPS,
                    LINE_SEGMENT, LINE_INTERLEAVED)
 
 

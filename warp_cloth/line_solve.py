@@ -1,9 +1,9 @@
-"""The lab's line solve of the strain limits (issue 33; kernels/line_solve.py): the families of lines that
-cloth_lines.py finds, and a round of it as the passes a converged solve repeats in place of the Jacobi limit
-pass (``limit_solve.lab_hooks(line_solve=True)``): the families, their lines cut into segments a thread
-each and stored in the layout this module chooses for the device, then the attachments and the colliders
-(with particle collision, warp_cloth/plan.py follows it with the contacts' separating passes). Off unless
-the lab asks for it."""
+"""The line solve of the strain limits (issue 33; kernels/line_solve.py): the families of lines that
+cloth_lines.py finds, and a round of it as the passes a converged solve repeats after its first Jacobi pair
+(plan.line_projection, for cloths without particle collision; ``limit_solve.lab_hooks(line_solve=False)``
+turns it off): the families, their lines cut into segments a thread each and stored in the layout this module
+chooses for the device, then the pins and the colliders (with particle collision, only where the lab asks,
+``line_contacts``: warp_cloth/plan.py follows it with the contacts' separating passes)."""
 
 from __future__ import annotations
 
@@ -163,7 +163,8 @@ class LineSolves:
         if segment < 2:
             raise ValueError(f"line segments of {segment} springs: at least 2")
         self.model = model
-        self.name = f"line solves ({len(lines)} families)"
+        self.name = (f"line solves ({len(lines)} families, each {newton_steps} times: eliminate_segments, "
+                     "solve_separators, finish_segments)")
         self.hold_margin, self.newton_steps = hold_margin, newton_steps
         self.segment, self.interleaved = segment, interleaved
         self.families = []
@@ -198,7 +199,7 @@ class LineSolves:
 class HoldAndCollide:
     """The attachments to the pins, then the rigid colliders, in place."""
 
-    name = "attachments+colliders"
+    name = "pins+colliders"
 
     def __init__(self, model: DeviceModel, rigid: RigidColliders | None) -> None:
         self.model = model

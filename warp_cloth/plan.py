@@ -149,7 +149,7 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
         edge_passes = [edge_separation_pass(model, state, chosen, rigid)] if state.edges is not None else []
         if faces is not None:
             edge_passes.append(faces.separation_pass(model, chosen, rigid))
-        if converged and model.limits is not None and lines is not None:
+        if converged and model.limits is not None and lines is not None and solve.line_contacts:
             projection = line_contact_projection(model, state, solve, chosen, rigid, edge_passes, lines)
             passes.append(projection)
         elif converged:
@@ -197,18 +197,18 @@ def converged_projection(model: DeviceModel, state: DeviceState, solve: LimitSol
 
 
 def line_round(model: DeviceModel, lines: LineSolves, rigid: RigidColliders | None) -> list[Pass]:
-    """A round of the lab's line solve (line_solve.py): the families of ``lines``, then the attachments and the
+    """A round of the line solve (line_solve.py): the families of ``lines``, then the attachments and the
     colliders, each in place."""
     return [lines, HoldAndCollide(model, rigid)]
 
 
 def line_projection(model: DeviceModel, state: DeviceState, solve: LimitSolveSettings, threads: int,
                     rigid: RigidColliders | None, lines: LineSolves) -> ConvergedProjection:
-    """The converged solve of the strain limits by line solves (the lab's, ``solve.line_solve``): a Jacobi pair
+    """The converged solve of the strain limits by line solves (``solve.line_solve``, the default): a Jacobi pair
     first, and where it leaves a limit out of tolerance, line rounds (each counted as one pass toward the cap)
     to the end. The pair ends every solve of a cloth at rest: rounds alone, exact along their lines, kept the
-    hanging cloth swinging at 0.1 m/s after 480 frames, where the pair first lets it settle as the default
-    does (docs/notebook/strain-solve.md, "A Jacobi pair before the lines")."""
+    hanging cloth swinging at 0.1 m/s after 480 frames, where the pair first lets it settle as Jacobi passes
+    alone do (docs/notebook/strain-solve.md, "A Jacobi pair before the lines")."""
     return ConvergedProjection(model, state, solve, [limit_pass(model, threads, rigid, None, 1)] * 2, rigid,
                                later_body=line_round(model, lines, rigid), later_counted=1, switch_at=2)
 

@@ -266,10 +266,10 @@ class Simulator:
         self.limit_solve = LimitSolveSettings.of(
             at_substeps(self.scene, self.substeps_per_frame).simulation if auto else self.scene.simulation)
         self._threads = threads_per_particle
-        # the lab's line solves (line_solve.py): their lines found and uploaded once, for every plan built
+        # the line solves (line_solve.py): their lines found and uploaded once, for every plan built
         # (none where no cloth is limited: a seam's limited springs make no line)
-        families = cloth_lines(self.model, self.scene) \
-            if self.limit_solve.line_solve and self.model.limits is not None else []
+        wanted = self.limit_solve.line_solve and (self.device_model.contacts is None or self.limit_solve.line_contacts)
+        families = cloth_lines(self.model, self.scene) if wanted and self.model.limits is not None else []
         self._lines = LineSolves.of(self.device_model, families, self.limit_solve) if families else None
         # the lab's displacement bounds (displacement_bounds.py, off by default): made once, for every plan built
         self._bounds = DisplacementBounds.of(self.model, self.device_model)
