@@ -14,14 +14,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import platform
-import subprocess
 import sys
 from pathlib import Path
 
-import warp as wp
-
 import warp_cloth as wc
+from warp_cloth.lab.bench import environment
 
 
 def preset_scene(preset: str, case: str, resolution: int, frames: int, integrator: str, substeps: str) -> wc.Scene:
@@ -67,12 +64,8 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=12)
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--out", type=Path, required=True, help="JSON lines, one a run (appended)")
-    parser.add_argument("--commit", help="the commit measured (default: git's HEAD; a copied tree has none)")
     args = parser.parse_args()
-    commit = args.commit or subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
-                                           text=True).stdout.strip()
-    versions = {"device": wp.get_device(args.device).name, "warp": wp.config.version,
-                "python": platform.python_version(), "commit": commit}
+    versions = environment(args.device)  # the commit from git, or WARP_CLOTH_COMMIT where the tree has no .git
     args.out.parent.mkdir(parents=True, exist_ok=True)
     print(f"{'scene':<20} {'integrator':<10} {'substeps (min/med/max)':>22} {'stretch':>8} {'compress':>8} "
           f"{'passes':>7} {'most':>5} {'CG':>4} {'ms/frame':>9}", flush=True)

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .mesh_io import pair_keys
 from .model import Model
 from .scene import Scene
 
@@ -60,8 +61,8 @@ def mesh_chains(pairs: np.ndarray, points: np.ndarray) -> list[np.ndarray]:
         cosines = np.einsum("vik,vjk->vij", outward[halves], outward[halves])
         i, j = np.triu_indices(d, 1)
         pair_cosines = cosines[:, i, j]
+        rows = np.arange(len(at))
         for k in np.argsort(pair_cosines, axis=1, kind="stable").T:  # each vertex's k-th most opposite pair
-            rows = np.arange(len(at))
             a, b = halves[rows, i[k]], halves[rows, j[k]]
             joined = (pair_cosines[rows, k] < CONTINUING_COSINE) & (link[a] < 0) & (link[b] < 0)
             link[a[joined]], link[b[joined]] = b[joined], a[joined]
@@ -120,15 +121,15 @@ def cloth_lines(model: Model, scene: Scene) -> list[Family]:
     n = model.particle_count
     limited = np.isfinite(springs.limit_max)
     pairs = np.sort(springs.pairs[limited], axis=1).astype(np.int64)
-    keys = pairs[:, 0] * n + pairs[:, 1]
+    keys = pair_keys(pairs, n)
     order = np.argsort(keys)
     keys, lo, hi = keys[order], springs.limit_min[limited][order], springs.limit_max[limited][order]
     free = model.inv_mass > 0
 
     def slots_of(chain: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        a, b = np.minimum(chain[:-1], chain[1:]), np.maximum(chain[:-1], chain[1:])
-        at = np.minimum(np.searchsorted(keys, a * n + b), len(keys) - 1)
-        return at, keys[at] == a * n + b
+        wanted = pair_keys(np.stack([chain[:-1], chain[1:]], axis=1), n)
+        at = np.minimum(np.searchsorted(keys, wanted), len(keys) - 1)
+        return at, keys[at] == wanted
 
     families: list[list[tuple[np.ndarray, np.ndarray]]] = []  # per family its lines: particles, slots
     for c, cloth in enumerate(scene.cloths):

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .mesh_io import face_areas, face_edges, face_starts, face_table, fan_triangles, unique_pairs
+from .mesh_io import face_areas, face_edges, face_starts, face_table, fan_triangles, pair_keys, unique_pairs
 
 STRUCTURAL, SHEAR, BEND = 0, 1, 2
 SPRING_KINDS = ("structural", "shear", "bend")
@@ -105,6 +105,19 @@ def mesh_springs(points: np.ndarray, face_counts: np.ndarray,
     return pairs, kinds, rests
 
 
+def shared_edges(edges: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Of the faces' edges ``edges`` (e, 2), each two that are one edge, in either direction: indices
+    ``first`` and ``second`` into ``edges`` (neighbours in the edges' order by vertex pair, ``first`` the
+    earlier in ``edges``), and whether the edge has only these two faces (not a mesh's fold of three or more)."""
+    key = pair_keys(edges, n)
+    order = np.argsort(key, kind="stable")
+    key = key[order]
+    shared = np.nonzero(key[1:] == key[:-1])[0]
+    padded = np.concatenate([[-1], key, [-1]])
+    only_two = (padded[shared] != key[shared]) & (padded[shared + 3] != key[shared])
+    return order[shared], order[shared + 1], only_two
+
+
 def _bend_pairs(face_counts: np.ndarray, face_indices: np.ndarray, edges: np.ndarray, n: int) -> np.ndarray:
     """Across each interior edge a-b: for each end, its neighbour off the edge in each of the two faces
     (a triangle's is its third vertex, for both ends), joined; repeats dropped."""
@@ -114,11 +127,7 @@ def _bend_pairs(face_counts: np.ndarray, face_indices: np.ndarray, edges: np.nda
     # Edge k runs from corner k to the next; the corner after that is b's far neighbour, the one before a's.
     after_b = face_indices[starts + (position + 2) % counts]
     before_a = face_indices[starts + (position - 1) % counts]
-    key = np.minimum(edges[:, 0], edges[:, 1]).astype(np.int64) * n + np.maximum(edges[:, 0], edges[:, 1])
-    order = np.argsort(key, kind="stable")
-    key = key[order]
-    shared = np.nonzero(key[1:] == key[:-1])[0]
-    first, second = order[shared], order[shared + 1]
+    first, second, _ = shared_edges(edges, n)
     # Seen from each face, its edge runs a -> b; the second face runs it the other way (b -> a) on a
     # consistently oriented mesh, or the same way on one that is not: match the ends by vertex.
     same_way = edges[first, 0] == edges[second, 0]

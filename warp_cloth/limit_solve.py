@@ -54,8 +54,8 @@ LINE_INTERLEAVED: bool | None = None
 
 @contextmanager
 def lab_hooks(chebyshev_rho: float | None = None, joint_passes: int = JOINT_PASSES, line_solve: bool = True,
-              line_contacts: bool = False, line_hold_margin: float = LINE_HOLD_MARGIN, line_newton_steps: int = LINE_NEWTON_STEPS,
-              line_segment: int | None = LINE_SEGMENT,
+              line_contacts: bool = False, line_hold_margin: float = LINE_HOLD_MARGIN,
+              line_newton_steps: int = LINE_NEWTON_STEPS, line_segment: int | None = LINE_SEGMENT,
               line_interleaved: bool | None = LINE_INTERLEAVED) -> Iterator[None]:
     """Simulators built inside take these hooks' values (the lab's and tests', never a scene's); the line
     solve's segment and layout, where None, are the device's (CUDA: segments of 32, interleaved; CPU: whole
@@ -70,8 +70,8 @@ def lab_hooks(chebyshev_rho: float | None = None, joint_passes: int = JOINT_PASS
     try:
         yield
     finally:
-        (CHEBYSHEV_RHO, JOINT_PASSES, LINE_SOLVE, LINE_CONTACTS, LINE_HOLD_MARGIN, LINE_NEWTON_STEPS, LINE_SEGMENT,
-         LINE_INTERLEAVED) = before
+        (CHEBYSHEV_RHO, JOINT_PASSES, LINE_SOLVE, LINE_CONTACTS, LINE_HOLD_MARGIN, LINE_NEWTON_STEPS,
+         LINE_SEGMENT, LINE_INTERLEAVED) = before
 
 
 @dataclass(frozen=True)
@@ -99,8 +99,7 @@ class LimitSolveSettings:
         return cls(simulation.limit_solve == "converged", simulation.limit_iterations, simulation.limit_tolerance,
                    simulation.limit_max_passes, CHEBYSHEV_RHO, JOINT_PASSES,
                    LINE_SOLVE and simulation.limit_solve == "converged", LINE_CONTACTS, LINE_HOLD_MARGIN,
-                   LINE_NEWTON_STEPS,
-                   LINE_SEGMENT, LINE_INTERLEAVED)
+                   LINE_NEWTON_STEPS, LINE_SEGMENT, LINE_INTERLEAVED)
 
 
 def residual_args(model: DeviceModel, state: DeviceState, settings: LimitSolveSettings, colliders: RigidColliders,

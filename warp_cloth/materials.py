@@ -95,10 +95,11 @@ import numpy as np
 
 from .checks import check_fields
 from .adjacency import Adjacency
-from .cloth_mesh import BEND, SHEAR, STRUCTURAL, BendStencils, ClothMesh, DerivedSprings, lumped_masses
+from .cloth_mesh import (BEND, SHEAR, STRUCTURAL, BendStencils, ClothMesh, DerivedSprings, lumped_masses,
+                         shared_edges)
 from .errors import SceneError
 from .fabric_presets import PRESETS
-from .mesh_io import face_areas, face_edges, face_starts
+from .mesh_io import face_areas, face_edges, face_starts, pair_keys
 
 PerDirection = float | tuple[float, float]
 
@@ -234,15 +235,15 @@ def _straight_middles(points, sides, bends) -> np.ndarray:
     1e-6 of its length); -1 where there is none."""
     n = len(points)
     adjacency = Adjacency.of(sides, n)
-    side_keys = np.sort(_keys(sides, n))
+    side_keys = np.sort(pair_keys(sides, n))
     p, q = bends[:, 0], bends[:, 1]
     degree = adjacency.offsets[p + 1] - adjacency.offsets[p]
     owner = np.repeat(np.arange(len(bends)), degree)
     entry = np.repeat(adjacency.offsets[p] - np.cumsum(degree) + degree, degree) + np.arange(int(degree.sum()))
     m = adjacency.other[entry].astype(np.int64)
     ends = np.stack([m, q[owner]], axis=1)
-    found = np.searchsorted(side_keys, _keys(ends, n))
-    joined = side_keys[np.minimum(found, len(side_keys) - 1)] == _keys(ends, n)
+    found = np.searchsorted(side_keys, pair_keys(ends, n))
+    joined = side_keys[np.minimum(found, len(side_keys) - 1)] == pair_keys(ends, n)
     chord = points[q[owner]] - points[p[owner]]
     offset = points[m] - points[p[owner]]
     length2 = np.einsum("si,si->s", chord, chord)
@@ -273,12 +274,8 @@ def _hinges(material: Material, tensors, points, counts, indices, bends) -> tupl
     edge = np.concatenate([corners[:, [0, 1]], corners[:, [1, 2]], corners[:, [2, 0]]])
     far = np.concatenate([corners[:, 2], corners[:, 0], corners[:, 1]])
     n = len(points)
-    key = _keys(edge, n)
-    order = np.argsort(key, kind="stable")
-    key = key[order]
-    twice = np.nonzero(key[1:] == key[:-1])[0]
-    twice = twice[(np.append(key, -1)[twice + 2] != key[twice]) & (np.insert(key, 0, -1)[twice] != key[twice])]
-    first, second = order[twice], order[twice + 1]
+    first, second, only_two = shared_edges(edge, n)
+    first, second = first[only_two], second[only_two]
     particles = np.stack([edge[first, 0], edge[first, 1], far[first], far[second]], axis=1)
     x0, x1, x2, x3 = (points[particles[:, r]] for r in range(4))
     at_0_in_0, at_1_in_0 = _cotangent(x1 - x0, x2 - x0), _cotangent(x0 - x1, x2 - x1)
@@ -289,8 +286,8 @@ def _hinges(material: Material, tensors, points, counts, indices, bends) -> tupl
                   + np.linalg.norm(np.cross(x1 - x0, x3 - x0), axis=1))
     turned = np.linalg.norm(np.einsum("sr,srk->sk", cotangents, points[particles]), axis=1)
     flat = turned < _FLAT * np.linalg.norm(x1 - x0, axis=1)  # |K x| = |e| theta
-    replaced = np.isin(_keys(bends, n), _keys(particles[:, 2:], n)[flat])
-    keep = flat & np.isin(_keys(particles[:, 2:], n), _keys(bends, n))
+    replaced = np.isin(pair_keys(bends, n), pair_keys(particles[:, 2:], n)[flat])
+    keep = flat & np.isin(pair_keys(particles[:, 2:], n), pair_keys(bends, n))
     particles, cotangents, area = particles[keep], cotangents[keep], area[keep]
     across = 1.0 - np.nan_to_num(_warp_share(tensors, points, particles[:, :2]), nan=0.5)  # cos^2, the bend's direction
     bend_u, bend_v = along(material.bending)
@@ -326,15 +323,11 @@ def _side_stiffness(material: Material, tensors, points, counts, indices, wanted
     return _summed_by_pair(edges, share, wanted, len(points))
 
 
-def _keys(pairs: np.ndarray, n: int) -> np.ndarray:
-    return np.minimum(pairs[:, 0], pairs[:, 1]).astype(np.int64) * n + np.maximum(pairs[:, 0], pairs[:, 1])
-
-
 def _summed_by_pair(pairs: np.ndarray, values: np.ndarray, wanted: np.ndarray, n: int) -> np.ndarray:
     """For each pair of ``wanted``, the sum of ``values`` over the equal pairs of ``pairs``."""
-    keys, owner = np.unique(_keys(pairs, n), return_inverse=True)
+    keys, owner = np.unique(pair_keys(pairs, n), return_inverse=True)
     sums = np.bincount(owner, weights=values, minlength=len(keys))
-    return sums[np.searchsorted(keys, _keys(wanted, n))]
+    return sums[np.searchsorted(keys, pair_keys(wanted, n))]
 
 
 def _quad_areas(points, counts, indices, wanted) -> np.ndarray:

@@ -483,10 +483,14 @@ def face_areas(points: np.ndarray, counts: np.ndarray, indices: np.ndarray) -> n
     return np.bincount(owner, weights=tri_area, minlength=len(counts))
 
 
+def pair_keys(pairs: np.ndarray, n: int) -> np.ndarray:
+    """Each unordered pair of vertices below n as one int64, the same either way round."""
+    return np.minimum(pairs[:, 0], pairs[:, 1]).astype(np.int64) * n + np.maximum(pairs[:, 0], pairs[:, 1])
+
+
 def unique_pairs(pairs: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     """The distinct unordered pairs of vertices below n, sorted, and how often each occurs."""
-    low, high = np.minimum(pairs[:, 0], pairs[:, 1]), np.maximum(pairs[:, 0], pairs[:, 1])
-    keys, uses = np.unique(low.astype(np.int64) * n + high, return_counts=True)
+    keys, uses = np.unique(pair_keys(pairs, n), return_counts=True)
     return np.stack([keys // n, keys % n], axis=1), uses
 
 

@@ -102,7 +102,8 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
     it, the strain limit's passes or the colliders alone; the clock last, where something moves with it.
     ``solve``: how the limits and contacts are solved; ``threads``: per particle on the gathering passes
     (None: by size); ``lines``: the line solves of the cloths' lines where ``solve.line_solve`` and a cloth
-    is limited, made once for every plan a simulator builds (line_solve.LineSolves); ``bounds``: the lab's displacement bounds
+    is limited (with particle collision, where ``solve.line_contacts`` too), made once for every plan a
+    simulator builds (line_solve.LineSolves); ``bounds``: the lab's displacement bounds
     (displacement_bounds.py, made once per simulator), measured first and clamping the step after the solves
     (before the contact velocities); ``control``: the passes that put what a script sent from Python
     (control.py's ``Control.passes``) after the colliders' motion (``"colliders"``), with the soft pins' motion
@@ -149,7 +150,7 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
         edge_passes = [edge_separation_pass(model, state, chosen, rigid)] if state.edges is not None else []
         if faces is not None:
             edge_passes.append(faces.separation_pass(model, chosen, rigid))
-        if converged and model.limits is not None and lines is not None and solve.line_contacts:
+        if converged and model.limits is not None and lines is not None:
             projection = line_contact_projection(model, state, solve, chosen, rigid, edge_passes, lines)
             passes.append(projection)
         elif converged:
