@@ -1,9 +1,9 @@
-"""The converged limit solve by rounds of line solves (``lab_hooks(line_solve=True)``, plain or with
-Chebyshev's acceleration, a thread a whole line on any device; ``lines-segments``: the same a thread a segment
+"""The converged limit solve by rounds of line solves (``default``: as the simulator builds it; ``lines``: a
+thread a whole line on any device, plain, and with particle collision line rounds too; ``lines-segments``: the same a thread a segment
 of 32 springs, each in the device's layout (CUDA: interleaved; CPU: contiguous); ``lines-segments-contiguous``
 and ``-interleaved``: either layout on any device; ``lines-held-all``: every spring of a line held and one
-linearised step a round, as before the 256^2 stall was explained) against
-the default (Jacobi passes in pairs, Chebyshev with its estimated radius), back to back on the speed matrix's
+linearised step a round, as before the 256^2 stall was explained) and ``jacobi`` (Jacobi passes in pairs alone,
+Chebyshev with its estimated radius), back to back on the speed matrix's
 sphere cloth (symplectic, 10 substeps a frame): the worst edge strain over every frame (stretch and
 compression, structural and shear), passes (for the line solve, rounds) a substep on average and at most,
 frames with a solve at the cap, and the wall time. ``--cloth triangles`` (or ``quads``): the same cloth read
@@ -18,11 +18,12 @@ auto where it sets none, and cap), which add the substeps a frame (min, median, 
 count a limited spring's strain only (a cloth's structural and shear springs where it has a limit; bend
 springs never are, which each row checks); ``--scene-frames NAME=N`` runs that scene for N frames instead;
 ``--repeats R`` runs a scene's methods in turn R times and keeps each one's least wall and CPU times.
+``--substeps``: the matrix runs at each of these substeps a frame (its springs as stiff as each step allows).
 ``--bounds``: each matrix run also with the lab's displacement bounds (warp_cloth/displacement_bounds.py;
 ``off``, ``on`` or ``radius=R,gamma=G,rounds=K``), which adds the particles they held short a substep.
 
     python tools/line_solve_probe.py OUT.json [--sizes 32 64 128] [--methods jacobi lines ...] [--frames 48]
-        [--cloth grid triangles quads] [--variant sphere self] [--bounds off on ...]
+        [--cloth grid triangles quads] [--variant sphere self] [--bounds off on ...] [--substeps 10 40]
     python tools/line_solve_probe.py OUT.json --scenes NAME ... [--methods ...] [--frames 48]
         [--scene-frames seed_default=12] [--repeats 3]
 
@@ -40,7 +41,7 @@ import numpy as np
 import warp as wp
 
 import warp_cloth as wc
-from warp_cloth.lab.bench import environment, matrix_scene
+from warp_cloth.lab.bench import MATRIX_SUBSTEPS, environment, matrix_scene
 from warp_cloth.diagnostics import TriangleIntersections
 from warp_cloth.displacement_bounds import BoundSettings
 from warp_cloth.displacement_bounds import lab_hooks as bound_hooks
@@ -51,8 +52,7 @@ from warp_cloth.stability import at_substeps
 
 WHOLE_LINES = 1 << 30  # a segment longer than any line (the layout keeps only the longest's slots)
 # method: the hooks its simulator is built with
-METHODS = {"jacobi": {"line_solve": False}, "lines": {"line_solve": True, "line_contacts": True, "chebyshev_rho": 0.0, "line_segment": WHOLE_LINES},
-           "lines+chebyshev": {"line_solve": True, "line_contacts": True, "line_segment": WHOLE_LINES},
+METHODS = {"default": {}, "jacobi": {"line_solve": False}, "lines": {"line_solve": True, "line_contacts": True, "chebyshev_rho": 0.0, "line_segment": WHOLE_LINES},
            "lines-segments": {"line_solve": True, "line_contacts": True, "chebyshev_rho": 0.0, "line_segment": 32},
            "lines-segments-contiguous": {"line_solve": True, "line_contacts": True, "chebyshev_rho": 0.0, "line_segment": 32,
                                          "line_interleaved": False},
@@ -63,15 +63,17 @@ METHODS = {"jacobi": {"line_solve": False}, "lines": {"line_solve": True, "line_
 
 
 def measure(n: int, method: str, frames: int, cap: int, device: str, cloth: str = "grid",
-            variant: str = "sphere", bounds: str = "off") -> dict:
-    """The speed matrix's cloth at ``n``^2 (``variant``, as a grid or a ``cloth`` mesh) at ``cap`` rounds, with
-    the displacement ``bounds`` (BoundSettings.parse's)."""
-    scene = matrix_scene(variant, n, "symplectic")
+            variant: str = "sphere", bounds: str = "off", substeps: int = MATRIX_SUBSTEPS) -> dict:
+    """The speed matrix's cloth at ``n``^2 (``variant``, as a grid or a ``cloth`` mesh) at ``substeps`` a frame
+    (its springs as stiff as that step allows) and ``cap`` rounds, with the displacement ``bounds``
+    (BoundSettings.parse's)."""
+    scene = matrix_scene(variant, n, "symplectic", substeps)
     if cloth != "grid":
         scene = as_mesh_cloth(scene, triangles=cloth == "triangles")
     scene = dataclasses.replace(scene, simulation=dataclasses.replace(
         scene.simulation, limit_solve="converged", limit_max_passes=cap))
     return {"n": n, "variant": variant, "cloth": cloth, "method": method, "frames": frames, "cap": cap,
+            "frame_substeps": substeps,
             **measure_run(scene, method, frames, device, bounds)}
 
 
@@ -197,6 +199,8 @@ def main() -> None:
     parser.add_argument("--scene-frames", nargs="+", default=[], metavar="NAME=N",
                         help="with --scenes: frames for the scenes named, instead of --frames")
     parser.add_argument("--bounds", nargs="+", default=["off"], help="the matrix runs' displacement bounds")
+    parser.add_argument("--substeps", type=int, nargs="+", default=[MATRIX_SUBSTEPS],
+                        help="the matrix runs' substeps a frame (the springs stiffen with the step)")
     parser.add_argument("--repeats", type=int, default=1,
                         help="with --scenes: each scene's methods run in turn R times; the least times kept")
     args = parser.parse_args()
@@ -218,8 +222,9 @@ def main() -> None:
         return
     for n in args.sizes:
         for cloth in args.cloth:
-            for method, bounds in ((m, b) for m in args.methods for b in args.bounds):
-                keep(measure(n, method, args.frames, args.cap, args.device, cloth, args.variant, bounds))
+            for method, bounds, substeps in ((m, b, k) for m in args.methods for b in args.bounds
+                                             for k in args.substeps):
+                keep(measure(n, method, args.frames, args.cap, args.device, cloth, args.variant, bounds, substeps))
 
 
 if __name__ == "__main__":
