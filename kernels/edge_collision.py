@@ -233,6 +233,6 @@ def deepest_edge_overlap(edges: EdgeContacts, i: int, x: wp.array(dtype=wp.vec3)
     for k in range(edges.incident_offsets[i], edges.incident_offsets[i + 1]):
         e = edges.incident[k]
         for c in range(edges.counts[e]):
-            st, d = pair_closest(edges, e, edges.neighbors[e * edges.max_neighbors + c], x)
+            unused_st, d = pair_closest(edges, e, edges.neighbors[e * edges.max_neighbors + c], x)
             worst = wp.max(worst, (edges.thickness - wp.length(d)) / edges.thickness)
     return worst
