@@ -8,6 +8,8 @@ import warp as wp
 
 from .attachments import Attachments, attachment_violation
 from .colliders import RigidColliders, collide_particle
+from .edge_collision import EdgeContacts, deepest_edge_overlap
+from .face_collision import FaceContacts, deepest_face_overlap
 from .gathering import FAST_MATH
 from .limits import StrainLimits, limit_violation
 from .particle_collision import Contacts, deepest_overlap
@@ -48,7 +50,11 @@ class ResidualArgs:
     limit_tolerance: float  # of an allowed length
     contacts: Contacts
     check_contacts: int  # 0: no particle collision
-    contact_tolerance: float  # of a contact distance
+    contact_tolerance: float  # of a contact distance; of the thickness for the edge and face pairs
+    edges: EdgeContacts  # the edge contacts' pairs (edge_collision.py), read where check_edges
+    check_edges: int  # 0: not checked (the edges' arrays may be empty)
+    faces: FaceContacts  # the lab's face contacts' pairs (face_collision.py), read where check_faces
+    check_faces: int
     inv_mass: wp.array(dtype=float)
     colliders: RigidColliders  # the spheres that attachments run around
 
@@ -74,8 +80,9 @@ def limit_violations(x: wp.array(dtype=wp.vec3), args: ResidualArgs, violation: 
 
 @wp.kernel
 def projection_residual(x: wp.array(dtype=wp.vec3), args: ResidualArgs, residual: wp.array(dtype=float)):
-    """residual[0] becomes the worst of each free particle's limit violation and contact overlap, each in
-    its own tolerances (1: at the tolerance), where some exceed theirs (where none does it is left as is)."""
+    """residual[0] becomes the worst of each free particle's limit violation and contact overlap (particle
+    contacts', and the edge and face pairs' where checked), each in its own tolerances (1: at the
+    tolerance), where some exceed theirs (where none does it is left as is)."""
     i = wp.tid()
     if args.inv_mass[i] == 0.0:
         return
@@ -84,5 +91,9 @@ def projection_residual(x: wp.array(dtype=wp.vec3), args: ResidualArgs, residual
         worst = limits_and_attachments_violation(args, i, x) / args.limit_tolerance
     if args.check_contacts != 0:
         worst = wp.max(worst, deepest_overlap(args.contacts, i, x) / args.contact_tolerance)
+    if args.check_edges != 0:
+        worst = wp.max(worst, deepest_edge_overlap(args.edges, i, x) / args.contact_tolerance)
+    if args.check_faces != 0:
+        worst = wp.max(worst, deepest_face_overlap(args.faces, i, x) / args.contact_tolerance)
     if worst > 1.0:
         wp.atomic_max(residual, 0, worst)

@@ -161,6 +161,20 @@ def apart_direction(d: wp.vec3, gap: float, p1: wp.vec3, q1: wp.vec3, p2: wp.vec
 
 
 @wp.func
+def pair_closest(edges: EdgeContacts, e: int, f: int, x: wp.array(dtype=wp.vec3)):
+    """Edges e and f's closest points, worked out in one order (the lower-numbered edge first): their
+    parameters along the two, and the vector from the second's point to the first's."""
+    ends_1 = edges.ends[wp.min(e, f)]
+    ends_2 = edges.ends[wp.max(e, f)]
+    p1 = x[ends_1[0]]
+    q1 = x[ends_1[1]]
+    p2 = x[ends_2[0]]
+    q2 = x[ends_2[1]]
+    st = closest_points(p1, q1, p2, q2)
+    return st, wp.lerp(p1, q1, st[0]) - wp.lerp(p2, q2, st[1])
+
+
+@wp.func
 def edge_push(edges: EdgeContacts, i: int, e: int, f: int, x: wp.array(dtype=wp.vec3),
               inv_mass: wp.array(dtype=float)):
     """Particle i's move (an end of edge e) out of edge f's thickness, and 1 if the two are closer than it
@@ -177,8 +191,7 @@ def edge_push(edges: EdgeContacts, i: int, e: int, f: int, x: wp.array(dtype=wp.
     q1 = x[ends_1[1]]
     p2 = x[ends_2[0]]
     q2 = x[ends_2[1]]
-    st = closest_points(p1, q1, p2, q2)
-    d = wp.lerp(p1, q1, st[0]) - wp.lerp(p2, q2, st[1])
+    st, d = pair_closest(edges, e, f, x)
     gap = wp.length(d)
     if gap >= edges.thickness:
         return wp.vec3(0.0), 0
@@ -210,3 +223,16 @@ def edge_pushes(edges: EdgeContacts, i: int, first: int, stride: int, x: wp.arra
             total = total + wp.vec4(move[0], move[1], move[2], float(close))
     return total
 
+
+@wp.func
+def deepest_edge_overlap(edges: EdgeContacts, i: int, x: wp.array(dtype=wp.vec3)) -> float:
+    """How far the closest listed pair of particle i's contact edges lies inside the thickness, as a fraction
+    of it (0 where none does): every listed pair is in the lists of its edges' ends, so a check over every
+    particle reads them all."""
+    worst = float(0.0)
+    for k in range(edges.incident_offsets[i], edges.incident_offsets[i + 1]):
+        e = edges.incident[k]
+        for c in range(edges.counts[e]):
+            unused_st, d = pair_closest(edges, e, edges.neighbors[e * edges.max_neighbors + c], x)
+            worst = wp.max(worst, (edges.thickness - wp.length(d)) / edges.thickness)
+    return worst

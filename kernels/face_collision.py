@@ -103,10 +103,10 @@ def side_bit(p: wp.vec3, a: wp.vec3, b: wp.vec3, c: wp.vec3) -> int:
 
 
 @wp.func
-def face_push(faces: FaceContacts, i: int, vertex: int, code: int, x: wp.array(dtype=wp.vec3),
-              inv_mass: wp.array(dtype=float)):
-    """Particle i's move (the vertex or one of the triangle's) out of the pair of ``vertex`` and the triangle
-    ``code`` holds (2 t + side bit), and 1 if the two are closer than the thickness (else zero and 0)."""
+def pair_gap(faces: FaceContacts, vertex: int, code: int, x: wp.array(dtype=wp.vec3)):
+    """How far ``vertex`` lies from the triangle ``code`` holds (2 t + side bit) along the direction it is to
+    be moved in (below zero once it has crossed to the other side where it projects inside the triangle),
+    that direction, and the closest point's barycentric weights."""
     t = faces.triangles[code >> 1]
     side = 1.0 - 2.0 * float(code & 1)
     p = x[vertex]
@@ -130,8 +130,18 @@ def face_push(faces: FaceContacts, i: int, vertex: int, code: int, x: wp.array(d
             n = side * wp.normalize(normal)
         else:
             n = wp.normalize(wp.vec3(0.267, 0.535, 0.802))
+    return gap, n, weights
+
+
+@wp.func
+def face_push(faces: FaceContacts, i: int, vertex: int, code: int, x: wp.array(dtype=wp.vec3),
+              inv_mass: wp.array(dtype=float)):
+    """Particle i's move (the vertex or one of the triangle's) out of the pair of ``vertex`` and the triangle
+    ``code`` holds (2 t + side bit), and 1 if the two are closer than the thickness (else zero and 0)."""
+    gap, n, weights = pair_gap(faces, vertex, code, x)
     if gap >= faces.thickness:
         return wp.vec3(0.0), 0
+    t = faces.triangles[code >> 1]
     weight = inv_mass[vertex] + weights[0] * weights[0] * inv_mass[t[0]] + weights[1] * weights[1] * inv_mass[t[1]] \
         + weights[2] * weights[2] * inv_mass[t[2]]
     if weight == 0.0:
@@ -144,6 +154,18 @@ def face_push(faces: FaceContacts, i: int, vertex: int, code: int, x: wp.array(d
     elif i == t[2]:
         share = -weights[2]
     return (inv_mass[i] * share * (faces.thickness - gap) / weight) * n, 1
+
+
+@wp.func
+def deepest_face_overlap(faces: FaceContacts, i: int, x: wp.array(dtype=wp.vec3)) -> float:
+    """How far vertex i lies inside the thickness of its closest listed triangle, as a fraction of the
+    thickness (0 where none): every pair is in its vertex's list, so a check over every particle reads them
+    all."""
+    worst = float(0.0)
+    for c in range(faces.vertex_counts[i]):
+        gap, unused_n, unused_weights = pair_gap(faces, i, faces.vertex_faces[i * faces.max_neighbors + c], x)
+        worst = wp.max(worst, (faces.thickness - gap) / faces.thickness)
+    return worst
 
 
 @wp.func

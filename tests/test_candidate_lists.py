@@ -92,7 +92,7 @@ def test_full_face_lists_keep_the_nearest_pairs(monkeypatch):
     """The quads moved over each other, with the lab's face contacts: each vertex's list of triangles and
     each triangle's list of vertices hold 5, the 5 nearest (by the point-triangle distance)."""
     monkeypatch.setattr(face_contacts, "FACE_NEIGHBORS", HELD)
-    with face_contacts.lab_hooks(face_contacts.FaceSettings()):
+    with face_contacts.lab_hooks():
         sim = crossed_quad_simulator(turned=False)
     faces = sim.plan.faces
     n, t = sim.model.particle_count, faces.triangle_count

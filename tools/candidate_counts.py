@@ -40,7 +40,8 @@ def main() -> None:
     parser.add_argument("--n", type=int, default=32)
     parser.add_argument("--frames", type=int, default=60)
     parser.add_argument("--radius", type=float, default=0.004)
-    parser.add_argument("--faces", default="on", help="the lab's face contacts: off, on or thickness=T")
+    parser.add_argument("--faces", default="on",
+                        help="the lab's face contacts: off, on or thickness=T (both kinds' thickness)")
     parser.add_argument("--room", type=int, default=512, help="entries every list holds")
     parser.add_argument("--bucket", type=int, default=COUNT_MASK, help="edges a bucket of the edge hash holds")
     parser.add_argument("--device", default="cpu")
@@ -51,7 +52,7 @@ def main() -> None:
     state.EDGE_NEIGHBORS = passes.EDGE_NEIGHBORS = face_contacts.FACE_NEIGHBORS = args.room
     state.EDGE_BUCKET_CAPACITY = neighbour_lists.EDGE_BUCKET_CAPACITY = args.bucket
     scene = stacked_drape_scene(args.sheets, args.n, frames=args.frames, radius=args.radius, edges=True)
-    with lab_hooks(BoundSettings.parse("on")), face_contacts.lab_hooks(face_contacts.FaceSettings.parse(args.faces)):
+    with lab_hooks(BoundSettings.parse("on")), face_contacts.spec_hooks(args.faces):
         sim = wc.Simulator(scene, device=args.device)
     lists = sim.plan.lists
     sim.prepare()

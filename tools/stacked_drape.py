@@ -30,9 +30,10 @@ A run the start check refuses, or that blows up, is reported as such: that is a 
 the distance given up, and the bounds' hash overflow.
 
 ``--faces`` runs each of those once per spec: ``off``, or the lab's face contacts
-(warp_cloth/face_contacts.py) as ``on`` (the edge contacts' thickness rule) or ``thickness=T`` in metres.
-Every run reports its closest surfaces also as a fraction of that thickness (the face contacts' own, or
-the rule's where they are off), and the lists' overflow.
+(warp_cloth/face_contacts.py) as ``on`` (at the thickness's default, the edge contacts' rule) or
+``thickness=T``: face contacts, and both contact kinds held T metres apart (warp_cloth/contact_thickness.py).
+Every run reports its closest surfaces also as a fraction of that thickness (the one both kinds hold, the
+rule's where neither is on), and the lists' overflow.
 
     python tools/stacked_drape.py --sheets 3 --n 32 --frames 60 --radius 0.004 default --device cpu \\
         --json docs/results/stacked-drape-cpu.json
@@ -51,11 +52,10 @@ import numpy as np
 import warp as wp
 
 import warp_cloth as wc
+from warp_cloth import contact_thickness
 from warp_cloth.diagnostics import TriangleIntersections
-from warp_cloth.device_model import EDGE_THICKNESS
 from warp_cloth.displacement_bounds import BoundSettings, DisplacementBounds, lab_hooks
-from warp_cloth.face_contacts import FaceSettings
-from warp_cloth.face_contacts import lab_hooks as face_hooks
+from warp_cloth.face_contacts import spec_hooks as face_hooks
 from warp_cloth.lab.bench import environment
 
 DRAPE_MATERIAL = {"density": 0.2, "structural": wc.SpringKind(50.0, 0.05), "shear": wc.SpringKind(50.0, 0.05),
@@ -87,8 +87,9 @@ def contact_distance(sim: wc.Simulator) -> float:
 
 
 def measure(scene: wc.Scene, gap: float, device: str, bounds: BoundSettings | None = None,
-            faces: FaceSettings | None = None) -> dict:
-    """One run of ``scene``, measured in every frame (see the module's docstring)."""
+            faces: str = "off") -> dict:
+    """One run of ``scene``, measured in every frame (see the module's docstring); ``faces``: the face
+    contacts' spec (face_contacts.spec_hooks)."""
     try:
         with lab_hooks(bounds), face_hooks(faces):
             sim = wc.Simulator(scene, device=device)
@@ -101,7 +102,8 @@ def measure(scene: wc.Scene, gap: float, device: str, bounds: BoundSettings | No
     strain, crossings = wc.StrainMonitor(), TriangleIntersections(sim)
     strain.begin(sim)
     distance = contact_distance(sim)
-    thickness = sim.plan.faces.thickness if sim.plan.faces is not None else EDGE_THICKNESS * distance
+    contacts = sim.device_model.contacts
+    thickness = contacts.thickness if contacts is not None else contact_thickness.RULE * distance
     per_frame = {"crossings": [], "closest_contact": [], "substeps": [], "limit_passes": [], "limit_residual": [],
                  "closest_surfaces": [], "held_short_first": [], "held_short_last": [], "held_back_m": []}
     stepping, outcome = 0.0, "completed"
@@ -154,7 +156,7 @@ def measure(scene: wc.Scene, gap: float, device: str, bounds: BoundSettings | No
             "frames_ending_outside_tolerance": sum(r > 1.0 for r in per_frame["limit_residual"]),
             "closest_surfaces_m": min(per_frame["closest_surfaces"]),
             "thickness": thickness, "closest_surfaces_of_thickness": min(per_frame["closest_surfaces"]) / thickness,
-            "faces": None if faces is None else vars(faces), "lists_overflow": sim.plan.lists.overflow,
+            "faces": faces, "lists_overflow": sim.plan.lists.overflow,
             "bounds": None if bounds is None else vars(bounds),
             "held_short_mean": float(np.mean(per_frame["held_short_first"])) if per_frame["held_short_first"] else None,
             "held_short_last_mean": float(np.mean(per_frame["held_short_last"]))
@@ -231,7 +233,7 @@ def main() -> None:
                 f"{' edges' if args.edges else ''}{' no-self' if args.no_self else ''}"
                 f"{'' if face_spec == 'off' else ' faces ' + face_spec}{'' if spec == 'off' else ' bounds ' + spec}")
         rows.append({"run": name, "radius": radius, **measure(scene, args.gap, device, BoundSettings.parse(spec),
-                                                              FaceSettings.parse(face_spec))})
+                                                              face_spec)})
         print(*table_lines(rows[-1]), sep="\n", flush=True)
         if args.json:  # after every run: a later one may take long or fail
             with open(args.json, "w") as out:

@@ -22,8 +22,7 @@ import warp as wp
 import warp_cloth as wc
 from stacked_drape import stacked_drape_scene
 from warp_cloth.displacement_bounds import BoundSettings, lab_hooks
-from warp_cloth.face_contacts import FaceSettings
-from warp_cloth.face_contacts import lab_hooks as face_hooks
+from warp_cloth.face_contacts import spec_hooks as face_hooks
 from warp_cloth.lab.bench import environment
 
 
@@ -57,12 +56,12 @@ def main() -> None:
     parser.add_argument("--n", type=int, default=24)
     parser.add_argument("--frames", type=int, default=30)
     parser.add_argument("--radius", type=float, default=0.004)
-    parser.add_argument("--faces", default="on", help="off, on or thickness=T (face_contacts.FaceSettings.parse)")
+    parser.add_argument("--faces", default="on", help="off, on or thickness=T (face_contacts.spec_hooks)")
     parser.add_argument("--bounds", default="on", help="off, on or radius=R,... (BoundSettings.parse)")
     parser.add_argument("--json", default=None)
     args = parser.parse_args()
     scene = stacked_drape_scene(sheets=args.sheets, n=args.n, frames=args.frames, radius=args.radius, edges=True)
-    with lab_hooks(BoundSettings.parse(args.bounds)), face_hooks(FaceSettings.parse(args.faces)):
+    with lab_hooks(BoundSettings.parse(args.bounds)), face_hooks(args.faces):
         sim = wc.Simulator(scene, device="cpu", graph=False)
     sim.prepare()
     wall, kernels = kernel_seconds(sim, args.frames)

@@ -21,6 +21,7 @@ from warp_cloth.kernels.bending import Bending
 from warp_cloth.kernels.springs import Springs
 from warp_cloth.kernels.wind import Wind
 
+from . import contact_thickness
 from .collider_kinds import KINDS, Meshes, upload
 from .model import Model, Worlds
 from .scene import Collision, Scene, WindKey
@@ -81,11 +82,8 @@ class DeviceContactEdges:
     incident_offsets: wp.array  # (n + 1,) each particle's edges (CSR)
     incident: wp.array
     rules: EdgeRules
-    thickness: float  # how far apart edges are held
+    thickness: float  # how far apart edges are held: ParticleContacts.thickness
     longest: float  # the longest an edge may get (model.ContactEdges): a longer one widens the hash's cells
-
-
-EDGE_THICKNESS = 0.25  # contact distances: below the midpoints' gap across the tightest fold the particles allow
 
 
 @dataclass(frozen=True)
@@ -105,6 +103,7 @@ class ParticleContacts:
     rules: PairRules
     max_radius: float
     min_radius: float
+    thickness: float  # metres, what edge and face contacts hold (contact_thickness.py: the lab's or the rule)
     edges: DeviceContactEdges | None
 
 
@@ -248,10 +247,11 @@ class DeviceModel:
             rules.sewn_offsets = upload(contacts.sewn.offsets, int, device)
             rules.sewn_other = upload(contacts.sewn.other, int, device)
         rules.search_scale = particle_collision.SEARCH_SCALE
+        thickness = contact_thickness.thickness(settings.separation, contacts.max_radius)
         return ParticleContacts(settings, upload(contacts.radius, float, device), rules, contacts.max_radius,
-                                float(contacts.radius.min()), self._contact_edges(model, rules, settings))
+                                float(contacts.radius.min()), thickness, self._contact_edges(model, rules, thickness))
 
-    def _contact_edges(self, model: Model, particle_rules: PairRules, settings: Collision) -> DeviceContactEdges | None:
+    def _contact_edges(self, model: Model, particle_rules: PairRules, thickness: float) -> DeviceContactEdges | None:
         contacts, device = model.contacts, self.device
         edges = contacts.edges
         if edges is None:
@@ -263,8 +263,7 @@ class DeviceModel:
         return DeviceContactEdges(upload(edges.ends, wp.vec2i, device),
                                   upload(model.particle_world[edges.ends[:, 0]], int, device),
                                   upload(edges.incidence.offsets, int, device),
-                                  upload(edges.incidence.spring, int, device), rules,
-                                  EDGE_THICKNESS * settings.separation * contacts.max_radius, edges.longest)
+                                  upload(edges.incidence.spring, int, device), rules, thickness, edges.longest)
 
     def forces(self, wind: wp.array) -> ExternalForces:
         """The external forces as the kernels take them, each particle's wind acceleration in ``wind`` (the

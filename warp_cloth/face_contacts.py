@@ -1,6 +1,6 @@
 """The lab's face contacts (issue 34, off by default; ``lab_hooks``): every vertex kept a thickness in metres
 from the triangles it is not a vertex of, inside the converged solve beside the edge contacts' pass
-(kernels/face_collision.py).
+(kernels/face_collision.py); the thickness is the one both kinds hold (contact_thickness.py).
 
 The simulator makes one ``FaceContacts`` where the hooks ask for it and the scene has particle collision,
 and hands it to every plan it builds (warp_cloth/plan.py): the particle lists' remake then remakes its
@@ -13,7 +13,6 @@ plan's carried arrays (``carried``), so that a checkpoint or a frame made again 
 from __future__ import annotations
 
 from contextlib import contextmanager
-from dataclasses import dataclass
 from typing import Iterator
 
 import numpy as np
@@ -27,39 +26,22 @@ from warp_cloth.kernels.face_separation import FaceSeparationPassArgs, face_sepa
 from warp_cloth.kernels.neighbour_search import gather_face_vertices, gather_vertex_faces
 from warp_cloth.kernels.particle_collision import ListState
 
-from .device_model import EDGE_THICKNESS, DeviceModel
+from . import contact_thickness
+from .device_model import DeviceModel
 from .model import Model
 from .neighbour_lists import rebuild_distance
 from .passes import GatheringPass
 from .state import hash_table_size
 
 
-@dataclass(frozen=True)
-class FaceSettings:
-    """``thickness``: how far a vertex is held from a triangle, metres (None: the edge contacts' rule,
-    ``EDGE_THICKNESS`` contact distances)."""
-    thickness: float | None = None
-
-    def __post_init__(self) -> None:
-        if self.thickness is not None and not self.thickness > 0.0:
-            raise ValueError(f"face contacts need a thickness above 0, got {self.thickness}")
-
-    @classmethod
-    def parse(cls, spec: str) -> FaceSettings | None:
-        """A tool's spec: ``off`` (None), ``on`` (the defaults) or ``thickness=T``."""
-        if spec == "off":
-            return None
-        values = {} if spec == "on" else dict(item.split("=") for item in spec.split(","))
-        return cls(**{k: float(v) for k, v in values.items()})
-
-
 # The lab's hook, not a scene key: simulators built while it is set hold vertices off triangles.
-FACES: FaceSettings | None = None
+FACES = False
 
 
 @contextmanager
-def lab_hooks(faces: FaceSettings | None = None) -> Iterator[None]:
-    """Simulators built inside take these hooks' values (the lab's and tests', never a scene's)."""
+def lab_hooks(faces: bool = True) -> Iterator[None]:
+    """Simulators built inside hold vertices off triangles where ``faces`` (the lab's and tests', never a
+    scene's), at the thickness contact_thickness.py gives both contact kinds."""
     global FACES
     before = FACES
     FACES = faces
@@ -67,6 +49,18 @@ def lab_hooks(faces: FaceSettings | None = None) -> Iterator[None]:
         yield
     finally:
         FACES = before
+
+
+@contextmanager
+def spec_hooks(spec: str) -> Iterator[None]:
+    """A tool's spec: ``off``, ``on`` (face contacts at the thickness's default) or ``thickness=T`` (face
+    contacts, and both contact kinds held T metres apart: contact_thickness.lab_hooks)."""
+    values = {} if spec in ("off", "on") else dict(item.split("=") for item in spec.split(","))
+    if set(values) - {"thickness"}:
+        raise ValueError(f"face contacts' spec: off, on or thickness=T, got {spec!r}")
+    thickness = float(values["thickness"]) if values else None
+    with lab_hooks(spec != "off"), contact_thickness.lab_hooks(thickness):
+        yield
 
 
 FACE_NEIGHBORS = 32  # pairs a vertex's or a triangle's list holds (the nearest; more are counted in its overflow)
@@ -88,14 +82,13 @@ def incidence(triangles: np.ndarray, n: int, columns: slice = slice(None)) -> tu
 class FaceContacts:
     """The face contacts' arrays, the remake of their lists and their pass, made once per simulator."""
 
-    def __init__(self, model: Model, device_model: DeviceModel, settings: FaceSettings) -> None:
+    def __init__(self, model: Model, device_model: DeviceModel) -> None:
         contacts = device_model.contacts
         device = self.device = device_model.device
         n = self.n = model.particle_count
         triangles = model.triangles
         self.triangle_count = len(triangles)
-        self.thickness = settings.thickness if settings.thickness is not None else \
-            EDGE_THICKNESS * contacts.settings.separation * contacts.max_radius
+        self.thickness = contacts.thickness  # the edge contacts' too (contact_thickness.py)
         self.reach = self.thickness + 2.0 * rebuild_distance(device_model)
         rest = model.positions[triangles]
         self.longest = float(np.linalg.norm(rest - np.roll(rest, 1, axis=1), axis=2).max(initial=0.0))
@@ -126,7 +119,7 @@ class FaceContacts:
     @classmethod
     def of(cls, model: Model, device_model: DeviceModel) -> FaceContacts | None:
         """The face contacts the lab's hook asks for now (None: off, or a scene without particle collision)."""
-        return None if FACES is None or device_model.contacts is None else cls(model, device_model, FACES)
+        return cls(model, device_model) if FACES and device_model.contacts is not None else None
 
     kernels = [edge_collision.start_edge_cells, face_collision.widen_face_cells,
                spatial_hash.insert_points_at_chosen_width, gather_vertex_faces,

@@ -17,9 +17,11 @@ import warp as wp
 
 from warp_cloth.kernels import converged_projection, solve_loop
 from warp_cloth.kernels.colliders import RigidColliders
+from warp_cloth.kernels.edge_collision import EdgeContacts
+from warp_cloth.kernels.face_collision import FaceContacts
 
 from .device_model import DeviceModel
-from .passes import Pass, attachments_of, contacts_args
+from .passes import Pass, attachments_of, contacts_args, edge_contacts_args
 from .scene import Simulation
 from .state import DeviceState
 
@@ -103,9 +105,10 @@ class LimitSolveSettings:
 
 
 def residual_args(model: DeviceModel, state: DeviceState, settings: LimitSolveSettings, colliders: RigidColliders,
-                  contacts: bool = True) -> converged_projection.ResidualArgs:
+                  contacts: bool = True, faces: FaceContacts | None = None) -> converged_projection.ResidualArgs:
     """What the solve's check reads: the limits and attachments, and where ``contacts`` the particle
-    contacts, with their tolerances."""
+    contacts, with their tolerances; where ``faces`` (the lab's face contacts' arrays) also their pairs and
+    the edge contacts' (where the scene has them), to the contacts' tolerance of the thickness both hold."""
     args = converged_projection.ResidualArgs()
     args.check_limits = int(model.limits is not None)
     args.limits = model.limits if model.limits is not None else model.no_limits()
@@ -114,6 +117,11 @@ def residual_args(model: DeviceModel, state: DeviceState, settings: LimitSolveSe
     args.check_contacts = int(contacts and model.contacts is not None)
     args.contacts = contacts_args(model, state) if model.contacts is not None else model.no_contacts()
     args.contact_tolerance = model.contacts.settings.tolerance if model.contacts is not None else 1.0
+    surfaces = contacts and faces is not None
+    args.check_edges = int(surfaces and state.edges is not None)
+    args.edges = edge_contacts_args(model, state) if args.check_edges else EdgeContacts()  # unread where 0
+    args.check_faces = int(surfaces)
+    args.faces = faces if surfaces else FaceContacts()
     args.inv_mass = model.inv_mass
     args.colliders = colliders
     return args
@@ -123,7 +131,8 @@ class ConvergedProjection:
     """Runs ``body`` (passes that leave the positions' buffer parity as they found it) until the check after
     it finds every limit and contact within tolerance, or ``settings.max_passes`` passes have run. Where
     ``later_body`` is given, a solve that has run ``switch_at`` counted passes runs that body instead for the
-    rest of it. Without ``contacts`` it checks the limits alone (for a body that does not separate).
+    rest of it. Without ``contacts`` it checks the limits alone (for a body that does not separate); with
+    ``faces`` (the lab's face contacts' arrays) the edge and face pairs too (``residual_args``).
 
     Each iteration is accelerated by Chebyshev's method (``kernels/solve_loop.py``) with a spectral radius
     the solver adjusts from solve to solve (lowered where the residual grows, raised where an accelerated
@@ -132,7 +141,7 @@ class ConvergedProjection:
     def __init__(self, model: DeviceModel, state: DeviceState, settings: LimitSolveSettings, body: list[Pass],
                  colliders: RigidColliders | None, counted: int | None = None,
                  later_body: list[Pass] | None = None, later_counted: int | None = None,
-                 switch_at: int | None = None, contacts: bool = True) -> None:
+                 switch_at: int | None = None, contacts: bool = True, faces: FaceContacts | None = None) -> None:
         assert len(body) % 2 == 0, "a loop's body must leave the positions where it found them"
         assert later_body is None or len(later_body) % 2 == 0
         self.body, self.later_body = body, later_body
@@ -144,7 +153,7 @@ class ConvergedProjection:
         self.switch_at = switch_at if later_body is not None else settings.max_passes + 1
         self.h = model.h
         device = model.device
-        self.args = residual_args(model, state, settings, self.colliders, contacts)
+        self.args = residual_args(model, state, settings, self.colliders, contacts, faces)
         self.active = wp.zeros(1, dtype=int, device=device)
         self.switched = wp.zeros(1, dtype=int, device=device)
         self.counts = wp.zeros(3, dtype=int, device=device)

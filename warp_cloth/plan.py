@@ -109,8 +109,8 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
     (control.py's ``Control.passes``) after the colliders' motion (``"colliders"``), with the soft pins' motion
     before the step (``"soft pins"``: where their springs pull, which the step reads) and after the hard
     pins' motion (``"pins"``); ``faces``: the lab's face contacts (face_contacts.py, made
-    once per simulator, used only with particle collision), their lists remade with the particle lists and
-    their pass beside the edge contacts' pass."""
+    once per simulator, used only with particle collision), their lists remade with the particle lists,
+    their pass beside the edge contacts' pass, and the converged solve's check reading both kinds' pairs."""
     chosen = threads_per_particle(model.particle_count, model.device) if threads is None else threads
     rigid = model.colliders(state) if model.has_colliders else None
     control = control or {}
@@ -151,10 +151,10 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
         if faces is not None:
             edge_passes.append(faces.separation_pass(model, chosen, rigid))
         if converged and model.limits is not None and lines is not None:
-            projection = line_contact_projection(model, state, solve, chosen, rigid, edge_passes, lines)
+            projection = line_contact_projection(model, state, solve, chosen, rigid, edge_passes, lines, faces)
             passes.append(projection)
         elif converged:
-            projection = converged_projection(model, state, solve, chosen, rigid, edge_passes)
+            projection = converged_projection(model, state, solve, chosen, rigid, edge_passes, faces)
             passes.append(projection)
         else:
             passes.extend(edge_passes + projection_passes(model, state, solve, chosen, rigid))
@@ -184,17 +184,20 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
 
 
 def converged_projection(model: DeviceModel, state: DeviceState, solve: LimitSolveSettings, threads: int,
-                         rigid: RigidColliders | None, edge_passes: list[Pass]) -> ConvergedProjection:
+                         rigid: RigidColliders | None, edge_passes: list[Pass],
+                         faces: FaceContacts | None = None) -> ConvergedProjection:
     """The converged solve of particle collision (with the strain limits where the scene has them: projected
-    jointly for ``solve.joint_passes`` passes, then sequentially; see limit_solve.JOINT_PASSES)."""
+    jointly for ``solve.joint_passes`` passes, then sequentially; see limit_solve.JOINT_PASSES); with the
+    lab's ``faces``, its check reads the edge and face pairs too."""
+    checked = faces.args if faces is not None else None
     joint_first = model.limits is None or solve.joint_passes > 0
     first = projection_pair(model, state, threads, rigid, edge_passes, "joint" if joint_first else "sequential")
     counted = lambda body: sum(p not in edge_passes for p in body)  # noqa: E731
     if model.limits is None or not joint_first:
-        return ConvergedProjection(model, state, solve, first, rigid, counted=counted(first))
+        return ConvergedProjection(model, state, solve, first, rigid, counted=counted(first), faces=checked)
     later = projection_pair(model, state, threads, rigid, edge_passes, "sequential")
     return ConvergedProjection(model, state, solve, first, rigid, counted=counted(first), later_body=later,
-                               later_counted=counted(later), switch_at=solve.joint_passes)
+                               later_counted=counted(later), switch_at=solve.joint_passes, faces=checked)
 
 
 def line_round(model: DeviceModel, lines: LineSolves, rigid: RigidColliders | None) -> list[Pass]:
@@ -221,17 +224,19 @@ def line_projection(model: DeviceModel, state: DeviceState, solve: LimitSolveSet
 
 
 def line_contact_projection(model: DeviceModel, state: DeviceState, solve: LimitSolveSettings, threads: int,
-                            rigid: RigidColliders | None, edge_passes: list[Pass],
-                            lines: LineSolves) -> ConvergedProjection:
+                            rigid: RigidColliders | None, edge_passes: list[Pass], lines: LineSolves,
+                            faces: FaceContacts | None = None) -> ConvergedProjection:
     """The converged solve of particle collision with the strain limits by rounds of line solves (the lab's,
     ``solve.line_solve``): a round, counted as one pass toward the cap, is a line round and then the two
     separating passes of the contacts' own converged solve (``edge_passes`` before each), reading the resting
-    marks' first bit, then the other, as ``projection_pair`` does. (Two line rounds an iteration, each
+    marks' first bit, then the other, as ``projection_pair`` does; with the lab's ``faces``, the check reads
+    the edge and face pairs too. (Two line rounds an iteration, each
     followed by one separating pass, held the speed matrix's self cloth as well at 2.0 rounds a substep
     against 1.0-1.1 and took 14% longer at 64^2 on the CPU.)"""
     body = line_round(model, lines, rigid) + [
         p for bit in (1, 2) for p in edge_passes + [separation_pass(model, state, threads, rigid, bit)]]
-    return ConvergedProjection(model, state, solve, body, rigid, counted=1)
+    return ConvergedProjection(model, state, solve, body, rigid, counted=1,
+                               faces=faces.args if faces is not None else None)
 
 
 def projection_pair(model: DeviceModel, state: DeviceState, threads: int, rigid: RigidColliders | None,
