@@ -21,7 +21,7 @@ class Adjacency:
         owner = np.concatenate([pairs[:, 0], pairs[:, 1]])
         other = np.concatenate([pairs[:, 1], pairs[:, 0]])
         spring = np.concatenate([np.arange(s), np.arange(s)])
-        order = np.lexsort((other, owner))
+        order = np.argsort(owner.astype(np.int64) * particle_count + other, kind="stable")  # by owner, then other
         counts = np.bincount(owner, minlength=particle_count)
         offsets = np.zeros(particle_count + 1, dtype=np.int32)
         np.cumsum(counts, out=offsets[1:])

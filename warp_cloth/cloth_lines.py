@@ -84,20 +84,43 @@ def mesh_chains(pairs: np.ndarray, points: np.ndarray) -> list[np.ndarray]:
     return chains
 
 
-def line_pieces(chain: np.ndarray, free: np.ndarray, limited: np.ndarray) -> list[slice]:
-    """The pieces of ``chain`` cut at its pinned particles (each cut particle ends one piece and starts the
-    next) and at its springs that are not limited (``limited`` per spring of the chain), as slices of it;
-    pieces with no free particle are left out."""
-    pieces, begin = [], 0
-    for k in range(1, len(chain)):
-        if not limited[k - 1]:
-            pieces.append(slice(begin, k))
-            begin = k
-        elif not free[chain[k]]:
-            pieces.append(slice(begin, k + 1))
-            begin = k
-    pieces.append(slice(begin, len(chain)))
-    return [p for p in pieces if p.stop - p.start >= 2 and free[chain[p]].any()]
+def chain_lines(chains: list[np.ndarray], free: np.ndarray, keys: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The lines of ``chains`` (particle indices), all at once: each chain cut at its pinned particles (a cut
+    particle ends one piece and starts the next) and at its springs that are not limited (not among ``keys``,
+    the limited springs' sorted pair keys), the pieces with no free particle left out; per line its particles
+    and its springs' indices into ``keys``."""
+    lengths = np.array([len(chain) for chain in chains], dtype=np.int64)
+    particles = np.concatenate(chains)
+    first = np.cumsum(lengths) - lengths  # each chain's first particle in ``particles``
+    end = first + lengths
+    inner = np.ones(len(particles), dtype=bool)  # a spring from particle g to g + 1 of the same chain
+    inner[end - 1] = False
+    after = np.flatnonzero(inner)
+    wanted = pair_keys(np.stack([particles[after], particles[after + 1]], axis=1), len(free))
+    at = np.zeros(len(particles), dtype=np.int64)
+    at[after] = np.minimum(np.searchsorted(keys, wanted), len(keys) - 1)
+    limited = np.zeros(len(particles), dtype=bool)
+    limited[after] = keys[at[after]] == wanted
+    within = np.ones(len(particles), dtype=bool)  # every particle but a chain's first can cut
+    within[first] = False
+    cut_unlimited = np.flatnonzero(within & ~np.roll(limited, 1))  # the spring before it is not limited
+    cut_pinned = np.flatnonzero(within & np.roll(limited, 1) & ~free[particles])
+    cuts = np.concatenate([cut_unlimited, cut_pinned])
+    stop_at_cut = np.concatenate([cut_unlimited, cut_pinned + 1])  # where the piece before a cut stops
+    order = np.argsort(cuts)
+    cuts, stop_at_cut = cuts[order], stop_at_cut[order]
+    starts = np.concatenate([first, cuts])
+    stops = np.concatenate([end, stop_at_cut])
+    chain_of = np.repeat(np.arange(len(chains)), lengths)
+    by_start = np.argsort(starts, kind="stable")
+    starts = starts[by_start]
+    # a piece stops at the next cut of its chain, or at its chain's end
+    next_stop = np.append(stops[by_start][1:], 0)
+    same_chain = np.append(chain_of[starts[1:]] == chain_of[starts[:-1]], False)
+    piece_stop = np.where(same_chain, next_stop, end[chain_of[starts]])
+    free_before = np.concatenate([[0], np.cumsum(free[particles])])
+    kept = (piece_stop - starts >= 2) & (free_before[piece_stop] > free_before[starts])
+    return [(particles[a:b], at[a:b - 1]) for a, b in zip(starts[kept].tolist(), piece_stop[kept].tolist())]
 
 
 def colour_lines(lines: list[np.ndarray], free: np.ndarray) -> np.ndarray:
@@ -126,11 +149,6 @@ def cloth_lines(model: Model, scene: Scene) -> list[Family]:
     keys, lo, hi = keys[order], springs.limit_min[limited][order], springs.limit_max[limited][order]
     free = model.inv_mass > 0
 
-    def slots_of(chain: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        wanted = pair_keys(np.stack([chain[:-1], chain[1:]], axis=1), n)
-        at = np.minimum(np.searchsorted(keys, wanted), len(keys) - 1)
-        return at, keys[at] == wanted
-
     families: list[list[tuple[np.ndarray, np.ndarray]]] = []  # per family its lines: particles, slots
     for c, cloth in enumerate(scene.cloths):
         if cloth.limit is None:  # its springs are not limited (a seam's may be: they are no line)
@@ -142,11 +160,7 @@ def cloth_lines(model: Model, scene: Scene) -> list[Family]:
             inside = (pairs[:, 0] >= offset) & (pairs[:, 0] < model.offsets[c + 1])
             grouped = [mesh_chains(pairs[inside] - offset, model.cloths[c].positions)]
         for g, chains in enumerate(grouped):
-            lines = []
-            for chain in chains:
-                chain = chain + offset
-                at, found = slots_of(chain)
-                lines += [(chain[p], at[p.start:p.stop - 1]) for p in line_pieces(chain, free, found)]
+            lines = chain_lines([chain + offset for chain in chains], free, keys)
             if cloth.mesh is None:
                 colours = np.full(len(lines), g)
             else:
