@@ -1,4 +1,4 @@
-"""Candidate lists that fill up (kernels/candidate_lists.py): a full list, the edge contacts' or the lab's face
+"""Candidate lists that fill up (kernels/candidate_lists.py): a full list, the edge contacts' or the face
 contacts', keeps the nearest candidates; and the edge contacts' lists and hash hold every candidate of a
 stack of layers."""
 
