@@ -966,7 +966,8 @@ class Scene:
                          "has it)", item.name)
 
     def _check_edge_contacts_limited(self) -> None:
-        """Edge contacts find their pairs among edges as long as the stretch limit lets them get."""
+        """Edge contacts find their pairs among edges as long as the stretch limit lets them get; a surface
+        thickness's contacts are held, and checked, in the converged solve."""
         if self.collision is None or not self.collision.edge_contacts:
             return
         key, off, got = (("collision.edges", "false", True) if self.collision.thickness is None else
