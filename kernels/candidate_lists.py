@@ -1,4 +1,4 @@
-"""Candidate lists of a fixed length (the particles', the contact edges', the lab's face pairs'): an entry is
+"""Candidate lists of a fixed length (the particles', the contact edges', the face pairs'): an entry is
 appended while its list has room; a full list counts it in ``overflow`` and keeps the nearer of it and its
 farthest entry, so that what a list leaves out is farther than all it holds and a pair in contact is not left
 out for farther candidates found first (in the pile with the particle lists' reach at 3 contact distances,

@@ -53,7 +53,7 @@ class ResidualArgs:
     contact_tolerance: float  # of a contact distance; of the thickness for the edge and face pairs
     edges: EdgeContacts  # the edge contacts' pairs (edge_collision.py), read where check_edges
     check_edges: int  # 0: not checked (the edges' arrays may be empty)
-    faces: FaceContacts  # the lab's face contacts' pairs (face_collision.py), read where check_faces
+    faces: FaceContacts  # the face contacts' pairs (face_collision.py), read where check_faces
     check_faces: int
     inv_mass: wp.array(dtype=float)
     colliders: RigidColliders  # the spheres that attachments run around

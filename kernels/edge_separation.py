@@ -36,7 +36,7 @@ def finish_contact_move(args: Any, i: int, total: wp.vec4, x: wp.array(dtype=wp.
                         x_out: wp.array(dtype=wp.vec3), v_out: wp.array(dtype=wp.vec3)):
     """Moves free particle i by the mean of its pairs' moves (its velocity by that over h), then out of the
     rigid colliders: the finish of a pass whose ``args`` carry ``inv_mass``, ``h`` and ``colliders`` (the edge
-    contacts' and the lab's face contacts')."""
+    contacts' and the face contacts')."""
     xi = x[i]
     if args.inv_mass[i] == 0.0 or total[3] == 0.0:
         x_out[i] = xi

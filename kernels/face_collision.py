@@ -1,4 +1,5 @@
-"""Face contacts (the lab's, issue 34): every vertex kept ``thickness`` from the triangles it is not a vertex of.
+"""Face contacts (issue 34, a scene's ``[collision] thickness``): every vertex kept ``thickness`` from the
+triangles it is not a vertex of.
 
 Particle contacts keep points apart, and edge contacts edges; neither holds a vertex off the middle of a
 triangle larger than the contact distance, where layers pass through each other. Each vertex's candidate

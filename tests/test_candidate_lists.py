@@ -1,4 +1,4 @@
-"""Candidate lists that fill up (kernels/candidate_lists.py): a full list, the edge contacts' or the lab's face
+"""Candidate lists that fill up (kernels/candidate_lists.py): a full list, the edge contacts' or the face
 contacts', keeps the nearest candidates; and the edge contacts' lists and hash hold every candidate of a
 stack of layers."""
 
@@ -11,6 +11,7 @@ from warp_cloth.kernels import edge_collision, primitive_distances
 
 QUADS = 8
 HELD = 5  # entries an edge's list holds here: fewer than the candidates of most edges
+THICKNESS = 0.0021  # the face contacts' (the edge contacts' rule at this 4 mm radius, as the lab ran it)
 
 
 @wp.kernel
@@ -38,12 +39,12 @@ def crossed_quads(sim: wc.Simulator, turned: bool) -> np.ndarray:
     return x.reshape(-1, 3)
 
 
-def crossed_quad_simulator(turned: bool) -> wc.Simulator:
-    """The quads of ``crossed_quads``, their lists made there."""
+def crossed_quad_simulator(turned: bool, thickness: float | None = None) -> wc.Simulator:
+    """The quads of ``crossed_quads``, their lists made there; ``thickness``: the surfaces' (None: none)."""
     quads = tuple(wc.Cloth(name=f"q{k}", resolution=(1, 1), size=(0.1, 0.1), orientation="horizontal",
                            origin=(-0.05, float(k), 0.05), limit=wc.Limit()) for k in range(QUADS))
     scene = wc.Scene(name="crossed", cloths=quads,
-                     collision=wc.Collision(radius=0.004, edges=True, self_collision=False))
+                     collision=wc.Collision(radius=0.004, edges=True, self_collision=False, thickness=thickness))
     sim = wc.Simulator(scene, device="cpu", graph=False)
     sim.state.x.assign(crossed_quads(sim, turned))
     sim.plan.lists.remake_now(sim.state.x)
@@ -89,11 +90,10 @@ def every_vertex_triangle_gap(x: wp.array(dtype=wp.vec3), triangles: wp.array(dt
 
 
 def test_full_face_lists_keep_the_nearest_pairs(monkeypatch):
-    """The quads moved over each other, with the lab's face contacts: each vertex's list of triangles and
+    """The quads moved over each other, with surface contacts: each vertex's list of triangles and
     each triangle's list of vertices hold 5, the 5 nearest (by the point-triangle distance)."""
     monkeypatch.setattr(face_contacts, "FACE_NEIGHBORS", HELD)
-    with face_contacts.lab_hooks():
-        sim = crossed_quad_simulator(turned=False)
+    sim = crossed_quad_simulator(turned=False, thickness=THICKNESS)
     faces = sim.plan.faces
     n, t = sim.model.particle_count, faces.triangle_count
     gap = wp.zeros((n, t), dtype=float, device="cpu")

@@ -1,19 +1,16 @@
-"""The lab's face contacts (warp_cloth/face_contacts.py): a particle held a thickness off the middle of a
-triangle far larger than the contact distance, where particle contacts let it through; a pair's moves
-conserving momentum, and a crossed pair pushed back to its side; two sheets pressed together (with edge
-contacts too, both at one thickness) left with no crossing pair and every vertex and edge at least 0.9 of
-the thickness from the other sheet's triangles and edges."""
-
-import dataclasses
+"""Surface contacts at a thickness in metres (``[collision] thickness``: warp_cloth/face_contacts.py, edge
+contacts and the displacement bounds): a particle held a thickness off the middle of a triangle far larger
+than the contact distance, where particle contacts let it through; a pair's moves conserving momentum, and a
+crossed pair pushed back to its side; two sheets pressed together left with no crossing pair and every
+vertex and edge at least 0.9 of the thickness from the other sheet's triangles and edges; the start check
+accepting layers a thickness apart and refusing closer ones."""
 
 import numpy as np
 import pytest
 
 import warp_cloth as wc
 from test_displacement_bounds import point_triangle, segment_segment
-from warp_cloth import contact_thickness
 from warp_cloth.diagnostics import TriangleIntersections
-from warp_cloth.face_contacts import lab_hooks
 
 DRAPE_MATERIAL = {"density": 0.2, "structural": wc.SpringKind(50.0, 0.05), "shear": wc.SpringKind(50.0, 0.05),
                   "bend": wc.SpringKind(20.0, 0.02, "compression", "compression")}  # scenes/drape.toml's
@@ -26,14 +23,15 @@ def quiet():
     wc.set_verbose(False)
 
 
-def drop_scene(frames: int) -> wc.Scene:
+def drop_scene(frames: int, thickness: float | None = THICKNESS) -> wc.Scene:
     """A 2 cm square (four particles) dropped from 5 cm onto a pinned 1 m square of one cell, over the middle
-    of one of its two triangles (0.21 m from the diagonal, whichever it is), contact radius 2 mm."""
+    of one of its two triangles (0.21 m from the diagonal, whichever it is), contact radius 2 mm, surfaces
+    ``thickness`` apart (None: particle contacts alone)."""
     floor = wc.Cloth(name="floor", resolution=(1, 1), size=(1.0, 1.0), orientation="horizontal",
-                     origin=(-0.5, 0.0, 0.5), pins=(wc.Pin(corners=CORNERS),))
+                     origin=(-0.5, 0.0, 0.5), pins=(wc.Pin(corners=CORNERS),), limit=wc.Limit())
     square = wc.Cloth(name="square", resolution=(1, 1), size=(0.02, 0.02), orientation="horizontal",
-                      origin=(0.29, 0.05, 0.01))
-    return wc.Scene(name="drop", cloths=(floor, square), collision=wc.Collision(radius=0.002),
+                      origin=(0.29, 0.05, 0.01), limit=wc.Limit())
+    return wc.Scene(name="drop", cloths=(floor, square), collision=wc.Collision(radius=0.002, thickness=thickness),
                     simulation=wc.Simulation(fps=60, frames=frames, substeps=10))
 
 
@@ -45,8 +43,7 @@ def test_particle_stops_at_thickness_over_a_large_triangle():
     contacts alone (the floor's particles are 0.3 m away) let it fall through."""
     heights = {}
     for faces in (False, True):
-        with lab_hooks(faces), contact_thickness.lab_hooks(THICKNESS):
-            sim = wc.Simulator(drop_scene(20), device="cpu")
+        sim = wc.Simulator(drop_scene(20, THICKNESS if faces else None), device="cpu")
         for _ in range(20):
             sim.step()
         heights[faces] = sim.state.x.numpy()[4:, 1]
@@ -59,8 +56,7 @@ def test_a_pair_conserves_momentum_and_a_crossed_pair_goes_back():
     """One vertex 1 mm above a triangle's middle (equal masses): one pass moves the vertex up and the
     triangle down, the moves summing to zero and leaving the pair the thickness apart. Listed above and then
     moved 1 mm below (crossed), the vertex is pushed back above, not on through."""
-    with lab_hooks(), contact_thickness.lab_hooks(THICKNESS):
-        sim = wc.Simulator(drop_scene(1), device="cpu")
+    sim = wc.Simulator(drop_scene(1), device="cpu")
     faces = sim.plan.faces
     sim.device_model.inv_mass.assign(np.ones(sim.model.particle_count, dtype=np.float32))
     pass_ = faces.separation_pass(sim.device_model, 1, None)
@@ -85,16 +81,17 @@ def test_a_pair_conserves_momentum_and_a_crossed_pair_goes_back():
         np.testing.assert_allclose(gap, THICKNESS, rtol=1e-5)
 
 
-def pressed_scene(frames: int) -> wc.Scene:
-    """Two 0.5 m sheets of 12^2 particles (4.5 cm cells, 5.4 times the 8.4 mm contact distance), 1 cm apart,
-    pinned at two corners, draped over a 0.125 m sphere (the built-in drape scene's material, as
-    tools/stacked_drape.py's): the sheets are pressed together on it."""
+def pressed_scene(frames: int, thickness: float | None = THICKNESS, gap: float = 0.01) -> wc.Scene:
+    """Two 0.5 m sheets of 12^2 particles (4.5 cm cells, 5.4 times the 8.4 mm contact distance), ``gap``
+    apart, pinned at two corners, draped over a 0.125 m sphere (the built-in drape scene's material, as
+    tools/stacked_drape.py's), surfaces ``thickness`` apart: the sheets are pressed together on it."""
     cloths = tuple(wc.Cloth(name=f"sheet{k}", resolution=(11, 11), size=(0.5, 0.5), orientation="horizontal",
-                            origin=(-0.25, 0.15 + 0.01 * k, 0.25), limit=wc.Limit(0.05, 0.05),
+                            origin=(-0.25, 0.15 + gap * k, 0.25), limit=wc.Limit(0.05, 0.05),
                             pins=(wc.Pin(corners=("top-left", "top-right")),), **DRAPE_MATERIAL) for k in range(2))
     return wc.Scene(name="pressed", cloths=cloths, spheres=(wc.Sphere(name="ball", center=(0.0, 0.0, 0.0),
                                                                        radius=0.125),),
-                    collision=wc.Collision(radius=0.004), simulation=wc.Simulation(fps=60, frames=frames))
+                    collision=wc.Collision(radius=0.004, thickness=thickness),
+                    simulation=wc.Simulation(fps=60, frames=frames))
 
 
 def closest_vertex_face(sim: wc.Simulator) -> float:
@@ -124,21 +121,20 @@ def closest_edge_edge(sim: wc.Simulator) -> float:
 
 
 def test_sheets_pressed_together_do_not_cross():
-    """With face and edge contacts both held the thickness apart (issue 34 asks for both: vertex-triangle
-    and edge-edge pairs, at one thickness in metres), no frame has a crossing pair and every vertex stays at
-    least 0.9 of the thickness off the other sheet's triangles, every edge as far off the other sheet's
-    edges (measured at 742ee07: 0 crossings, vertex-face 0.994 of it at the closest, frame 8, edge-edge
-    0.999; with the edge contacts at the rule's 2.1 mm, edge-edge 0.67 at frame 13). Particle contacts alone
-    cross from frame 11 (286 pairs there, a vertex 2e-5 m from a face at frame 10); edge contacts alone at
-    the rule's 2.1 mm do not cross in 24 frames but let vertices within 1.1 mm (0.11 of the thickness) of
-    the other sheet's faces; face contacts without edge contacts hold every vertex at 0.985 of the thickness
-    or more but leave 1 to 3 edge-edge crossings in frames 16 to 18 and 31."""
+    """With a surface thickness (issue 34 asks for both pair kinds, vertex-triangle and edge-edge, at one
+    thickness in metres, with the displacement bounds), no frame has a crossing pair and every vertex stays
+    at least 0.9 of the thickness off the other sheet's triangles, every edge as far off the other sheet's
+    edges (measured through the key: 0 crossings, vertex-face 0.991 of it at the closest and edge-edge 0.993,
+    both at frame 12; through the lab's hooks at 742ee07, without the bounds, 0.994 and 0.999; with the edge
+    contacts at the rule's 2.1 mm, edge-edge 0.67 at frame 13). Particle contacts alone cross from frame 11
+    (286 pairs there, a vertex 2e-5 m from a face at frame 10); edge contacts alone at the rule's 2.1 mm do
+    not cross in 24 frames but let vertices within 1.1 mm (0.11 of the thickness) of the other sheet's faces;
+    face contacts without edge contacts hold every vertex at 0.985 of the thickness or more but leave 1 to 3
+    edge-edge crossings in frames 16 to 18 and 31."""
     frames = 14  # the sheets reach the sphere at frame 4, and particle contacts alone have crossed by 11
-    scene = pressed_scene(frames)
-    scene = dataclasses.replace(scene, collision=dataclasses.replace(scene.collision, edges=True))
-    with lab_hooks(), contact_thickness.lab_hooks(THICKNESS):
-        sim = wc.Simulator(scene, device="cpu")
+    sim = wc.Simulator(pressed_scene(frames), device="cpu")
     assert sim.device_model.contacts.edges.thickness == sim.plan.faces.thickness == THICKNESS
+    assert sim.plan.bounds.settings.radius == 2.5 * THICKNESS
     crossings = TriangleIntersections(sim)
     counts, vertex_face, edge_edge = [], [], []
     for _ in range(frames):
@@ -149,3 +145,41 @@ def test_sheets_pressed_together_do_not_cross():
     assert max(counts) == 0, counts
     assert min(vertex_face) >= 0.9 * THICKNESS, vertex_face
     assert min(edge_edge) >= 0.9 * THICKNESS, edge_edge
+
+
+LAYERS_TOML = """[[cloth]]
+name = "{name}"
+resolution = [{n}, {n}]
+size = [0.5, 0.5]
+orientation = "horizontal"
+origin = [-0.25, {height}, 0.25]
+limit = {{ stretch = 0.05, compression = 0.05 }}
+"""
+
+
+def layers_file(path, gap: float, n: int) -> str:
+    """Two flat 0.5 m sheets of n x n cells, ``gap`` apart, surfaces 4 mm apart, as a scene file; its name."""
+    text = "".join(LAYERS_TOML.format(name=f"layer{k}", n=n, height=0.2 + gap * k) for k in range(2))
+    (path / "layers.toml").write_text(text + "[collision]\nthickness = 0.004\n\n[simulation]\nframes = 1\n")
+    return "layers.toml"
+
+
+@pytest.mark.parametrize("n", [2, 30])
+def test_layers_a_thickness_apart_start_at_any_resolution(tmp_path, n):
+    """1 cm apart at a 4 mm thickness: accepted with 25 cm cells (the rule's contact distance, 19.5 cm, would
+    refuse them without the thickness's cap on the radius) and with 1.7 cm cells."""
+    scene = wc.load_scene(tmp_path / layers_file(tmp_path, 0.01, n))
+    sim = wc.Simulator(scene, device="cpu")
+    assert sim.plan.faces is not None and sim.plan.bounds is not None
+
+
+def test_layers_closer_than_the_thickness_are_refused_in_one_line(tmp_path):
+    """3 mm apart at a 4 mm thickness: one line naming the file, the key, both cloths and the gap; exit 2."""
+    from conftest import run_cli_in_process
+
+    code, out, err = run_cli_in_process("run", layers_file(tmp_path, 0.003, 4), "--device", "cpu",
+                                        "--out", str(tmp_path / "out"), cwd=tmp_path)
+    assert (code, out) == (2, "")
+    assert err.strip() == ("warp-cloth: error: layers.toml: collision.thickness: expected surfaces at least the "
+                           "thickness apart at the start: those of 'layer0' and 'layer1' start 0.003 m apart, the "
+                           "thickness is 0.004 m; move the cloths apart or make the thickness smaller"), err

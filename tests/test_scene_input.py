@@ -98,6 +98,15 @@ BAD = [
     (VALID.replace("substeps = 2", 'integrator = "implicit"\ncompensated = true'), "simulation.compensated",
      "false with the implicit integrator"),
     (VALID + "\n[collision]\nedges = true\n", "collision.edges", "a strain limit on every cloth"),
+    (VALID + "\n[collision]\nthickness = 0.0\n", "collision.thickness", "a number > 0, got 0.0"),
+    (VALID + "\n[collision]\nthickness = -0.004\n", "collision.thickness", "a number > 0"),
+    (VALID + '\n[collision]\nthickness = "4 mm"\n', "collision.thickness", "a number"),
+    (VALID + "\n[collision]\nthickness = 1e9\n", "collision.thickness", "metres of magnitude at most"),
+    (VALID + "\n[collision]\nthickness = 0.004\n", "collision.thickness",
+     "no thickness, or a strain limit on every cloth"),
+    (VALID.replace("substeps = 2", 'substeps = 2\nlimit_solve = "fixed"').replace(
+        "size = [1.0, 1.0]", "size = [1.0, 1.0]\nlimit = { stretch = 0.1 }") + "\n[collision]\nthickness = 0.004\n",
+     "collision.thickness", 'simulation.limit_solve = "converged"'),
     (VALID.replace("[simulation]", "[simulation\n"), "", "valid TOML"),
 ]
 

@@ -1,11 +1,12 @@
-"""How many candidates the edge contacts' lists (and the lab's face lists) really hold in the stacked drape, and
-how full the edge hash's buckets get: the lists and the buckets made long enough never to fill (``--room``,
-``--bucket``, at most spatial_hash.COUNT_MASK), read at the end of every frame (the lists of that frame's last
-remake). What sized ``state.EDGE_NEIGHBORS`` and ``EDGE_BUCKET_CAPACITY`` (docs/notebook/layers.md).
+"""How many candidates the edge contacts' lists (and the face lists of a surface thickness) really hold in the
+stacked drape, and how full the edge hash's buckets get: the lists and the buckets made long enough never to
+fill (``--room``, ``--bucket``, at most spatial_hash.COUNT_MASK), read at the end of every frame (the lists of
+that frame's last remake). What sized ``state.EDGE_NEIGHBORS`` and ``EDGE_BUCKET_CAPACITY`` (docs/notebook/layers.md).
 
-    python tools/candidate_counts.py --sheets 3 --n 32 --frames 60 --faces on --json docs/results/x.json
+    python tools/candidate_counts.py --sheets 3 --n 32 --frames 60 --thickness 0.004 --json docs/results/x.json
 
-The scene is tools/stacked_drape.py's, with edge contacts and the lab's displacement bounds.
+The scene is tools/stacked_drape.py's, with edge contacts and the lab's displacement bounds (their defaults),
+and the surface thickness asked.
 """
 
 from __future__ import annotations
@@ -40,8 +41,8 @@ def main() -> None:
     parser.add_argument("--n", type=int, default=32)
     parser.add_argument("--frames", type=int, default=60)
     parser.add_argument("--radius", type=float, default=0.004)
-    parser.add_argument("--faces", default="on",
-                        help="the lab's face contacts: off, on or thickness=T (both kinds' thickness)")
+    parser.add_argument("--thickness", type=float, default=None,
+                        help="[collision] thickness in metres: face contacts, both kinds that far apart (default none)")
     parser.add_argument("--room", type=int, default=512, help="entries every list holds")
     parser.add_argument("--bucket", type=int, default=COUNT_MASK, help="edges a bucket of the edge hash holds")
     parser.add_argument("--device", default="cpu")
@@ -51,8 +52,9 @@ def main() -> None:
     wc.set_verbose(False)
     state.EDGE_NEIGHBORS = passes.EDGE_NEIGHBORS = face_contacts.FACE_NEIGHBORS = args.room
     state.EDGE_BUCKET_CAPACITY = neighbour_lists.EDGE_BUCKET_CAPACITY = args.bucket
-    scene = stacked_drape_scene(args.sheets, args.n, frames=args.frames, radius=args.radius, edges=True)
-    with lab_hooks(BoundSettings.parse("on")), face_contacts.spec_hooks(args.faces):
+    scene = stacked_drape_scene(args.sheets, args.n, frames=args.frames, radius=args.radius, edges=True,
+                                thickness=args.thickness)
+    with lab_hooks(BoundSettings.parse("on")):
         sim = wc.Simulator(scene, device=args.device)
     lists = sim.plan.lists
     sim.prepare()

@@ -24,16 +24,17 @@ Per run, over every frame written (frame 0 included):
   touch: an edge through a face's middle).
 A run the start check refuses, or that blows up, is reported as such: that is a result too.
 
-``--bounds`` runs each contact setting once per spec: ``off``, or the lab's displacement bounds
-(warp_cloth/displacement_bounds.py) as ``on`` or comma-separated ``radius=``, ``gamma=``, ``rounds=`` (say
-``radius=0.02,rounds=3``); a bounded run adds the particles held short a substep (first and last round),
-the distance given up, and the bounds' hash overflow.
+``--thickness`` runs each contact setting once per value: ``off``, or the scene key ``[collision] thickness``
+in metres (surface contacts: edge and face contacts held that far apart, the displacement bounds of that
+thickness and the solve's check of their pairs; ``Collision``'s docstring). Every run reports its closest
+surfaces also as a fraction of the thickness (the edge contacts' rule's where none is set), and the lists'
+overflow.
 
-``--faces`` runs each of those once per spec: ``off``, or the lab's face contacts
-(warp_cloth/face_contacts.py) as ``on`` (at the thickness's default, the edge contacts' rule) or
-``thickness=T``: face contacts, and both contact kinds held T metres apart (warp_cloth/contact_thickness.py).
-Every run reports its closest surfaces also as a fraction of that thickness (the one both kinds hold, the
-rule's where neither is on), and the lists' overflow.
+``--bounds`` runs each of those once per spec: ``off`` (the scene's own: its thickness's bounds, none
+without one), or the lab's displacement bounds (warp_cloth/displacement_bounds.py) as ``on`` or
+comma-separated ``radius=``, ``gamma=``, ``rounds=`` (say ``rounds=3``: a 1 cm radius, a 4 mm thickness's); a
+bounded run adds the particles held short a substep (first and last round), the distance given up, the
+bounds' hash overflow, and the settings it ran with.
 
     python tools/stacked_drape.py --sheets 3 --n 32 --frames 60 --radius 0.004 default --device cpu \\
         --json docs/results/stacked-drape-cpu.json
@@ -55,7 +56,6 @@ import warp_cloth as wc
 from warp_cloth import contact_thickness
 from warp_cloth.diagnostics import TriangleIntersections
 from warp_cloth.displacement_bounds import BoundSettings, DisplacementBounds, lab_hooks
-from warp_cloth.face_contacts import spec_hooks as face_hooks
 from warp_cloth.lab.bench import environment
 
 DRAPE_MATERIAL = {"density": 0.2, "structural": wc.SpringKind(50.0, 0.05), "shear": wc.SpringKind(50.0, 0.05),
@@ -65,9 +65,11 @@ DRAPE_MATERIAL = {"density": 0.2, "structural": wc.SpringKind(50.0, 0.05), "shea
 def stacked_drape_scene(sheets: int = 5, n: int = 128, gap: float = 0.01, limit: float = 0.05, frames: int = 100,
                         fps: float = 60.0, size: float = 2.0, sphere_radius: float = 0.5, drop: float = 0.05,
                         radius: float | None = None, self_collision: bool = True, between_cloths: bool = True,
-                        edges: bool = False, friction: float = 0.0, substeps: int | None = None) -> wc.Scene:
+                        edges: bool = False, friction: float = 0.0, substeps: int | None = None,
+                        thickness: float | None = None) -> wc.Scene:
     """The stacked drape: the sphere's centre at the origin, the lowest sheet ``drop`` above its top, the
-    sheets centred over it, ``gap`` apart; ``radius`` None is the project's contact rule."""
+    sheets centred over it, ``gap`` apart; ``radius`` None is the project's contact rule, ``thickness`` the
+    surface contacts' (None: none)."""
     base = sphere_radius + drop
     cloths = tuple(wc.Cloth(name=f"sheet{k}", resolution=(n - 1, n - 1), size=(size, size),
                             orientation="horizontal", origin=(-size / 2, base + k * gap, size / 2),
@@ -76,7 +78,8 @@ def stacked_drape_scene(sheets: int = 5, n: int = 128, gap: float = 0.01, limit:
     return wc.Scene(name=f"stacked_{sheets}x{n}", cloths=cloths,
                     spheres=(wc.Sphere(name="ball", center=(0.0, 0.0, 0.0), radius=sphere_radius),),
                     collision=wc.Collision(self_collision=self_collision, between_cloths=between_cloths,
-                                           radius=radius, edges=edges, friction=friction),
+                                           radius=radius, edges=edges, friction=friction,
+                                           thickness=thickness),
                     simulation=wc.Simulation(fps=fps, frames=frames, substeps=substeps))
 
 
@@ -86,12 +89,11 @@ def contact_distance(sim: wc.Simulator) -> float:
     return sim.scene.collision.separation * float(np.min(sim.model.contacts.radius))
 
 
-def measure(scene: wc.Scene, gap: float, device: str, bounds: BoundSettings | None = None,
-            faces: str = "off") -> dict:
-    """One run of ``scene``, measured in every frame (see the module's docstring); ``faces``: the face
-    contacts' spec (face_contacts.spec_hooks)."""
+def measure(scene: wc.Scene, gap: float, device: str, bounds: BoundSettings | None = None) -> dict:
+    """One run of ``scene``, measured in every frame (see the module's docstring); ``bounds``: the lab's
+    (None: the scene's own)."""
     try:
-        with lab_hooks(bounds), face_hooks(faces):
+        with lab_hooks(bounds):
             sim = wc.Simulator(scene, device=device)
     except wc.SceneError as refused:
         return {"outcome": "refused at start", "message": str(refused)}
@@ -156,8 +158,8 @@ def measure(scene: wc.Scene, gap: float, device: str, bounds: BoundSettings | No
             "frames_ending_outside_tolerance": sum(r > 1.0 for r in per_frame["limit_residual"]),
             "closest_surfaces_m": min(per_frame["closest_surfaces"]),
             "thickness": thickness, "closest_surfaces_of_thickness": min(per_frame["closest_surfaces"]) / thickness,
-            "faces": faces, "lists_overflow": sim.plan.lists.overflow,
-            "bounds": None if bounds is None else vars(bounds),
+            "surface_thickness": scene.collision.thickness, "lists_overflow": sim.plan.lists.overflow,
+            "bounds": None if sim.plan.bounds is None else vars(sim.plan.bounds.settings),
             "held_short_mean": float(np.mean(per_frame["held_short_first"])) if per_frame["held_short_first"] else None,
             "held_short_last_mean": float(np.mean(per_frame["held_short_last"]))
             if per_frame["held_short_last"] else None,
@@ -210,10 +212,11 @@ def main() -> None:
     parser.add_argument("--edges", action="store_true", help="edge contacts ([collision] edges = true)")
     parser.add_argument("--friction", type=float, default=0.0)
     parser.add_argument("--substeps", type=int, default=None, help="fixed substeps a frame (default: the simulator's)")
+    parser.add_argument("--thickness", nargs="+", default=["off"],
+                        help="[collision] thickness in metres (surface contacts), or off; one run each")
     parser.add_argument("--bounds", nargs="+", default=["off"],
-                        help="the lab's displacement bounds: off, on, or radius=R,gamma=G,rounds=K; one run each")
-    parser.add_argument("--faces", nargs="+", default=["off"],
-                        help="the lab's face contacts: off, on, or thickness=T (metres); one run each")
+                        help="the lab's displacement bounds: off (the scene's own), on, or radius=R,gamma=G,rounds=K; "
+                             "one run each")
     parser.add_argument("--device", default=None)
     parser.add_argument("--json", default=None, help="where to write the runs and the environment")
     args = parser.parse_args()
@@ -224,16 +227,17 @@ def main() -> None:
     settings["cell"] = args.size / (args.n - 1)
     rows = []
     print(HEADER, "-" * len(HEADER), sep="\n")
-    for text, spec, face_spec in ((t, b, f) for t in args.radius for f in args.faces for b in args.bounds):
+    for text, spec, surface in ((t, b, s) for t in args.radius for s in args.thickness for b in args.bounds):
         radius = None if text == "default" else float(text)
+        thickness = None if surface == "off" else float(surface)
         scene = stacked_drape_scene(args.sheets, args.n, args.gap, args.limit, args.frames, args.fps, args.size,
                                     args.sphere_radius, args.drop, radius, not args.no_self, True, args.edges,
-                                    args.friction, args.substeps)
+                                    args.friction, args.substeps, thickness)
         name = (f"{args.sheets}x{args.n}^2 r={'default' if radius is None else f'{1e3 * radius:g}mm'}"
                 f"{' edges' if args.edges else ''}{' no-self' if args.no_self else ''}"
-                f"{'' if face_spec == 'off' else ' faces ' + face_spec}{'' if spec == 'off' else ' bounds ' + spec}")
-        rows.append({"run": name, "radius": radius, **measure(scene, args.gap, device, BoundSettings.parse(spec),
-                                                              face_spec)})
+                f"{'' if thickness is None else f' thickness {1e3 * thickness:g}mm'}"
+                f"{'' if spec == 'off' else ' bounds ' + spec}")
+        rows.append({"run": name, "radius": radius, **measure(scene, args.gap, device, BoundSettings.parse(spec))})
         print(*table_lines(rows[-1]), sep="\n", flush=True)
         if args.json:  # after every run: a later one may take long or fail
             with open(args.json, "w") as out:

@@ -1,12 +1,12 @@
 """Where the stacked drape's frames spend their time on the CPU, kernel by kernel (docs/notebook/layers.md).
 
-The stacked drape of tools/stacked_drape.py (its scene, a 4 mm contact radius, edge contacts), the lab's
-face contacts and displacement bounds as asked, stepped without graphs (``graph=False``: a CPU graph replays
-launches that ``wp.launch`` does not see) with ``wp.launch`` wrapped in a wall clock: a CPU launch returns
-when its kernel has run, so each launch's wall time is its kernel's. Prints the frames' wall time and each
+The stacked drape of tools/stacked_drape.py (its scene, a 4 mm contact radius, edge contacts), with the
+surface thickness and the lab's displacement bounds as asked, stepped without graphs (``graph=False``: a CPU
+graph replays launches that ``wp.launch`` does not see) with ``wp.launch`` wrapped in a wall clock: a CPU
+launch returns when its kernel has run, so each launch's wall time is its kernel's. Prints the frames' wall time and each
 kernel's launches and seconds, costliest first, and writes them as JSON.
 
-    python tools/stacked_drape_kernels.py --sheets 3 --n 24 --frames 30 --faces on --bounds on \\
+    python tools/stacked_drape_kernels.py --sheets 3 --n 24 --frames 30 --thickness 0.004 \\
         --json docs/results/stacked-drape-3x24-kernels-cpu.json
 """
 
@@ -22,7 +22,6 @@ import warp as wp
 import warp_cloth as wc
 from stacked_drape import stacked_drape_scene
 from warp_cloth.displacement_bounds import BoundSettings, lab_hooks
-from warp_cloth.face_contacts import spec_hooks as face_hooks
 from warp_cloth.lab.bench import environment
 
 
@@ -56,12 +55,14 @@ def main() -> None:
     parser.add_argument("--n", type=int, default=24)
     parser.add_argument("--frames", type=int, default=30)
     parser.add_argument("--radius", type=float, default=0.004)
-    parser.add_argument("--faces", default="on", help="off, on or thickness=T (face_contacts.spec_hooks)")
-    parser.add_argument("--bounds", default="on", help="off, on or radius=R,... (BoundSettings.parse)")
+    parser.add_argument("--thickness", type=float, default=None, help="[collision] thickness, metres (default none)")
+    parser.add_argument("--bounds", default="off",
+                        help="off (the scene's own), on or radius=R,... (BoundSettings.parse)")
     parser.add_argument("--json", default=None)
     args = parser.parse_args()
-    scene = stacked_drape_scene(sheets=args.sheets, n=args.n, frames=args.frames, radius=args.radius, edges=True)
-    with lab_hooks(BoundSettings.parse(args.bounds)), face_hooks(args.faces):
+    scene = stacked_drape_scene(sheets=args.sheets, n=args.n, frames=args.frames, radius=args.radius, edges=True,
+                                thickness=args.thickness)
+    with lab_hooks(BoundSettings.parse(args.bounds)):
         sim = wc.Simulator(scene, device="cpu", graph=False)
     sim.prepare()
     wall, kernels = kernel_seconds(sim, args.frames)

@@ -103,7 +103,7 @@ class ParticleContacts:
     rules: PairRules
     max_radius: float
     min_radius: float
-    thickness: float  # metres, what edge and face contacts hold (contact_thickness.py: the lab's or the rule)
+    thickness: float  # metres, what edge and face contacts hold (contact_thickness.py: the scene's or the rule)
     edges: DeviceContactEdges | None
 
 
@@ -247,7 +247,7 @@ class DeviceModel:
             rules.sewn_offsets = upload(contacts.sewn.offsets, int, device)
             rules.sewn_other = upload(contacts.sewn.other, int, device)
         rules.search_scale = particle_collision.SEARCH_SCALE
-        thickness = contact_thickness.thickness(settings.separation, contacts.max_radius)
+        thickness = contact_thickness.thickness(settings, contacts.max_radius)
         return ParticleContacts(settings, upload(contacts.radius, float, device), rules, contacts.max_radius,
                                 float(contacts.radius.min()), thickness, self._contact_edges(model, rules, thickness))
 

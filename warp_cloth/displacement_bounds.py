@@ -1,15 +1,16 @@
-"""The lab's displacement bounds (issue 34's groundwork, off by default; ``lab_hooks``): a step that never
-creates a crossing, as in Offset Geometric Contact (Chen et al. 2025). At a substep's start every vertex's
-bound is measured (kernels/primitive_distances.py: the nearest vertex-triangle and edge-edge pairs sharing no
-vertex, within the query radius, through a spatial hash of the particles); after the integrator and the solves
-each particle's displacement from the start is clamped to its bound and its velocity made the clamped
-displacement over the substep, before the contact velocities where the scene has them
-(kernels/displacement_bounds.py, whose docstring proves that no pair of triangles apart at the start then
-crosses). With ``rounds`` above 1, the bounds are
-measured again where a clamp left the particles and the rest of each step clamped to them, so that a step may
-go farther than the start's bounds allow and still never cross.
+"""Displacement bounds (issue 34): a step that never creates a crossing, as in Offset Geometric Contact
+(Chen et al. 2025). At a substep's start every vertex's bound is measured (kernels/primitive_distances.py: the
+nearest vertex-triangle and edge-edge pairs sharing no vertex, within the query radius, through a spatial hash
+of the particles); after the integrator and the solves each particle's displacement from the start is clamped
+to its bound and its velocity made the clamped displacement over the substep, before the contact velocities
+where the scene has them (kernels/displacement_bounds.py, whose docstring proves that no pair of triangles
+apart at the start then crosses). With ``rounds`` above 1, the bounds are measured again where a clamp left the
+particles and the rest of each step clamped to them, so that a step may go farther than the start's bounds
+allow and still never cross.
 
-The simulator makes one ``DisplacementBounds`` where the hooks ask for it, and hands it to every plan it builds
+A scene with a surface thickness (``[collision] thickness``) has them at ``for_thickness``'s settings. The
+lab's ``lab_hooks`` set others (more rounds), or put them on a scene without one (particle contacts alone).
+The simulator makes one ``DisplacementBounds`` where either asks, and hands it to every plan it builds
 (warp_cloth/plan.py: its ``measure`` pass first, its ``clamp`` pass after the solves)."""
 
 from __future__ import annotations
@@ -52,14 +53,28 @@ class BoundSettings:
         values = {} if spec == "on" else dict(item.split("=") for item in spec.split(","))
         return cls(**{k: (int if k == "rounds" else float)(v) for k, v in values.items()})
 
+    @classmethod
+    def for_thickness(cls, thickness: float) -> BoundSettings:
+        """The bounds of surfaces held ``thickness`` metres apart: the query radius ``RADIUS_THICKNESSES``
+        thicknesses, the rest the defaults (the stacked drape's measured setting, docs/notebook/layers.md)."""
+        return cls(radius=RADIUS_THICKNESSES * thickness)
 
-# The lab's hook, not a scene key: simulators built while it is set clamp their steps to these bounds.
+
+# The query radius, in thicknesses: 10 mm at the 4 mm the stacked drape was measured at. Above 1, so that
+# pairs held at the thickness are measured at their distance (a bound of gamma times it); a particle with no
+# pair within the radius moves at most gamma x radius a substep (1.1 thicknesses).
+RADIUS_THICKNESSES = 2.5
+
+
+# The lab's hook: simulators built while it is set clamp their steps to these bounds, with or without a
+# surface thickness.
 BOUNDS: BoundSettings | None = None
 
 
 @contextmanager
 def lab_hooks(bounds: BoundSettings | None = None) -> Iterator[None]:
-    """Simulators built inside take these hooks' values (the lab's and tests', never a scene's)."""
+    """Simulators built inside take these bounds (None: the scene's, those of its thickness or none; the
+    lab's and tests', never a scene's)."""
     global BOUNDS
     before = BOUNDS
     BOUNDS = bounds
@@ -123,8 +138,11 @@ class DisplacementBounds:
 
     @classmethod
     def of(cls, model: Model, device_model: DeviceModel) -> DisplacementBounds | None:
-        """The bounds the lab's hook asks for now (None: off)."""
-        return None if BOUNDS is None else cls(model, device_model, BOUNDS)
+        """The bounds the lab's hook asks for now, else those of the scene's surface thickness (None: neither)."""
+        contacts = device_model.contacts
+        thickness = None if contacts is None else contacts.settings.thickness
+        settings = BOUNDS if BOUNDS is not None or thickness is None else BoundSettings.for_thickness(thickness)
+        return None if settings is None else cls(model, device_model, settings)
 
     def measure_at(self, x: wp.array) -> None:
         """Each particle's nearest pair distance (at most the radius) at positions ``x``, into ``nearest``."""

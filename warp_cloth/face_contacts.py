@@ -1,19 +1,16 @@
-"""The lab's face contacts (issue 34, off by default; ``lab_hooks``): every vertex kept a thickness in metres
+"""Face contacts (issue 34; a scene's ``[collision] thickness``): every vertex kept a thickness in metres
 from the triangles it is not a vertex of, inside the converged solve beside the edge contacts' pass
 (kernels/face_collision.py); the thickness is the one both kinds hold (contact_thickness.py).
 
-The simulator makes one ``FaceContacts`` where the hooks ask for it and the scene has particle collision,
-and hands it to every plan it builds (warp_cloth/plan.py): the particle lists' remake then remakes its
-candidate lists too (``remake_if_asked``), each vertex's triangles and each triangle's vertices within the
-thickness plus twice the lists' rebuild distance (valid as long as the particle lists are), found through a
-spatial hash of the particles whose cells are as wide as that reach plus the longest triangle side at the
-remake; and its pass (``separation_pass``) joins the edge contacts' passes of the solve. The lists are the
-plan's carried arrays (``carried``), so that a checkpoint or a frame made again keeps them."""
+The simulator makes one ``FaceContacts`` where the scene sets a thickness, and hands it to every plan it
+builds (warp_cloth/plan.py): the particle lists' remake then remakes its candidate lists too
+(``remake_if_asked``), each vertex's triangles and each triangle's vertices within the thickness plus twice
+the lists' rebuild distance (valid as long as the particle lists are), found through a spatial hash of the
+particles whose cells are as wide as that reach plus the longest triangle side at the remake; and its pass
+(``separation_pass``) joins the edge contacts' passes of the solve, whose check then reads its pairs. The
+lists are the plan's carried arrays (``carried``), so that a checkpoint or a frame made again keeps them."""
 
 from __future__ import annotations
-
-from contextlib import contextmanager
-from typing import Iterator
 
 import numpy as np
 import warp as wp
@@ -26,41 +23,11 @@ from warp_cloth.kernels.face_separation import FaceSeparationPassArgs, face_sepa
 from warp_cloth.kernels.neighbour_search import gather_face_vertices, gather_vertex_faces
 from warp_cloth.kernels.particle_collision import ListState
 
-from . import contact_thickness
 from .device_model import DeviceModel
 from .model import Model
 from .neighbour_lists import rebuild_distance
 from .passes import GatheringPass
 from .state import hash_table_size
-
-
-# The lab's hook, not a scene key: simulators built while it is set hold vertices off triangles.
-FACES = False
-
-
-@contextmanager
-def lab_hooks(faces: bool = True) -> Iterator[None]:
-    """Simulators built inside hold vertices off triangles where ``faces`` (the lab's and tests', never a
-    scene's), at the thickness contact_thickness.py gives both contact kinds."""
-    global FACES
-    before = FACES
-    FACES = faces
-    try:
-        yield
-    finally:
-        FACES = before
-
-
-@contextmanager
-def spec_hooks(spec: str) -> Iterator[None]:
-    """A tool's spec: ``off``, ``on`` (face contacts at the thickness's default) or ``thickness=T`` (face
-    contacts, and both contact kinds held T metres apart: contact_thickness.lab_hooks)."""
-    values = {} if spec in ("off", "on") else dict(item.split("=") for item in spec.split(","))
-    if set(values) - {"thickness"}:
-        raise ValueError(f"face contacts' spec: off, on or thickness=T, got {spec!r}")
-    thickness = float(values["thickness"]) if values else None
-    with lab_hooks(spec != "off"), contact_thickness.lab_hooks(thickness):
-        yield
 
 
 FACE_NEIGHBORS = 32  # pairs a vertex's or a triangle's list holds (the nearest; more are counted in its overflow)
@@ -118,8 +85,9 @@ class FaceContacts:
 
     @classmethod
     def of(cls, model: Model, device_model: DeviceModel) -> FaceContacts | None:
-        """The face contacts the lab's hook asks for now (None: off, or a scene without particle collision)."""
-        return cls(model, device_model) if FACES and device_model.contacts is not None else None
+        """The face contacts of a scene with a surface thickness (None: none set)."""
+        contacts = device_model.contacts
+        return cls(model, device_model) if contacts is not None and contacts.settings.thickness is not None else None
 
     kernels = [edge_collision.start_edge_cells, face_collision.widen_face_cells,
                spatial_hash.insert_points_at_chosen_width, gather_vertex_faces,

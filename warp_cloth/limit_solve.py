@@ -107,7 +107,7 @@ class LimitSolveSettings:
 def residual_args(model: DeviceModel, state: DeviceState, settings: LimitSolveSettings, colliders: RigidColliders,
                   contacts: bool = True, faces: FaceContacts | None = None) -> converged_projection.ResidualArgs:
     """What the solve's check reads: the limits and attachments, and where ``contacts`` the particle
-    contacts, with their tolerances; where ``faces`` (the lab's face contacts' arrays) also their pairs and
+    contacts, with their tolerances; where ``faces`` (the face contacts' arrays) also their pairs and
     the edge contacts' (where the scene has them), to the contacts' tolerance of the thickness both hold."""
     args = converged_projection.ResidualArgs()
     args.check_limits = int(model.limits is not None)
@@ -132,7 +132,7 @@ class ConvergedProjection:
     it finds every limit and contact within tolerance, or ``settings.max_passes`` passes have run. Where
     ``later_body`` is given, a solve that has run ``switch_at`` counted passes runs that body instead for the
     rest of it. Without ``contacts`` it checks the limits alone (for a body that does not separate); with
-    ``faces`` (the lab's face contacts' arrays) the edge and face pairs too (``residual_args``).
+    ``faces`` (the face contacts' arrays) the edge and face pairs too (``residual_args``).
 
     Each iteration is accelerated by Chebyshev's method (``kernels/solve_loop.py``) with a spectral radius
     the solver adjusts from solve to solve (lowered where the residual grows, raised where an accelerated

@@ -22,7 +22,7 @@ from .mesh_cloth import build_mesh_cloth
 from .mesh_io import load_transform_motion, triangle_sides
 from .pin_selection import select_pins
 from .materials import REGIMES as MATERIAL_REGIMES
-from .scene import Cloth, Scene, SpringRegime, TransformKey
+from .scene import Cloth, Collision, Scene, SpringRegime, TransformKey
 from .seams import SewnPairs, sewn_neighbourhood, sewn_pairs
 from .shot_clock import shot_clock
 from .spring_paths import nearest_along_edges
@@ -558,6 +558,16 @@ def collision_radii(cloth: Cloth, mesh: ClothMesh, radius_override: float | None
     return 0.5 * (1.0 + stretch) * enclosing_radii(mesh.positions, mesh.face_counts, mesh.face_indices)
 
 
+def particle_radii(cloth: Cloth, mesh: ClothMesh, collision: Collision) -> np.ndarray:
+    """The scene's radii (``collision_radii``); with a surface ``thickness`` and no radius set, the rule's
+    capped at thickness / separation: the edge and face contacts keep faces apart, particle contacts then
+    reach no farther than they do, and layers a thickness apart start clear of both at any resolution."""
+    radii = collision_radii(cloth, mesh, collision.radius)
+    if collision.radius is not None or collision.thickness is None:
+        return radii
+    return np.minimum(radii, collision.thickness / collision.separation)
+
+
 def needs_adjacent_exclusion(cloth: Cloth, positions: np.ndarray, pairs: np.ndarray, radii: np.ndarray,
                              separation: float) -> bool:
     """True unless the strain limit alone keeps every pair of particles that share a face (``pairs``, from
@@ -589,7 +599,11 @@ EDGE_OVERSHOOT = 1.1  # the hash's least cells allow edges this much past their 
 
 
 def _contact_edges(scene: Scene, meshes, radii, offsets: np.ndarray) -> ContactEdges | None:
-    found = [long_triangle_edges(c, m, r, scene.collision.separation) for c, m, r in zip(scene.cloths, meshes, radii)]
+    """The edges that edge contacts hold apart: the long ones (``long_triangle_edges``), or with a surface
+    thickness every triangle edge (surfaces held apart, not points)."""
+    every = scene.collision.thickness is not None
+    found = [long_triangle_edges(c, m, np.zeros_like(r) if every else r, scene.collision.separation)
+             for c, m, r in zip(scene.cloths, meshes, radii)]
     ends = np.concatenate([pairs + o for (pairs, _), o in zip(found, offsets)]).astype(np.int32)
     if len(ends) == 0:
         return None
@@ -601,10 +615,10 @@ def _contacts(scene: Scene, meshes, sewn: SewnPairs | None) -> ParticleContacts 
     collision = scene.collision
     if collision is None:
         return None
-    radii = [collision_radii(c, m, collision.radius) for c, m in zip(scene.cloths, meshes)]
+    radii = [particle_radii(c, m, collision) for c, m in zip(scene.cloths, meshes)]
     radius = np.concatenate(radii).astype(np.float32)
     offsets = np.cumsum([0] + [len(m.positions) for m in meshes])
-    edges = _contact_edges(scene, meshes, radii, offsets) if collision.edges else None
+    edges = _contact_edges(scene, meshes, radii, offsets) if collision.edge_contacts else None
     adjacent = [rest_adjacent_pairs(m.face_counts, m.face_indices) for m in meshes]
     exclude = np.array([needs_adjacent_exclusion(c, m.positions, a, r, collision.separation)
                         and collision.self_collision

@@ -1,5 +1,5 @@
-"""Particle collision's candidate lists, and edge contacts' where the scene has them (and the lab's face
-contacts' where its hook asks for them): remade inside a substep where a particle has moved far enough since
+"""Particle collision's candidate lists, and edge contacts' where the scene has them (and the face
+contacts' where the scene sets a thickness): remade inside a substep where a particle has moved far enough since
 they were made, or on demand outside one; and the closest contact they show."""
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ def rebuild_distance(model: DeviceModel) -> float:
 
 
 class OtherLists(Protocol):
-    """Candidate lists remade with the particle lists (the lab's face contacts, face_contacts.py)."""
+    """Candidate lists remade with the particle lists (the face contacts, face_contacts.py)."""
 
     kernels: list[wp.Kernel]
 

@@ -56,12 +56,12 @@ class Plan:
     lists: NeighbourLists | None  # particle collision's candidate lists
     projection: ConvergedProjection | None  # the converged limit solve, for its figures
     start: StartProjection | None  # what the simulator projects a fresh run's start with, where cloths are limited
-    bounds: DisplacementBounds | None = None  # the lab's displacement bounds, for their figures
-    faces: FaceContacts | None = None  # the lab's face contacts, whose lists a substep carries
+    bounds: DisplacementBounds | None = None  # the displacement bounds (a thickness's or the lab's), for their figures
+    faces: FaceContacts | None = None  # the face contacts (a thickness's), whose lists a substep carries
 
     def carried(self) -> dict[str, wp.array]:
         """The plan's arrays that a substep reads before writing them (the converged solve's estimated
-        spectral radius, which it carries from solve to solve; the lab's face contacts' lists), by name."""
+        spectral radius, which it carries from solve to solve; the face contacts' lists), by name."""
         projection = self.projection
         arrays = {"projection.omega": projection.omega} if projection is not None and projection.accelerated else {}
         return arrays | (self.faces.carried() if self.faces is not None else {})
@@ -103,12 +103,12 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
     ``solve``: how the limits and contacts are solved; ``threads``: per particle on the gathering passes
     (None: by size); ``lines``: the line solves of the cloths' lines where ``solve.line_solve`` and a cloth
     is limited (with particle collision, where ``solve.line_contacts`` too), made once for every plan a
-    simulator builds (line_solve.LineSolves); ``bounds``: the lab's displacement bounds
+    simulator builds (line_solve.LineSolves); ``bounds``: the displacement bounds
     (displacement_bounds.py, made once per simulator), measured first and clamping the step after the solves
     (before the contact velocities); ``control``: the passes that put what a script sent from Python
     (control.py's ``Control.passes``) after the colliders' motion (``"colliders"``), with the soft pins' motion
     before the step (``"soft pins"``: where their springs pull, which the step reads) and after the hard
-    pins' motion (``"pins"``); ``faces``: the lab's face contacts (face_contacts.py, made
+    pins' motion (``"pins"``); ``faces``: the face contacts (face_contacts.py, made
     once per simulator, used only with particle collision), their lists remade with the particle lists,
     their pass beside the edge contacts' pass, and the converged solve's check reading both kinds' pairs."""
     chosen = threads_per_particle(model.particle_count, model.device) if threads is None else threads

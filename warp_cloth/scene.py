@@ -734,6 +734,14 @@ class Collision:
     folds flat onto itself) are held a quarter of a contact distance apart, by an edge pass before each
     separating pass of a converged solve, or once before fixed passes (kernels/edge_collision.py); every
     cloth needs a strain limit.
+
+    ``thickness`` (metres; None: off) holds surfaces, not points, that far apart whatever the mesh's
+    resolution (issue 34): every triangle edge and every vertex-triangle pair sharing no vertex
+    (kernels/edge_collision.py, kernels/face_collision.py), in the converged solve, whose check then reads
+    those pairs too, and each substep's displacements clamped to bounds under which no step makes a crossing
+    (warp_cloth/displacement_bounds.py). The particles' default radius is then at most ``thickness /
+    separation``, so that particle contacts reach no farther than the surfaces'; layers that start closer
+    than the thickness are refused. Every cloth needs a strain limit, as with ``edges``.
     """
 
     self_collision: bool = field(default=True, metadata={"toml": "self"})
@@ -745,6 +753,7 @@ class Collision:
     max_neighbors: int = 32
     tolerance: float = 0.05
     edges: bool = False
+    thickness: float | None = None
 
     def __post_init__(self) -> None:
         check_fields(self)
@@ -759,6 +768,14 @@ class Collision:
         _require(4 <= self.max_neighbors <= 256, "max_neighbors", "a whole number in [4, 256]", self.max_neighbors)
         _require(0.0 < self.tolerance <= 0.5, "tolerance", "a fraction of the contact distance in (0, 0.5]",
                  self.tolerance)
+        if self.thickness is not None:
+            _positive(self.thickness, "thickness")
+            _within_extent(self.thickness, "thickness")
+
+    @property
+    def edge_contacts(self) -> bool:
+        """Whether triangle edges are held apart: ``edges``, or the surface contacts of ``thickness``."""
+        return self.edges or self.thickness is not None
 
 
 @dataclass(frozen=True)
@@ -949,13 +966,19 @@ class Scene:
                          "has it)", item.name)
 
     def _check_edge_contacts_limited(self) -> None:
-        """Edge contacts find their pairs among edges as long as the stretch limit lets them get."""
-        if self.collision is None or not self.collision.edges:
+        """Edge contacts find their pairs among edges as long as the stretch limit lets them get; a surface
+        thickness's contacts are held, and checked, in the converged solve."""
+        if self.collision is None or not self.collision.edge_contacts:
             return
+        key, off, got = (("collision.edges", "false", True) if self.collision.thickness is None else
+                         ("collision.thickness", "no thickness", self.collision.thickness))
         for c, cloth in enumerate(self.cloths):
-            _require(cloth.strain_limit is not None, "collision.edges",
-                     f"false, or a strain limit on every cloth (cloth[{c}] "
-                     "has none: edge contacts size their search by how far the limit lets an edge stretch)", True)
+            _require(cloth.strain_limit is not None, key,
+                     f"{off}, or a strain limit on every cloth (cloth[{c}] "
+                     "has none: edge contacts size their search by how far the limit lets an edge stretch)", got)
+        _require(self.collision.thickness is None or self.simulation.limit_solve == "converged", key,
+                 f"{off}, or simulation.limit_solve = \"converged\" (surface contacts are held, and checked, "
+                 "in the converged solve)", got)
 
     def _check_seam_sides(self) -> None:
         """Each side names a cloth of the scene, with a selection that kind of cloth has."""

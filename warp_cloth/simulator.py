@@ -43,6 +43,7 @@ from .stability import (AUTOMATIC_MAX_SUBSTEPS, MAX_PASSES_PER_FRAME, UnstableSt
                         beyond_bound_message, resolve_step)
 from .start_projection import StartReport
 from .state import DeviceState
+from .surface_start import refuse_surfaces_closer_than_thickness
 from .warp_init import init_warp
 
 # Rough upper bounds per particle, to refuse a scene before allocating: host arrays while building
@@ -271,10 +272,10 @@ class Simulator:
         wanted = self.limit_solve.line_solve and (self.device_model.contacts is None or self.limit_solve.line_contacts)
         families = cloth_lines(self.model, self.scene) if wanted and self.model.limits is not None else []
         self._lines = LineSolves.of(self.device_model, families, self.limit_solve) if families else None
-        # the lab's displacement bounds (displacement_bounds.py, off by default): made once, for every plan built
+        # the displacement bounds (displacement_bounds.py: a thickness's or the lab's): made once, for every plan
         self._bounds = DisplacementBounds.of(self.model, self.device_model)
         self._control: Control | None = None  # made when first asked for (``control``)
-        # the lab's face contacts (face_contacts.py, off by default): made once, for every plan built
+        # the face contacts of a surface thickness (face_contacts.py): made once, for every plan built
         self._faces = FaceContacts.of(self.model, self.device_model)
         self.plan: Plan = build_plan(self.device_model, self.state, self.integrator, self.limit_solve,
                                      threads_per_particle, self._lines, self._bounds, faces=self._faces)
@@ -292,6 +293,7 @@ class Simulator:
         if self.device.is_cuda:
             self._frame_done = [wp.Event(self.device), wp.Event(self.device)]
         self.stopped_worlds: dict[int, UnstableSimulation] = {}  # of a batch: each world stopped, and why
+        refuse_surfaces_closer_than_thickness(self.scene, self.model, self.device_model, self.state.x)
         self._refuse_initial_overlap()
         self._refuse_start_inside_colliders()
         check_pins_within_reach(self.scene, self.model)
