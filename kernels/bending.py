@@ -15,7 +15,7 @@ stencil and the particle's place in it, so every particle sums its own forces wi
 
 import warp as wp
 
-STENCIL_WIDTH = wp.constant(4)  # particles a stencil names (a row's fourth weight is zero)
+STENCIL_WIDTH = wp.constant(8)  # particles a stencil names, as cloth_mesh.STENCIL_WIDTH (a row's last five weights zero)
 
 
 @wp.struct

@@ -95,8 +95,8 @@ import numpy as np
 
 from .checks import check_fields
 from .adjacency import Adjacency
-from .cloth_mesh import (BEND, SHEAR, STRUCTURAL, BendStencils, ClothMesh, DerivedSprings, lumped_masses,
-                         shared_edges)
+from .bend_fits import fitted_stencils, flat_triangle_bends
+from .cloth_mesh import BEND, SHEAR, STENCIL_WIDTH, STRUCTURAL, BendStencils, ClothMesh, DerivedSprings, lumped_masses
 from .errors import SceneError
 from .fabric_presets import PRESETS
 from .mesh_io import face_areas, face_edges, face_starts, pair_keys
@@ -107,9 +107,6 @@ PerDirection = float | tuple[float, float]
 KES_CURVATURES = (50.0, 150.0)
 # What the bend springs' moment's slope over that range is made equal to B by: k1^2 + k1 k2 + k2^2.
 _KES_SLOPE = KES_CURVATURES[0] ** 2 + KES_CURVATURES[0] * KES_CURVATURES[1] + KES_CURVATURES[1] ** 2
-# The most a hinge's two triangles may be turned at rest (radians) for it to bend them (Bergou's model takes the
-# rest state flat); two more turned stay joined by their bend spring.
-_FLAT = 1e-4
 # Bounds within which every derived spring constant and its ratio to a particle's mass is finite in float32.
 _RANGES = {"density": (1e-6, 1e3, "kg/m^2"), "stretch": (1e-3, 1e8, "N/m"), "shear": (1e-3, 1e8, "N/m"),
            "bending": (1e-12, 10.0, "N m"), "damping": (0.0, 1.0, "s"), "friction": (0.0, 10.0, "")}
@@ -210,14 +207,17 @@ def derive_springs(material: Material, rest_points: np.ndarray, mesh: ClothMesh)
     bending = warp[bends] * bend_u + (1 - warp[bends]) * bend_v
     stiffness[bends] = 512.0 * bending * _bend_areas(rest_points, counts, indices, pairs[bends]) / (
         rests[bends] ** 5 * _KES_SLOPE)
-    hinges, hinged = _hinges(material, tensors, rest_points, counts, indices, pairs[bends])
-    middle = np.where(hinged, -1, _straight_middles(rest_points, pairs[sides], pairs[bends]))
+    fitted, in_triangles = flat_triangle_bends(rest_points, counts, indices, pairs[bends])
+    middle = np.where(fitted, -1, _straight_middles(rest_points, pairs[sides], pairs[bends]))
     straight = middle >= 0
     rows = _stencils(rest_points, counts, indices, pairs[bends][straight], middle[straight], bending[straight],
                      material.damping)
+    row_directions = (middle[straight], rest_points[pairs[bends][straight, 1]] - rest_points[pairs[bends][straight, 0]])
+    fits = fitted_stencils(rest_points, counts, indices, pairs[sides], tensors, in_triangles, row_directions,
+                           along(material.bending), material.damping)
     stenciled = np.zeros(len(pairs), dtype=bool)
-    stenciled[np.nonzero(bends)[0][straight | hinged]] = True
-    parts = [part for part in (rows, hinges) if len(part.stiffness)]
+    stenciled[np.nonzero(bends)[0][straight | fitted]] = True
+    parts = [part for part in (rows, fits) if len(part.stiffness)]
 
     stretch_limit = compression_limit = None
     if material.stretch_limit is not None:
@@ -262,42 +262,9 @@ def _stencils(points, counts, indices, bends, middle, bending, damping: float) -
     l2 = np.linalg.norm(points[q] - points[middle], axis=1)
     weights = 2.0 * np.stack([1.0 / (l1 * (l1 + l2)), -1.0 / (l1 * l2), 1.0 / (l2 * (l1 + l2))], axis=1)
     stiffness = bending * lumped_masses(points, counts, indices, 1.0)[middle]
-    return BendStencils(np.stack([p, middle, q, middle], axis=1), np.pad(weights, ((0, 0), (0, 1))), stiffness,
-                        damping * stiffness)
-
-
-def _hinges(material: Material, tensors, points, counts, indices, bends) -> tuple[BendStencils, np.ndarray]:
-    """The hinges of the interior edges between two triangles flat at rest whose far corners ``bends`` joins
-    (see the module's docstring), and which of ``bends`` they replace."""
-    starts = face_starts(counts)[counts == 3]
-    corners = indices[starts[:, None] + np.arange(3)]
-    edge = np.concatenate([corners[:, [0, 1]], corners[:, [1, 2]], corners[:, [2, 0]]])
-    far = np.concatenate([corners[:, 2], corners[:, 0], corners[:, 1]])
-    n = len(points)
-    first, second, only_two = shared_edges(edge, n)
-    first, second = first[only_two], second[only_two]
-    particles = np.stack([edge[first, 0], edge[first, 1], far[first], far[second]], axis=1)
-    x0, x1, x2, x3 = (points[particles[:, r]] for r in range(4))
-    at_0_in_0, at_1_in_0 = _cotangent(x1 - x0, x2 - x0), _cotangent(x0 - x1, x2 - x1)
-    at_0_in_1, at_1_in_1 = _cotangent(x1 - x0, x3 - x0), _cotangent(x0 - x1, x3 - x1)
-    cotangents = np.stack([at_1_in_0 + at_1_in_1, at_0_in_0 + at_0_in_1, -(at_0_in_0 + at_1_in_0),
-                           -(at_0_in_1 + at_1_in_1)], axis=1)
-    area = 0.5 * (np.linalg.norm(np.cross(x1 - x0, x2 - x0), axis=1)
-                  + np.linalg.norm(np.cross(x1 - x0, x3 - x0), axis=1))
-    turned = np.linalg.norm(np.einsum("sr,srk->sk", cotangents, points[particles]), axis=1)
-    flat = turned < _FLAT * np.linalg.norm(x1 - x0, axis=1)  # |K x| = |e| theta
-    replaced = np.isin(pair_keys(bends, n), pair_keys(particles[:, 2:], n)[flat])
-    keep = flat & np.isin(pair_keys(particles[:, 2:], n), pair_keys(bends, n))
-    particles, cotangents, area = particles[keep], cotangents[keep], area[keep]
-    across = 1.0 - np.nan_to_num(_warp_share(tensors, points, particles[:, :2]), nan=0.5)  # cos^2, the bend's direction
-    bend_u, bend_v = along(material.bending)
-    stiffness = (across * bend_u + (1.0 - across) * bend_v) * area
-    return BendStencils(particles, cotangents / area[:, None], stiffness, material.damping * stiffness), replaced
-
-
-def _cotangent(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """The cotangent of the angle between each row of ``a`` and of ``b``."""
-    return np.einsum("si,si->s", a, b) / np.linalg.norm(np.cross(a, b), axis=1)
+    width = STENCIL_WIDTH - 3
+    return BendStencils(np.concatenate([np.stack([p, middle, q], axis=1), np.repeat(middle[:, None], width, axis=1)],
+                                       axis=1), np.pad(weights, ((0, 0), (0, width))), stiffness, damping * stiffness)
 
 
 def _side_stiffness(material: Material, tensors, points, counts, indices, wanted) -> np.ndarray:
