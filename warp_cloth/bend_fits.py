@@ -8,6 +8,13 @@ vanish on every linear function and make the sum exact for every quadratic, howe
 to the positions, d = sum_r w_r x_r is the curvature along u times the normal, as a row's stencil's is
 (kernels/bending.py), and zero on any flat placement of the rest state; c likewise along v. The twist b is
 read apart from both, so it neither adds to a bend nor lets one off, and costs nothing, as on the rows.
+
+On a border the neighbours lie on one side, in one row but for the border's own: the fit cannot tell the
+curvature across the border from the position of the row beside it. A free border carries no moment
+across itself, so the fit takes that curvature as zero (the plate's free edge: M_n = 0, which is
+kappa_nn = 0 where, as here, a bend along one direction does not bend the other), and reads the bend along
+the border, as a hem bends in a drape's folds. Where the border turns by more than ``_STRAIGHT`` at a
+particle (a corner), it has no such direction and the fit none but what its points tell.
 """
 
 from __future__ import annotations
@@ -16,7 +23,7 @@ import numpy as np
 
 from .adjacency import Adjacency
 from .cloth_mesh import STENCIL_WIDTH as WIDTH, BendStencils, lumped_masses, shared_edges
-from .mesh_io import face_starts, pair_keys
+from .mesh_io import face_edges, face_starts, pair_keys, unique_pairs
 
 # The most a fit may read at rest, as a dihedral angle per side's length, for the particle to count as flat
 # (the model takes the rest state flat; a particle curved as modelled keeps its bend springs).
@@ -24,6 +31,9 @@ _FLAT = 1e-4
 # A fit whose weights sum (in absolute value) to more than this over its mean side squared leans on points
 # too nearly on one conic to tell a bend apart: that direction is left to the rows or unbent.
 _MOST_WEIGHT = 64.0
+# The most a border may turn at a particle, as sin^2 of the angle between its two sides, for the fit there
+# to take the curvature across it as zero (below 30 degrees).
+_STRAIGHT = 0.25
 
 
 def flat_triangle_bends(points, counts, indices, bends) -> tuple[np.ndarray, np.ndarray]:
@@ -70,20 +80,40 @@ def fitted_stencils(points, counts, indices, sides, tensors, particles, rows, be
     v = np.cross(normal, u)
     s, t = (np.einsum("prk,pk->pr", offsets, axis) / scale[:, None] for axis in (u, v))
     design = np.stack([np.ones_like(s), s, t, 0.5 * s * s, s * t, 0.5 * t * t], axis=2) * used[:, :, None]
-    inverse = np.linalg.pinv(design)  # (p, 6, WIDTH): the fit's coefficients from the heights
+    across = _across_border(points, counts, indices, particles, normal)
+    a_s, a_t = np.einsum("pk,pk->p", across, u), np.einsum("pk,pk->p", across, v)
+    free_edge = np.stack([0 * a_s, 0 * a_s, 0 * a_s, a_s * a_s, 2 * a_s * a_t, a_t * a_t], axis=1)  # kappa_nn = 0
+    design = np.concatenate([design, free_edge[:, None, :]], axis=1)
+    inverse = np.linalg.pinv(design)[:, :, :WIDTH]  # (p, 6, WIDTH): the fit's coefficients from the heights
     covered = _row_directions(rows, particles, u)
     parts = []
     for coefficient, axis, stiff in ((3, 0, bending[0]), (5, 1, bending[1])):
         weights = inverse[:, coefficient, :] / scale[:, None] ** 2
-        exact = np.abs(np.einsum("pr,prj->pj", weights * scale[:, None] ** 2, design)
+        exact = np.abs(np.einsum("pr,prj->pj", np.linalg.pinv(design)[:, coefficient, :], design)
                        - np.eye(6)[coefficient]).max(axis=1) < 1e-6
-        bounded = np.abs(weights).sum(axis=1) * scale ** 2 < _MOST_WEIGHT
+        total = np.abs(weights).sum(axis=1) * scale ** 2
+        bounded = (total < _MOST_WEIGHT) & (total > 1e-6)  # none at all: a border's bend across itself
         at_rest = np.linalg.norm(np.einsum("pr,prk->pk", weights, offsets), axis=1) * scale < _FLAT
         keep = exact & bounded & at_rest & ~covered[:, axis]
         stiffness = stiff * lumped_masses(points, counts, indices, 1.0)[particles[keep]]
         parts.append(BendStencils(np.where(used[keep], ring[keep], particles[keep][:, None]),
                                   np.where(used[keep], weights[keep], 0.0), stiffness, damping * stiffness))
     return BendStencils.joined(parts)
+
+
+def _across_border(points, counts, indices, particles, normal) -> np.ndarray:
+    """Each particle's direction in its tangent plane across the border it is on (zero off the border and
+    where the border turns by more than ``_STRAIGHT``)."""
+    n = len(points)
+    sides, uses = unique_pairs(face_edges(counts, indices), n)
+    border = sides[uses == 1]
+    direction = points[border[:, 1]] - points[border[:, 0]]
+    direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+    spread = np.zeros((n, 3, 3))
+    np.add.at(spread, border.ravel(), np.repeat(direction[:, :, None] * direction[:, None, :], 2, axis=0))
+    values, vectors = np.linalg.eigh(spread[particles])
+    straight = (values[:, 2] > 0) & (values[:, 1] <= _STRAIGHT * values[:, 2])
+    return np.where(straight[:, None], np.cross(normal, vectors[:, :, 2]), 0.0)
 
 
 def _warp_axes(tensors, particles, first_side, normal) -> np.ndarray:
