@@ -63,6 +63,8 @@ def fitted_stencils(points, counts, indices, sides, tensors, particles, rows, be
     already bends the particle in (``rows``: each row's middle particle and direction) or the fit cannot tell (a particle
     on a border across which it has one row of neighbours) or that is not flat at rest. ``tensors`` (n, 3, 3)
     sum the warp's directions at each particle (None: no UVs, u along its first side)."""
+    if not len(particles):
+        return BendStencils(np.zeros((0, WIDTH), dtype=np.int64), np.zeros((0, WIDTH)), np.zeros(0), np.zeros(0))
     n = len(points)
     adjacency = Adjacency.of(sides, n)
     ring = np.full((len(particles), WIDTH), -1, dtype=np.int64)

@@ -33,9 +33,8 @@ pantograph's). A quad's side takes c^2 a_u + s^2 a_v.
 
 Bending. Linear in the curvature, M = B kappa at every curvature, wherever a bend spring spans a row
 straight at rest (a grid's, and a mesh's across an edge between two quads of one row; not one between two
-triangles, which a hinge bends, below): the spring's two
-ends p, q and the particle m between them (joined to both by sides, on the segment p-q) make a stencil
-(kernels/bending.py). With spacings L1 = |m - p| and L2 = |q - m|, the weights w = 2 (1/(L1 (L1 + L2)),
+triangles, which the particles' fits bend, below): the spring's two ends p, q and the particle m between
+them (joined to both by sides, on the segment p-q) make a stencil (kernels/bending.py). With spacings L1 = |m - p| and L2 = |q - m|, the weights w = 2 (1/(L1 (L1 + L2)),
 -1/(L1 L2), 1/(L2 (L1 + L2))) make d = w_p x_p + w_m x_m + w_q x_q the second derivative of the row along its
 length, which for a row bent to a curvature kappa (unstretched) is kappa times the row's normal, and zero
 for any straight row, however it lies. The stencil stands for the area A of its middle particle (on a
@@ -46,26 +45,26 @@ or the curvature. Rows across (a grid's columns) bend the other direction; a twi
 so it costs nothing (as it cost the springs nothing). A dashpot of ``damping`` seconds (c = damping x k)
 damps its rate. Along a direction at angle t to the warp, B = c^2 B_u + s^2 B_v.
 
-Between two triangles flat at rest (a mesh of triangles, the drape specimen's rim), a hinge bends them in
-place of the bend spring joining their far corners, straight or not (Bergou, Wardetzky, Harmon, Zorin,
-Grinspun 2006, "A Quadratic Bending Model for Inextensible Surfaces"): the edge x0-x1, the far corners x2
-and x3, the weights (c1 + c1', c0 + c0', -(c0 + c1), -(c0' + c1')) / (A0 + A1), c0 and c1 the cotangents
-of the first triangle's angles at x0 and x1, c0' and c1' the second's, A0 and A1 their areas. They vanish
-on any flat placement of the rest state, and for a dihedral angle theta |d| = |e| theta / (A0 + A1);
-k = B (A0 + A1), B along the direction across the edge, stores 1/2 B kappa^2 per unit area on a cylinder
-of right triangles (or equilateral ones), converging as the cell squared. (Bergou's 3 / (A0 + A1), the
-area of an edge being a third of its two triangles', stores three times that on both: measured,
-tests/test_bending_hinges.py.) The model takes the rest state flat, as every cloth here is but the
-garment's panels (quads curved as modelled, which keep their springs): two triangles turned more than
-``_FLAT`` at rest keep their spring. A hinge across a side of a cell mixes the row's bend with the twist
-between the cell's two rows, which the diagonal's hinge takes the other way: a strip of triangles that
-twists a little bends for less, and Peirce's cantilever of triangles sags 6 to 16% further than the
-elastica, the more the finer (the bend springs: 23 to 49%; the rows' stencils on quads: within 0.3%), so
-the rows keep their stencils wherever quads give them.
+Between two triangles flat at rest (a mesh of triangles, the drape specimen's rim) no row need run: the
+bend spring joining their far corners goes, and each particle of such triangles that no row runs through
+along the warp (or the weft) is bent along it by its fit (bend_fits.py): the weights that read the
+curvature along u from the quadratic fitting the particle and its neighbours at rest, exact for every
+quadratic on any mesh (on a free border, taking the curvature across it as zero), stand in a stencil as a
+row's do, k = B_u A (B_v A along v), A the particle's area.
+Bent round a cylinder, a grid of right triangles stores the plate's energy but half a cell at the two ends
+along the bend, converging as the cell squared (0.9934, 0.9983, 0.9996 at 1, 0.5, 0.25 cm), its points
+moved by up to a fifth of a cell 0.987 to 0.991; a twist costs nothing and lets no bend off, and Peirce's
+cantilever of triangles sags as the elastica within 0.4%, 0.08%, 0.02% at 10, 20, 40 cells, as the rows'
+do (tests/test_bending_fits.py). Bergou's hinges, which bent these triangles before, read across a side of
+a cell the bend plus the twist between the cell's rows, so a strip that twisted a little bent for 0.75 to
+0.79 of B and sagged 6 to 16% too far, the further the finer. The model takes the rest state flat, as
+every cloth here is but the garment's panels (quads curved as modelled, which keep their springs): two
+triangles turned more than 1e-4 rad at rest keep their bend spring, and a particle whose fit reads a
+curvature at rest (its neighbours not flat) has no fit.
 
 Where a bend spring has neither (across an edge beside a quad with no straight row under it, or between
 faces curved as modelled, for which fixed weights would not be at rest), it stays a spring: it spans two
-edges of length L/2 across a hinge; bent to a curvature kappa along it, an unstretched row shortens it by
+edges of length L/2 across an edge; bent to a curvature kappa along it, an unstretched row shortens it by
 the strain eps = L^2 kappa^2 / 32 (the chord of two edges turned kappa L/2 apart), so its energy 1/2 k L eps^2 per
 area A it stands for gives the moment M = k L^5 kappa^3 / (512 A). Springs that only push back when
 shortened cannot give M = B kappa at every curvature; k makes the slope of M over 0.5 to 1.5 1/cm, the range
@@ -73,7 +72,7 @@ in which the Kawabata tester (KES-FB2) measures B, equal B: k = 512 B A / (L^5 S
 of that range's ends. Then M = B kappa^3 / S whatever the resolution: at a fold of 3 cm radius about 1/29
 of B, at 1 cm about 1/3, so that gentle folds were left to the mesh (the drape coefficient moved by 2 to 8
 points from 30 to 60 cells, docs/guide/scene-reference.md). A spring stands for the mean of its ends'
-areas (on a grid of triangles, now bent by hinges, whose bend springs ran three ways, the three together
+areas (on a grid of triangles, now bent by the fits, whose bend springs ran three ways, the three together
 bent an eighth stiffer than B).
 
 Damping. Each spring's dashpot is ``damping`` seconds of its elastic response: b = damping x k / L
