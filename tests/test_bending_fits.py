@@ -23,10 +23,10 @@ def _energy(bending, x: np.ndarray) -> float:
 @pytest.mark.parametrize("axis", [0, 1])
 def test_a_mesh_of_triangles_bent_round_a_cylinder_stores_the_plates_bending_energy(tmp_path, axis, cells):
     """A panel of denim (B differs along warp and weft), 20 x 10 cm in right triangles (each cell of a grid
-    split along one diagonal), wrapped round a cylinder of radius 10 cm along one direction: its hinges'
-    energy is the plate's 1/2 B kappa^2 over its area but half a cell at the two ends along the bend (whose
-    particles have one row of neighbours across it: no fit along it, as no row's stencil ends there), within
-    an error that falls as the square of the cell. No bend spring is left."""
+    split along one diagonal), wrapped round a cylinder of radius 10 cm along one direction: its fits'
+    energy is the plate's 1/2 B kappa^2 over its area but half a cell at the two ends along the bend (free
+    borders, across which the fits take the curvature as zero, as no row's stencil ends there), within an
+    error that falls as the square of the cell. No bend spring is left."""
     size, radius = (0.2, 0.1), 0.1
     along_cells = cells * (1 + (axis == 0)) // 2
     mesh = write_grid_obj(tmp_path / "panel.obj", cells, cells // 2, *size, triangles=True)
@@ -42,12 +42,12 @@ def test_a_mesh_of_triangles_bent_round_a_cylinder_stores_the_plates_bending_ene
     assert _energy(model.bending, bent) == pytest.approx(expected, rel=0.007 * (10 / cells) ** 2)
 
 
-def test_no_hinge_pulls_on_a_flat_placement_of_its_rest_state(tmp_path):
-    """Bergou's model takes the rest state flat: turned, mirrored and moved anywhere, a flat mesh keeps every
-    hinge's curvature vector at zero (so its force, -k w d, too), against 1/(10 cm) bent round a cylinder."""
+def test_no_fit_pulls_on_a_flat_placement_of_its_rest_state(tmp_path):
+    """The fits take the rest state flat: turned, mirrored and moved anywhere, a flat mesh keeps every
+    fit's curvature vector at zero (so its force, -k w d, too), against 1/(10 cm) bent round a cylinder."""
     mesh = write_grid_obj(tmp_path / "panel.obj", 12, 9, 0.12, 0.09, triangles=True)
     model = build_model(_scene(mesh=str(mesh), material="cotton"))
-    flat = model.cloths[0].positions  # as the hinges were derived from, in float64
+    flat = model.cloths[0].positions  # as the fits were derived from, in float64
     rng = np.random.default_rng(3)
     turn, _ = np.linalg.qr(rng.normal(size=(3, 3)))
     bent = flat.copy()
