@@ -42,10 +42,12 @@ def test_a_mesh_of_triangles_bent_round_a_cylinder_stores_the_plates_bending_ene
     assert _energy(model.bending, bent) == pytest.approx(expected, rel=0.007 * (10 / cells) ** 2)
 
 
-def test_no_fit_pulls_on_a_flat_placement_of_its_rest_state(tmp_path):
+@pytest.mark.parametrize("uvs", [True, False], ids=["uvs", "no uvs"])
+def test_no_fit_pulls_on_a_flat_placement_of_its_rest_state(tmp_path, uvs):
     """The fits take the rest state flat: turned, mirrored and moved anywhere, a flat mesh keeps every
-    fit's curvature vector at zero (so its force, -k w d, too), against 1/(10 cm) bent round a cylinder."""
-    mesh = write_grid_obj(tmp_path / "panel.obj", 12, 9, 0.12, 0.09, triangles=True)
+    fit's curvature vector at zero (so its force, -k w d, too), against 1/(10 cm) bent round a cylinder;
+    with UVs or without (u then along each particle's first side)."""
+    mesh = write_grid_obj(tmp_path / "panel.obj", 12, 9, 0.12, 0.09, triangles=True, uvs=uvs)
     model = build_model(_scene(mesh=str(mesh), material="cotton"))
     flat = model.cloths[0].positions  # as the fits were derived from, in float64
     rng = np.random.default_rng(3)
@@ -53,6 +55,7 @@ def test_no_fit_pulls_on_a_flat_placement_of_its_rest_state(tmp_path):
     bent = flat.copy()
     bent[:, 0], bent[:, 2] = 0.1 * np.sin(flat[:, 0] / 0.1), 0.1 * (1.0 - np.cos(flat[:, 0] / 0.1))
     scale = np.abs(_curvatures(model.bending, bent)).max()
+    assert len(model.bending.stiffness) > 150  # both directions at most of the 130 particles
     for mirror in (1.0, -1.0):
         placed = (flat * [mirror, 1.0, 1.0]) @ turn.T + rng.normal(size=3)
         assert np.abs(_curvatures(model.bending, placed)).max() < 1e-9 * scale
