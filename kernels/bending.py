@@ -16,7 +16,7 @@ stencil and the particle's place in it, so every particle sums its own forces wi
 
 import warp as wp
 
-STENCIL_WIDTH = wp.constant(8)  # particles a stencil names, as cloth_mesh.STENCIL_WIDTH (a row's last five weights zero)
+STENCIL_WIDTH = wp.constant(8)  # particles a stencil names, as cloth_mesh.STENCIL_WIDTH (a row's last five zero)
 
 
 @wp.struct

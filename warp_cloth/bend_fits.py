@@ -26,7 +26,7 @@ from .cloth_mesh import STENCIL_WIDTH as WIDTH, BendStencils, lumped_masses, sha
 from .mesh_io import face_edges, face_starts, pair_keys, unique_pairs
 
 # The most a fit may read at rest, as a dihedral angle per side's length, for the particle to count as flat
-# (the model takes the rest state flat; a particle curved as modelled keeps its bend springs).
+# (the model takes the rest state flat; a particle curved as modelled has no fit).
 _FLAT = 1e-4
 # A fit whose weights sum (in absolute value) to more than this over its mean side squared leans on points
 # too nearly on one conic to tell a bend apart: that direction is left to the rows or unbent.
@@ -60,9 +60,9 @@ def fitted_stencils(points, counts, indices, sides, tensors, particles, rows, be
                     damping: float) -> BendStencils:
     """The stencils of ``particles`` along u and v (see the module's docstring), each standing for its
     particle's area with the stiffness ``bending`` (B_u, B_v) times it, but along a direction a row's stencil
-    already bends the particle in (``rows``: each row's middle particle and direction) or the fit cannot tell (a particle
-    on a border across which it has one row of neighbours) or that is not flat at rest. ``tensors`` (n, 3, 3)
-    sum the warp's directions at each particle (None: no UVs, u along its first side)."""
+    already bends the particle in (``rows``: each row's middle particle and direction), or its neighbours
+    cannot tell (a hem's particle with one neighbour inside, a corner's), or where it is not flat at rest.
+    ``tensors`` (n, 3, 3) sum the warp's directions at each particle (None: no UVs, u along its first side)."""
     if not len(particles):
         return BendStencils(np.zeros((0, WIDTH), dtype=np.int64), np.zeros((0, WIDTH)), np.zeros(0), np.zeros(0))
     n = len(points)
@@ -84,14 +84,15 @@ def fitted_stencils(points, counts, indices, sides, tensors, particles, rows, be
     design = np.stack([np.ones_like(s), s, t, 0.5 * s * s, s * t, 0.5 * t * t], axis=2) * used[:, :, None]
     across = _across_border(points, counts, indices, particles, normal)
     a_s, a_t = np.einsum("pk,pk->p", across, u), np.einsum("pk,pk->p", across, v)
-    free_edge = np.stack([0 * a_s, 0 * a_s, 0 * a_s, a_s * a_s, 2 * a_s * a_t, a_t * a_t], axis=1)  # kappa_nn = 0
+    zero = np.zeros_like(a_s)
+    free_edge = np.stack([zero, zero, zero, a_s * a_s, 2 * a_s * a_t, a_t * a_t], axis=1)  # kappa_nn = 0
     design = np.concatenate([design, free_edge[:, None, :]], axis=1)
-    inverse = np.linalg.pinv(design)[:, :, :WIDTH]  # (p, 6, WIDTH): the fit's coefficients from the heights
+    inverse = np.linalg.pinv(design)  # (p, 6, WIDTH + 1): the fit's coefficients from the heights and the edge
     covered = _row_directions(rows, particles, u)
     parts = []
     for coefficient, axis, stiff in ((3, 0, bending[0]), (5, 1, bending[1])):
-        weights = inverse[:, coefficient, :] / scale[:, None] ** 2
-        exact = np.abs(np.einsum("pr,prj->pj", np.linalg.pinv(design)[:, coefficient, :], design)
+        weights = inverse[:, coefficient, :WIDTH] / scale[:, None] ** 2
+        exact = np.abs(np.einsum("pr,prj->pj", inverse[:, coefficient, :], design)
                        - np.eye(6)[coefficient]).max(axis=1) < 1e-6
         total = np.abs(weights).sum(axis=1) * scale ** 2
         bounded = (total < _MOST_WEIGHT) & (total > 1e-6)  # none at all: a border's bend across itself
@@ -140,7 +141,8 @@ def _row_directions(rows, particles, u) -> np.ndarray:
     place = np.searchsorted(particles, middle)
     found = (place < len(particles)) & (particles[np.minimum(place, len(particles) - 1)] == middle)
     direction = direction[found]
-    along_u = np.einsum("rk,rk->r", direction, u[place[found]]) ** 2 >= 0.5 * np.einsum("rk,rk->r", direction, direction)
+    length2 = np.einsum("rk,rk->r", direction, direction)
+    along_u = np.einsum("rk,rk->r", direction, u[place[found]]) ** 2 >= 0.5 * length2
     covered[place[found][along_u], 0] = True
     covered[place[found][~along_u], 1] = True
     return covered

@@ -28,7 +28,7 @@ class BendStencils:
     STENCIL_WIDTH particles (a row's three and zero weights, or a particle's fit, bend_fits.py), their weights
     and the stencil's stiffness and damping."""
 
-    particles: np.ndarray  # (b, STENCIL_WIDTH) int: a row's ends and middle in order, the middle again; a fit's particle, its neighbours
+    particles: np.ndarray  # (b, STENCIL_WIDTH) int: a row's ends and middle, the middle again; a fit's particle and neighbours
     weights: np.ndarray  # (b, STENCIL_WIDTH) 1/m^2: whose sum over the particles is the curvature vector
     stiffness: np.ndarray  # (b,) N m^3
     damping: np.ndarray  # (b,) N m^3 s

@@ -31,36 +31,35 @@ largest of E_u, E_v, 4 G), E_u and E_v along the threads and 4 G on the bias, so
 triangles is pulled and sheared exactly as the material says (its diagonals turning freely, as a
 pantograph's). A quad's side takes c^2 a_u + s^2 a_v.
 
-Bending. Linear in the curvature, M = B kappa at every curvature, wherever a bend spring spans a row
-straight at rest (a grid's, and a mesh's across an edge between two quads of one row; not one between two
-triangles, which the particles' fits bend, below): the spring's two ends p, q and the particle m between
-them (joined to both by sides, on the segment p-q) make a stencil (kernels/bending.py). With spacings L1 = |m - p| and L2 = |q - m|, the weights w = 2 (1/(L1 (L1 + L2)),
--1/(L1 L2), 1/(L2 (L1 + L2))) make d = w_p x_p + w_m x_m + w_q x_q the second derivative of the row along its
-length, which for a row bent to a curvature kappa (unstretched) is kappa times the row's normal, and zero
-for any straight row, however it lies. The stencil stands for the area A of its middle particle (on a
-grid a cell: its width across the row times the length it owns along it; half of one along the border),
-so its energy 1/2 k |d|^2 equals the plate's 1/2 B kappa^2 A for k = B A: a bend of kappa in the row's
-direction costs 1/2 B kappa^2 per unit area, the moment per unit width M = B kappa, whatever the resolution
-or the curvature. Rows across (a grid's columns) bend the other direction; a twist bends no straight row,
-so it costs nothing (as it cost the springs nothing). A dashpot of ``damping`` seconds (c = damping x k)
-damps its rate. Along a direction at angle t to the warp, B = c^2 B_u + s^2 B_v.
+Bending. Linear in the curvature, M = B kappa at every curvature, wherever a bend spring spans a row straight
+at rest (a grid's, and a mesh's across an edge between two quads of one row; not one between two triangles,
+which the particles' fits bend, below): the spring's two ends p, q and the particle m between them (joined to
+both by sides, on the segment p-q) make a stencil (kernels/bending.py). With spacings L1 = |m - p| and
+L2 = |q - m|, the weights w = 2 (1/(L1 (L1 + L2)), -1/(L1 L2), 1/(L2 (L1 + L2))) make d = w_p x_p + w_m x_m + w_q x_q
+the second derivative of the row along its length, which for a row bent to a curvature kappa (unstretched) is
+kappa times the row's normal, and zero for any straight row, however it lies. The stencil stands for the area
+A of its middle particle (on a grid a cell: its width across the row times the length it owns along it; half
+of one along the border), so its energy 1/2 k |d|^2 equals the plate's 1/2 B kappa^2 A for k = B A: a bend of
+kappa in the row's direction costs 1/2 B kappa^2 per unit area, the moment per unit width M = B kappa,
+whatever the resolution or the curvature. Rows across (a grid's columns) bend the other direction; a twist
+bends no straight row, so it costs nothing (as it cost the springs nothing). A dashpot of ``damping`` seconds
+(c = damping x k) damps its rate. Along a direction at angle t to the warp, B = c^2 B_u + s^2 B_v.
 
-Between two triangles flat at rest (a mesh of triangles, the drape specimen's rim) no row need run: the
-bend spring joining their far corners goes, and each particle of such triangles that no row runs through
-along the warp (or the weft) is bent along it by its fit (bend_fits.py): the weights that read the
-curvature along u from the quadratic fitting the particle and its neighbours at rest, exact for every
-quadratic on any mesh (on a free border, taking the curvature across it as zero), stand in a stencil as a
-row's do, k = B_u A (B_v A along v), A the particle's area.
-Bent round a cylinder, a grid of right triangles stores the plate's energy but half a cell at the two ends
-along the bend, converging as the cell squared (0.9934, 0.9983, 0.9996 at 1, 0.5, 0.25 cm), its points
-moved by up to a fifth of a cell 0.987 to 0.991; a twist costs nothing and lets no bend off, and Peirce's
-cantilever of triangles sags as the elastica within 0.4%, 0.08%, 0.02% at 10, 20, 40 cells, as the rows'
-do (tests/test_bending_fits.py). Bergou's hinges, which bent these triangles before, read across a side of
-a cell the bend plus the twist between the cell's rows, so a strip that twisted a little bent for 0.75 to
-0.79 of B and sagged 6 to 16% too far, the further the finer. The model takes the rest state flat, as
-every cloth here is but the garment's panels (quads curved as modelled, which keep their springs): two
-triangles turned more than 1e-4 rad at rest keep their bend spring, and a particle whose fit reads a
-curvature at rest (its neighbours not flat) has no fit.
+Between two triangles flat at rest (a mesh of triangles, the drape specimen's rim) no row need run: the bend
+spring joining their far corners goes, and each particle of such triangles that no row runs through along the
+warp (or the weft) is bent along it by its fit (bend_fits.py): the weights that read the curvature along u
+from the quadratic fitting the particle and its neighbours at rest, exact for every quadratic on any mesh (on
+a free border, taking the curvature across it as zero), stand in a stencil as a row's do, k = B_u A (B_v A
+along v), A the particle's area. Bent round a cylinder, a grid of right triangles stores the plate's energy
+but half a cell at the two ends along the bend, converging as the cell squared (0.9934, 0.9983, 0.9996 at 1,
+0.5, 0.25 cm), its points moved by up to a fifth of a cell 0.987 to 0.991; a twist costs nothing and lets no
+bend off, and Peirce's cantilever of triangles sags as the elastica within 0.4%, 0.08%, 0.02% at 10, 20, 40
+cells, as the rows' do (tests/test_bending_fits.py). Bergou's hinges, which bent these triangles before, read
+across a side of a cell the bend plus the twist between the cell's rows, so a strip that twisted a little bent
+for 0.75 to 0.79 of B and sagged 6 to 16% too far, the further the finer. The model takes the rest state flat,
+as every cloth here is but the garment's panels (quads curved as modelled, which keep their springs): two
+triangles turned more than 1e-4 rad at rest keep their bend spring, and a particle whose fit reads a curvature
+at rest (its neighbours not flat) has no fit.
 
 Where a bend spring has neither (across an edge beside a quad with no straight row under it, or between
 faces curved as modelled, for which fixed weights would not be at rest), it stays a spring: it spans two
