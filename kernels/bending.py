@@ -4,7 +4,8 @@ their Jacobians for the implicit solve.
 A stencil names STENCIL_WIDTH particles and their weights w (1/m^2), which sum to zero and make the
 curvature vector d = sum_r w_r x_r vanish at the flat rest state, and grow as the curvature there times the
 cloth's normal: three particles p, m, q along a straight row (the second difference over its spacings,
-the fourth weight zero), or the four of a hinge, two triangles sharing an edge (Bergou et al. 2006). Its
+the other weights zero), or a particle and its neighbours, the weights that read the curvature along the
+warp or the weft from the quadratic fitting them (warp_cloth/bend_fits.py). Its
 energy 1/2 k |d|^2 and dashpot 1/2 c |sum_r w_r v_r|^2 give each of its particles
 r the force -w_r (k d + c sum_s w_s v_s). Linear in the positions: the stiffness Jacobian is the constant
 k w_r w_s I between particles r and s, and the damping one c w_r w_s I.
@@ -15,7 +16,7 @@ stencil and the particle's place in it, so every particle sums its own forces wi
 
 import warp as wp
 
-STENCIL_WIDTH = wp.constant(4)  # particles a stencil names (a row's fourth weight is zero)
+STENCIL_WIDTH = wp.constant(8)  # particles a stencil names, as cloth_mesh.STENCIL_WIDTH (a row's last five zero)
 
 
 @wp.struct

@@ -284,12 +284,12 @@ def test_a_clamped_strip_sags_as_the_elastica_at_any_resolution(preset, length):
         assert _tip_sag(preset, length, (cells, cells // 10)) == pytest.approx(expected, rel=0.004 * (10 / cells) ** 2)
 
 
-@pytest.mark.parametrize("triangles", [False, True], ids=["rows", "hinges"])
+@pytest.mark.parametrize("triangles", [False, True], ids=["rows", "fits"])
 @pytest.mark.parametrize("integrator", ["symplectic", "implicit"])
 def test_the_simulated_strip_comes_to_rest_where_its_static_equations_put_it(tmp_path, integrator, triangles):
     """The bending stencils' kernels (the explicit step's forces; the implicit system's forces, products and
     diagonal blocks) agree with the energy the static solve above minimises: a clamped strip of denim, a
-    grid (bent by its rows' stencils) or the same grid's mesh of triangles (by its hinges), run to rest under
+    grid (bent by its rows' stencils) or the same grid's mesh of triangles (by its fits), run to rest under
     air drag, hangs where the static equations put it (within 1e-4, its tip still jittering at about 1 cm/s
     with the explicit step's undamped springs)."""
     nx, ny, length = 20, 2, 0.05

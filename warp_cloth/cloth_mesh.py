@@ -19,14 +19,17 @@ STRUCTURAL, SHEAR, BEND = 0, 1, 2
 SPRING_KINDS = ("structural", "shear", "bend")
 
 
+STENCIL_WIDTH = 8  # particles a bending stencil names: a particle and up to seven neighbours (kernels/bending.py's)
+
+
 @dataclass(frozen=True)
 class BendStencils:
-    """A material's bending linear in the curvature (materials.py; kernels/bending.py): per stencil, four
-    particles (a row's three and a zero weight, or a hinge's four), their weights and the stencil's
-    stiffness and damping."""
+    """A material's bending linear in the curvature (materials.py; kernels/bending.py): per stencil,
+    STENCIL_WIDTH particles (a row's three and zero weights, or a particle's fit, bend_fits.py), their weights
+    and the stencil's stiffness and damping."""
 
-    particles: np.ndarray  # (b, 4) int: a row's ends and middle in order, the middle again; a hinge's edge, far corners
-    weights: np.ndarray  # (b, 4) 1/m^2: whose sum over the particles is the curvature vector
+    particles: np.ndarray  # (b, STENCIL_WIDTH) int: a row's ends and middle, the middle again; a fit's particle and neighbours
+    weights: np.ndarray  # (b, STENCIL_WIDTH) 1/m^2: whose sum over the particles is the curvature vector
     stiffness: np.ndarray  # (b,) N m^3
     damping: np.ndarray  # (b,) N m^3 s
 

@@ -31,41 +31,39 @@ largest of E_u, E_v, 4 G), E_u and E_v along the threads and 4 G on the bias, so
 triangles is pulled and sheared exactly as the material says (its diagonals turning freely, as a
 pantograph's). A quad's side takes c^2 a_u + s^2 a_v.
 
-Bending. Linear in the curvature, M = B kappa at every curvature, wherever a bend spring spans a row
-straight at rest (a grid's, and a mesh's across an edge between two quads of one row; not one between two
-triangles, which a hinge bends, below): the spring's two
-ends p, q and the particle m between them (joined to both by sides, on the segment p-q) make a stencil
-(kernels/bending.py). With spacings L1 = |m - p| and L2 = |q - m|, the weights w = 2 (1/(L1 (L1 + L2)),
--1/(L1 L2), 1/(L2 (L1 + L2))) make d = w_p x_p + w_m x_m + w_q x_q the second derivative of the row along its
-length, which for a row bent to a curvature kappa (unstretched) is kappa times the row's normal, and zero
-for any straight row, however it lies. The stencil stands for the area A of its middle particle (on a
-grid a cell: its width across the row times the length it owns along it; half of one along the border),
-so its energy 1/2 k |d|^2 equals the plate's 1/2 B kappa^2 A for k = B A: a bend of kappa in the row's
-direction costs 1/2 B kappa^2 per unit area, the moment per unit width M = B kappa, whatever the resolution
-or the curvature. Rows across (a grid's columns) bend the other direction; a twist bends no straight row,
-so it costs nothing (as it cost the springs nothing). A dashpot of ``damping`` seconds (c = damping x k)
-damps its rate. Along a direction at angle t to the warp, B = c^2 B_u + s^2 B_v.
+Bending. Linear in the curvature, M = B kappa at every curvature, wherever a bend spring spans a row straight
+at rest (a grid's, and a mesh's across an edge between two quads of one row; not one between two triangles,
+which the particles' fits bend, below): the spring's two ends p, q and the particle m between them (joined to
+both by sides, on the segment p-q) make a stencil (kernels/bending.py). With spacings L1 = |m - p| and
+L2 = |q - m|, the weights w = 2 (1/(L1 (L1 + L2)), -1/(L1 L2), 1/(L2 (L1 + L2))) make d = w_p x_p + w_m x_m + w_q x_q
+the second derivative of the row along its length, which for a row bent to a curvature kappa (unstretched) is
+kappa times the row's normal, and zero for any straight row, however it lies. The stencil stands for the area
+A of its middle particle (on a grid a cell: its width across the row times the length it owns along it; half
+of one along the border), so its energy 1/2 k |d|^2 equals the plate's 1/2 B kappa^2 A for k = B A: a bend of
+kappa in the row's direction costs 1/2 B kappa^2 per unit area, the moment per unit width M = B kappa,
+whatever the resolution or the curvature. Rows across (a grid's columns) bend the other direction; a twist
+bends no straight row, so it costs nothing (as it cost the springs nothing). A dashpot of ``damping`` seconds
+(c = damping x k) damps its rate. Along a direction at angle t to the warp, B = c^2 B_u + s^2 B_v.
 
-Between two triangles flat at rest (a mesh of triangles, the drape specimen's rim), a hinge bends them in
-place of the bend spring joining their far corners, straight or not (Bergou, Wardetzky, Harmon, Zorin,
-Grinspun 2006, "A Quadratic Bending Model for Inextensible Surfaces"): the edge x0-x1, the far corners x2
-and x3, the weights (c1 + c1', c0 + c0', -(c0 + c1), -(c0' + c1')) / (A0 + A1), c0 and c1 the cotangents
-of the first triangle's angles at x0 and x1, c0' and c1' the second's, A0 and A1 their areas. They vanish
-on any flat placement of the rest state, and for a dihedral angle theta |d| = |e| theta / (A0 + A1);
-k = B (A0 + A1), B along the direction across the edge, stores 1/2 B kappa^2 per unit area on a cylinder
-of right triangles (or equilateral ones), converging as the cell squared. (Bergou's 3 / (A0 + A1), the
-area of an edge being a third of its two triangles', stores three times that on both: measured,
-tests/test_bending_hinges.py.) The model takes the rest state flat, as every cloth here is but the
-garment's panels (quads curved as modelled, which keep their springs): two triangles turned more than
-``_FLAT`` at rest keep their spring. A hinge across a side of a cell mixes the row's bend with the twist
-between the cell's two rows, which the diagonal's hinge takes the other way: a strip of triangles that
-twists a little bends for less, and Peirce's cantilever of triangles sags 6 to 16% further than the
-elastica, the more the finer (the bend springs: 23 to 49%; the rows' stencils on quads: within 0.3%), so
-the rows keep their stencils wherever quads give them.
+Between two triangles flat at rest (a mesh of triangles, the drape specimen's rim) no row need run: the bend
+spring joining their far corners goes, and each particle of such triangles that no row runs through along the
+warp (or the weft) is bent along it by its fit (bend_fits.py): the weights that read the curvature along u
+from the quadratic fitting the particle and its neighbours at rest, exact for every quadratic on any mesh (on
+a free border, taking the curvature across it as zero), stand in a stencil as a row's do, k = B_u A (B_v A
+along v), A the particle's area. Bent round a cylinder, a grid of right triangles stores the plate's energy
+but half a cell at the two ends along the bend, converging as the cell squared (0.9934, 0.9983, 0.9996 at 1,
+0.5, 0.25 cm), its points moved by up to a fifth of a cell 0.987 to 0.991; a twist costs nothing and lets no
+bend off, and Peirce's cantilever of triangles sags as the elastica within 0.4%, 0.08%, 0.02% at 10, 20, 40
+cells, as the rows' do (tests/test_bending_fits.py). Bergou's hinges, which bent these triangles before, read
+across a side of a cell the bend plus the twist between the cell's rows, so a strip that twisted a little bent
+for 0.75 to 0.79 of B and sagged 6 to 16% too far, the further the finer. The model takes the rest state flat,
+as every cloth here is but the garment's panels (quads curved as modelled, which keep their springs): two
+triangles turned more than 1e-4 rad at rest keep their bend spring, and a particle whose fit reads a curvature
+at rest (its neighbours not flat) has no fit.
 
 Where a bend spring has neither (across an edge beside a quad with no straight row under it, or between
 faces curved as modelled, for which fixed weights would not be at rest), it stays a spring: it spans two
-edges of length L/2 across a hinge; bent to a curvature kappa along it, an unstretched row shortens it by
+edges of length L/2 across an edge; bent to a curvature kappa along it, an unstretched row shortens it by
 the strain eps = L^2 kappa^2 / 32 (the chord of two edges turned kappa L/2 apart), so its energy 1/2 k L eps^2 per
 area A it stands for gives the moment M = k L^5 kappa^3 / (512 A). Springs that only push back when
 shortened cannot give M = B kappa at every curvature; k makes the slope of M over 0.5 to 1.5 1/cm, the range
@@ -73,7 +71,7 @@ in which the Kawabata tester (KES-FB2) measures B, equal B: k = 512 B A / (L^5 S
 of that range's ends. Then M = B kappa^3 / S whatever the resolution: at a fold of 3 cm radius about 1/29
 of B, at 1 cm about 1/3, so that gentle folds were left to the mesh (the drape coefficient moved by 2 to 8
 points from 30 to 60 cells, docs/guide/scene-reference.md). A spring stands for the mean of its ends'
-areas (on a grid of triangles, now bent by hinges, whose bend springs ran three ways, the three together
+areas (on a grid of triangles, now bent by the fits, whose bend springs ran three ways, the three together
 bent an eighth stiffer than B).
 
 Damping. Each spring's dashpot is ``damping`` seconds of its elastic response: b = damping x k / L
@@ -95,8 +93,8 @@ import numpy as np
 
 from .checks import check_fields
 from .adjacency import Adjacency
-from .cloth_mesh import (BEND, SHEAR, STRUCTURAL, BendStencils, ClothMesh, DerivedSprings, lumped_masses,
-                         shared_edges)
+from .bend_fits import fitted_stencils, flat_triangle_bends
+from .cloth_mesh import BEND, SHEAR, STENCIL_WIDTH, STRUCTURAL, BendStencils, ClothMesh, DerivedSprings, lumped_masses
 from .errors import SceneError
 from .fabric_presets import PRESETS
 from .mesh_io import face_areas, face_edges, face_starts, pair_keys
@@ -107,9 +105,6 @@ PerDirection = float | tuple[float, float]
 KES_CURVATURES = (50.0, 150.0)
 # What the bend springs' moment's slope over that range is made equal to B by: k1^2 + k1 k2 + k2^2.
 _KES_SLOPE = KES_CURVATURES[0] ** 2 + KES_CURVATURES[0] * KES_CURVATURES[1] + KES_CURVATURES[1] ** 2
-# The most a hinge's two triangles may be turned at rest (radians) for it to bend them (Bergou's model takes the
-# rest state flat); two more turned stay joined by their bend spring.
-_FLAT = 1e-4
 # Bounds within which every derived spring constant and its ratio to a particle's mass is finite in float32.
 _RANGES = {"density": (1e-6, 1e3, "kg/m^2"), "stretch": (1e-3, 1e8, "N/m"), "shear": (1e-3, 1e8, "N/m"),
            "bending": (1e-12, 10.0, "N m"), "damping": (0.0, 1.0, "s"), "friction": (0.0, 10.0, "")}
@@ -210,14 +205,17 @@ def derive_springs(material: Material, rest_points: np.ndarray, mesh: ClothMesh)
     bending = warp[bends] * bend_u + (1 - warp[bends]) * bend_v
     stiffness[bends] = 512.0 * bending * _bend_areas(rest_points, counts, indices, pairs[bends]) / (
         rests[bends] ** 5 * _KES_SLOPE)
-    hinges, hinged = _hinges(material, tensors, rest_points, counts, indices, pairs[bends])
-    middle = np.where(hinged, -1, _straight_middles(rest_points, pairs[sides], pairs[bends]))
+    fitted, in_triangles = flat_triangle_bends(rest_points, counts, indices, pairs[bends])
+    middle = np.where(fitted, -1, _straight_middles(rest_points, pairs[sides], pairs[bends]))
     straight = middle >= 0
     rows = _stencils(rest_points, counts, indices, pairs[bends][straight], middle[straight], bending[straight],
                      material.damping)
+    row_directions = (middle[straight], rest_points[pairs[bends][straight, 1]] - rest_points[pairs[bends][straight, 0]])
+    fits = fitted_stencils(rest_points, counts, indices, pairs[sides], tensors, in_triangles, row_directions,
+                           along(material.bending), material.damping)
     stenciled = np.zeros(len(pairs), dtype=bool)
-    stenciled[np.nonzero(bends)[0][straight | hinged]] = True
-    parts = [part for part in (rows, hinges) if len(part.stiffness)]
+    stenciled[np.nonzero(bends)[0][straight | fitted]] = True
+    parts = [part for part in (rows, fits) if len(part.stiffness)]
 
     stretch_limit = compression_limit = None
     if material.stretch_limit is not None:
@@ -262,42 +260,9 @@ def _stencils(points, counts, indices, bends, middle, bending, damping: float) -
     l2 = np.linalg.norm(points[q] - points[middle], axis=1)
     weights = 2.0 * np.stack([1.0 / (l1 * (l1 + l2)), -1.0 / (l1 * l2), 1.0 / (l2 * (l1 + l2))], axis=1)
     stiffness = bending * lumped_masses(points, counts, indices, 1.0)[middle]
-    return BendStencils(np.stack([p, middle, q, middle], axis=1), np.pad(weights, ((0, 0), (0, 1))), stiffness,
-                        damping * stiffness)
-
-
-def _hinges(material: Material, tensors, points, counts, indices, bends) -> tuple[BendStencils, np.ndarray]:
-    """The hinges of the interior edges between two triangles flat at rest whose far corners ``bends`` joins
-    (see the module's docstring), and which of ``bends`` they replace."""
-    starts = face_starts(counts)[counts == 3]
-    corners = indices[starts[:, None] + np.arange(3)]
-    edge = np.concatenate([corners[:, [0, 1]], corners[:, [1, 2]], corners[:, [2, 0]]])
-    far = np.concatenate([corners[:, 2], corners[:, 0], corners[:, 1]])
-    n = len(points)
-    first, second, only_two = shared_edges(edge, n)
-    first, second = first[only_two], second[only_two]
-    particles = np.stack([edge[first, 0], edge[first, 1], far[first], far[second]], axis=1)
-    x0, x1, x2, x3 = (points[particles[:, r]] for r in range(4))
-    at_0_in_0, at_1_in_0 = _cotangent(x1 - x0, x2 - x0), _cotangent(x0 - x1, x2 - x1)
-    at_0_in_1, at_1_in_1 = _cotangent(x1 - x0, x3 - x0), _cotangent(x0 - x1, x3 - x1)
-    cotangents = np.stack([at_1_in_0 + at_1_in_1, at_0_in_0 + at_0_in_1, -(at_0_in_0 + at_1_in_0),
-                           -(at_0_in_1 + at_1_in_1)], axis=1)
-    area = 0.5 * (np.linalg.norm(np.cross(x1 - x0, x2 - x0), axis=1)
-                  + np.linalg.norm(np.cross(x1 - x0, x3 - x0), axis=1))
-    turned = np.linalg.norm(np.einsum("sr,srk->sk", cotangents, points[particles]), axis=1)
-    flat = turned < _FLAT * np.linalg.norm(x1 - x0, axis=1)  # |K x| = |e| theta
-    replaced = np.isin(pair_keys(bends, n), pair_keys(particles[:, 2:], n)[flat])
-    keep = flat & np.isin(pair_keys(particles[:, 2:], n), pair_keys(bends, n))
-    particles, cotangents, area = particles[keep], cotangents[keep], area[keep]
-    across = 1.0 - np.nan_to_num(_warp_share(tensors, points, particles[:, :2]), nan=0.5)  # cos^2, the bend's direction
-    bend_u, bend_v = along(material.bending)
-    stiffness = (across * bend_u + (1.0 - across) * bend_v) * area
-    return BendStencils(particles, cotangents / area[:, None], stiffness, material.damping * stiffness), replaced
-
-
-def _cotangent(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """The cotangent of the angle between each row of ``a`` and of ``b``."""
-    return np.einsum("si,si->s", a, b) / np.linalg.norm(np.cross(a, b), axis=1)
+    width = STENCIL_WIDTH - 3
+    return BendStencils(np.concatenate([np.stack([p, middle, q], axis=1), np.repeat(middle[:, None], width, axis=1)],
+                                       axis=1), np.pad(weights, ((0, 0), (0, width))), stiffness, damping * stiffness)
 
 
 def _side_stiffness(material: Material, tensors, points, counts, indices, wanted) -> np.ndarray:

@@ -1,0 +1,109 @@
+"""The fitted stencils (bend_fits.py, kernels/bending.py) on meshes of triangles: the plate's bending energy on
+a cylinder, none for a twist, no force in any flat placement of the rest state, and Peirce's cantilever
+against the heavy elastica, converging as the rows' stencils on quads do."""
+
+import numpy as np
+import pytest
+
+from test_materials import _scene, _tip_sag, elastica_tip_sag, write_grid_obj
+from warp_cloth.fabric_presets import PRESETS
+from warp_cloth.model import build_model
+
+
+def _curvatures(bending, x: np.ndarray) -> np.ndarray:
+    return np.einsum("sr,srk->sk", bending.weights, x[bending.particles])
+
+
+def _energy(bending, x: np.ndarray) -> float:
+    curvature = _curvatures(bending, x)
+    return float(np.sum(0.5 * bending.stiffness * np.einsum("sk,sk->s", curvature, curvature)))
+
+
+@pytest.mark.parametrize("cells", [10, 20, 40])
+@pytest.mark.parametrize("axis", [0, 1])
+def test_a_mesh_of_triangles_bent_round_a_cylinder_stores_the_plates_bending_energy(tmp_path, axis, cells):
+    """A panel of denim (B differs along warp and weft), 20 x 10 cm in right triangles (each cell of a grid
+    split along one diagonal), wrapped round a cylinder of radius 10 cm along one direction: its fits'
+    energy is the plate's 1/2 B kappa^2 over its area but half a cell at the two ends along the bend (free
+    borders, across which the fits take the curvature as zero, as no row's stencil ends there), within an
+    error that falls as the square of the cell. No bend spring is left."""
+    size, radius = (0.2, 0.1), 0.1
+    along_cells = cells * (1 + (axis == 0)) // 2
+    mesh = write_grid_obj(tmp_path / "panel.obj", cells, cells // 2, *size, triangles=True)
+    model = build_model(_scene(mesh=str(mesh), material="denim"))
+    assert not (model.springs.kind == 2).any()
+    flat = model.positions.astype(float)
+    along = flat[:, axis] - flat[:, axis].min()
+    bent = flat.copy()
+    bent[:, axis] = radius * np.sin(along / radius)
+    bent[:, 2] = flat[:, 2] + radius * (1.0 - np.cos(along / radius))
+    bent_length = size[axis] * (along_cells - 1) / along_cells
+    expected = 0.5 * PRESETS["denim"].bending[axis] / radius ** 2 * bent_length * size[1 - axis]
+    assert _energy(model.bending, bent) == pytest.approx(expected, rel=0.007 * (10 / cells) ** 2)
+
+
+@pytest.mark.parametrize("uvs", [True, False], ids=["uvs", "no uvs"])
+def test_no_fit_pulls_on_a_flat_placement_of_its_rest_state(tmp_path, uvs):
+    """The fits take the rest state flat: turned, mirrored and moved anywhere, a flat mesh keeps every
+    fit's curvature vector at zero (so its force, -k w d, too), against 1/(10 cm) bent round a cylinder;
+    with UVs or without (u then along each particle's first side)."""
+    mesh = write_grid_obj(tmp_path / "panel.obj", 12, 9, 0.12, 0.09, triangles=True, uvs=uvs)
+    model = build_model(_scene(mesh=str(mesh), material="cotton"))
+    flat = model.cloths[0].positions  # as the fits were derived from, in float64
+    rng = np.random.default_rng(3)
+    turn, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    bent = flat.copy()
+    bent[:, 0], bent[:, 2] = 0.1 * np.sin(flat[:, 0] / 0.1), 0.1 * (1.0 - np.cos(flat[:, 0] / 0.1))
+    scale = np.abs(_curvatures(model.bending, bent)).max()
+    assert len(model.bending.stiffness) > 150  # both directions at most of the 130 particles
+    for mirror in (1.0, -1.0):
+        placed = (flat * [mirror, 1.0, 1.0]) @ turn.T + rng.normal(size=3)
+        assert np.abs(_curvatures(model.bending, placed)).max() < 1e-9 * scale
+
+
+def test_a_twist_costs_nothing_and_lets_no_bend_off(tmp_path):
+    """Heights 1/2 (a x^2 + 2 b x y + c y^2) on a panel of denim in right triangles: the stencils' energy
+    is the bend a's plus the bend c's, whatever the twist b, which alone costs nothing (it was the hinges' flaw: a
+    hinge across a side of a cell read a + b, so that a cantilever twisting a little bent for 0.75 to 0.79 of
+    B; docs/notebook/accuracy.md)."""
+    mesh = write_grid_obj(tmp_path / "panel.obj", 12, 12, 0.06, 0.06, triangles=True)
+    model = build_model(_scene(mesh=str(mesh), material="denim"))
+    flat = model.cloths[0].positions  # as the stencils were derived from, in float64
+    x, y = flat[:, 0] - 0.03, flat[:, 1] - 0.03
+
+    def energy(a, b, c):
+        bent = flat.copy()
+        bent[:, 2] = 0.5 * (a * x * x + 2 * b * x * y + c * y * y)  # the stencils are linear: any size will do
+        return _energy(model.bending, bent)
+
+    bend = energy(1.0, 0.0, 0.0)
+    assert energy(0.0, 1.0, 0.0) < 1e-9 * bend
+    assert energy(1.0, 1.0, 0.0) == pytest.approx(bend, rel=1e-9)
+    assert energy(1.0, 0.5, 1.0) == pytest.approx(bend + energy(0.0, 0.0, 1.0), rel=1e-9)
+
+
+@pytest.mark.parametrize("preset, length", [("cotton", 0.075), ("denim", 0.05)])
+def test_a_clamped_strip_of_triangles_sags_as_the_elastica(tmp_path, preset, length):
+    """Peirce's cantilever of test_materials on the same grid split into right triangles, at 10, 20 and 40
+    cells along it (1, 2 and 4 across): it sags as the heavy elastica, -0.37, -0.08, -0.02% (cotton) and -0.39,
+    -0.08, -0.01% (denim), as the rows' stencils on the quads do (-0.31 to -0.01%), the finer the closer. The
+    hinges it replaced sagged +6.0 to +8.9% and +11.4 to +16.3% further, the finer the further (commit
+    819e2e3); the bend springs before them +31 to +49%."""
+    data = PRESETS[preset]
+    free = 0.8 * length
+    c = (data.bending[0] / (data.density * 9.81)) ** (1.0 / 3.0)
+    errors = []
+    for cells in (10, 20, 40):
+        expected = elastica_tip_sag(c, free + 0.5 * length / cells)
+        mesh = write_grid_obj(tmp_path / f"strip{cells}.obj", cells, cells // 10, length, 0.01, triangles=True)
+        errors.append(_tip_sag(preset, length, (cells, cells // 10), mesh) / expected - 1.0)
+    assert abs(errors[0]) < 0.005 and abs(errors[1]) < 0.3 * abs(errors[0]) and abs(errors[2]) < 0.3 * abs(errors[1])
+    assert errors == pytest.approx({"cotton": [-0.00372, -0.00083, -0.00019],
+                                    "denim": [-0.00387, -0.00079, -0.00008]}[preset], abs=5e-5)
+
+
+def test_the_kernels_gather_as_wide_stencils_as_the_host_makes():
+    from warp_cloth.cloth_mesh import STENCIL_WIDTH
+    from warp_cloth.kernels.bending import STENCIL_WIDTH as KERNELS_WIDTH
+
+    assert int(KERNELS_WIDTH) == STENCIL_WIDTH
