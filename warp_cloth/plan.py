@@ -214,8 +214,8 @@ def line_projection(model: DeviceModel, state: DeviceState, solve: LimitSolveSet
     ends every solve of a cloth at rest: rounds alone, exact along their lines, kept the hanging cloth swinging
     at 0.1 m/s after 480 frames, where the pair first lets it settle as Jacobi passes alone do. The pair in each
     round handles what couples the families where they meet, one Jacobi pass moving a particle by all its
-    springs at once: on an H200 the 1024^2 sphere cloth took 6.6 rounds a substep instead of 11.8 and 193 ms a
-    frame instead of 311; Chebyshev's estimated radius over the rounds took 14.4 rounds and 385 ms
+    springs at once: on an H200 the 1024^2 sphere cloth's swing (24 frames) took 6.6 rounds a substep, not
+    11.8, and 193 ms a frame, not 311; Chebyshev's estimated radius over the rounds took 14.4 rounds and 385 ms
     (docs/notebook/strain-solve.md, "A Jacobi pair before the lines", "A Jacobi pair in every round")."""
     pair = [limit_pass(model, threads, rigid, None, 1)] * 2
     plain = solve if solve.chebyshev_rho is not None else replace(solve, chebyshev_rho=0.0)
