@@ -18,9 +18,10 @@ import warp as wp
 from warp_cloth.kernels import converged_projection, solve_loop
 from warp_cloth.kernels.colliders import RigidColliders
 from warp_cloth.kernels.edge_collision import EdgeContacts
-from warp_cloth.kernels.face_collision import FaceContacts
+from warp_cloth.kernels.face_collision import FaceContacts as FaceContactsArgs
 
 from .device_model import DeviceModel
+from .face_contacts import FaceContacts
 from .passes import Pass, attachments_of, contacts_args, edge_contacts_args
 from .scene import Simulation
 from .state import DeviceState
@@ -107,7 +108,7 @@ class LimitSolveSettings:
 def residual_args(model: DeviceModel, state: DeviceState, settings: LimitSolveSettings, colliders: RigidColliders,
                   contacts: bool = True, faces: FaceContacts | None = None) -> converged_projection.ResidualArgs:
     """What the solve's check reads: the limits and attachments, and where ``contacts`` the particle
-    contacts, with their tolerances; where ``faces`` (the face contacts' arrays) also their pairs and
+    contacts, with their tolerances; where ``faces`` (a surface thickness's face contacts) also their pairs and
     the edge contacts' (where the scene has them), to the contacts' tolerance of the thickness both hold."""
     args = converged_projection.ResidualArgs()
     args.check_limits = int(model.limits is not None)
@@ -121,7 +122,7 @@ def residual_args(model: DeviceModel, state: DeviceState, settings: LimitSolveSe
     args.check_edges = int(surfaces and state.edges is not None)
     args.edges = edge_contacts_args(model, state) if args.check_edges else EdgeContacts()  # unread where 0
     args.check_faces = int(surfaces)
-    args.faces = faces if surfaces else FaceContacts()
+    args.faces = faces.args if surfaces else FaceContactsArgs()
     args.inv_mass = model.inv_mass
     args.colliders = colliders
     return args
@@ -132,7 +133,7 @@ class ConvergedProjection:
     it finds every limit and contact within tolerance, or ``settings.max_passes`` passes have run. Where
     ``later_body`` is given, a solve that has run ``switch_at`` counted passes runs that body instead for the
     rest of it. Without ``contacts`` it checks the limits alone (for a body that does not separate); with
-    ``faces`` (the face contacts' arrays) the edge and face pairs too (``residual_args``).
+    ``faces`` (a surface thickness's face contacts) the edge and face pairs too (``residual_args``).
 
     Each iteration is accelerated by Chebyshev's method (``kernels/solve_loop.py``) with a spectral radius
     the solver adjusts from solve to solve (lowered where the residual grows, raised where an accelerated

@@ -581,6 +581,13 @@ def needs_adjacent_exclusion(cloth: Cloth, positions: np.ndarray, pairs: np.ndar
     return bool(np.any((1.0 - cloth.strain_limit.compression) * rest <= contact))
 
 
+def triangle_edges_at_limit(cloth: Cloth, mesh: ClothMesh) -> tuple[np.ndarray, np.ndarray]:
+    """(k, 2) the cloth's triangle edges and their lengths at the stretch limit."""
+    pairs = triangle_sides(mesh.triangles, len(mesh.positions))
+    a, b = pairs[:, 0], pairs[:, 1]
+    return pairs, (1.0 + cloth.strain_limit.stretch) * np.linalg.norm(mesh.positions[a] - mesh.positions[b], axis=1)
+
+
 def long_triangle_edges(cloth: Cloth, mesh: ClothMesh, radii: np.ndarray,
                         separation: float) -> tuple[np.ndarray, np.ndarray]:
     """(k, 2) the cloth's triangle edges that particle contacts cannot keep from passing through one another,
@@ -588,10 +595,8 @@ def long_triangle_edges(cloth: Cloth, mesh: ClothMesh, radii: np.ndarray,
     such crossing at their middles keep every end that far from the other's (on a grid with the seed's
     radii, the diagonals). A shorter edge crossing a long one is not guarded (on the grid, a structural
     edge crossing a diagonal at both middles keeps their ends 0.87 cells apart)."""
-    pairs = triangle_sides(mesh.triangles, len(mesh.positions))
-    a, b = pairs[:, 0], pairs[:, 1]
-    length = (1.0 + cloth.strain_limit.stretch) * np.linalg.norm(mesh.positions[a] - mesh.positions[b], axis=1)
-    long = length > np.sqrt(2.0) * separation * 0.5 * (radii[a] + radii[b])
+    pairs, length = triangle_edges_at_limit(cloth, mesh)
+    long = length > np.sqrt(2.0) * separation * 0.5 * (radii[pairs[:, 0]] + radii[pairs[:, 1]])
     return pairs[long], length[long]
 
 
@@ -601,9 +606,9 @@ EDGE_OVERSHOOT = 1.1  # the hash's least cells allow edges this much past their 
 def _contact_edges(scene: Scene, meshes, radii, offsets: np.ndarray) -> ContactEdges | None:
     """The edges that edge contacts hold apart: the long ones (``long_triangle_edges``), or with a surface
     thickness every triangle edge (surfaces held apart, not points)."""
-    every = scene.collision.thickness is not None
-    found = [long_triangle_edges(c, m, np.zeros_like(r) if every else r, scene.collision.separation)
-             for c, m, r in zip(scene.cloths, meshes, radii)]
+    collision = scene.collision
+    found = [triangle_edges_at_limit(c, m) if collision.thickness is not None else
+             long_triangle_edges(c, m, r, collision.separation) for c, m, r in zip(scene.cloths, meshes, radii)]
     ends = np.concatenate([pairs + o for (pairs, _), o in zip(found, offsets)]).astype(np.int32)
     if len(ends) == 0:
         return None

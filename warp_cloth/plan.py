@@ -187,17 +187,16 @@ def converged_projection(model: DeviceModel, state: DeviceState, solve: LimitSol
                          rigid: RigidColliders | None, edge_passes: list[Pass],
                          faces: FaceContacts | None = None) -> ConvergedProjection:
     """The converged solve of particle collision (with the strain limits where the scene has them: projected
-    jointly for ``solve.joint_passes`` passes, then sequentially; see limit_solve.JOINT_PASSES); with the
-    lab's ``faces``, its check reads the edge and face pairs too."""
-    checked = faces.args if faces is not None else None
+    jointly for ``solve.joint_passes`` passes, then sequentially; see limit_solve.JOINT_PASSES); with
+    ``faces`` (a surface thickness's), its check reads the edge and face pairs too."""
     joint_first = model.limits is None or solve.joint_passes > 0
     first = projection_pair(model, state, threads, rigid, edge_passes, "joint" if joint_first else "sequential")
     counted = lambda body: sum(p not in edge_passes for p in body)  # noqa: E731
     if model.limits is None or not joint_first:
-        return ConvergedProjection(model, state, solve, first, rigid, counted=counted(first), faces=checked)
+        return ConvergedProjection(model, state, solve, first, rigid, counted=counted(first), faces=faces)
     later = projection_pair(model, state, threads, rigid, edge_passes, "sequential")
     return ConvergedProjection(model, state, solve, first, rigid, counted=counted(first), later_body=later,
-                               later_counted=counted(later), switch_at=solve.joint_passes, faces=checked)
+                               later_counted=counted(later), switch_at=solve.joint_passes, faces=faces)
 
 
 def line_round(model: DeviceModel, lines: LineSolves, rigid: RigidColliders | None) -> list[Pass]:
@@ -229,14 +228,13 @@ def line_contact_projection(model: DeviceModel, state: DeviceState, solve: Limit
     """The converged solve of particle collision with the strain limits by rounds of line solves (the lab's,
     ``solve.line_solve``): a round, counted as one pass toward the cap, is a line round and then the two
     separating passes of the contacts' own converged solve (``edge_passes`` before each), reading the resting
-    marks' first bit, then the other, as ``projection_pair`` does; with the lab's ``faces``, the check reads
-    the edge and face pairs too. (Two line rounds an iteration, each
+    marks' first bit, then the other, as ``projection_pair`` does; with ``faces`` (a surface thickness's), the
+    check reads the edge and face pairs too. (Two line rounds an iteration, each
     followed by one separating pass, held the speed matrix's self cloth as well at 2.0 rounds a substep
     against 1.0-1.1 and took 14% longer at 64^2 on the CPU.)"""
     body = line_round(model, lines, rigid) + [
         p for bit in (1, 2) for p in edge_passes + [separation_pass(model, state, threads, rigid, bit)]]
-    return ConvergedProjection(model, state, solve, body, rigid, counted=1,
-                               faces=faces.args if faces is not None else None)
+    return ConvergedProjection(model, state, solve, body, rigid, counted=1, faces=faces)
 
 
 def projection_pair(model: DeviceModel, state: DeviceState, threads: int, rigid: RigidColliders | None,
