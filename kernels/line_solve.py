@@ -227,6 +227,12 @@ def finish_segments(lines: ClothLines, segments: LineSegments, inv_mass: wp.arra
 
 
 @wp.kernel
+def turn_order(reversed: wp.array(dtype=int)):
+    """The next round of line solves takes the families in the other order."""
+    reversed[0] = 1 - reversed[0]
+
+
+@wp.kernel
 def hold_and_collide(attachments: Attachments, colliders: RigidColliders, inv_mass: wp.array(dtype=float), h: float,
                      x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3)):
     """The end of a round of line solves, as of a limit pass: free particle i held to its pin, then put out

@@ -14,7 +14,7 @@ import warp as wp
 
 from warp_cloth.kernels.colliders import RigidColliders
 from warp_cloth.kernels.line_solve import (ClothLines, LineSegments, eliminate_segments, finish_segments,
-                                           hold_and_collide, solve_separators)
+                                           hold_and_collide, solve_separators, turn_order)
 
 from .cloth_lines import Family
 from .device_model import DeviceModel
@@ -156,7 +156,10 @@ class LineSolves:
     """The families' line solves, one family after another, moving the positions in place: springs within
     ``hold_margin`` of a limit held, ``newton_steps`` linearised steps a line (kernels/line_solve.py), each
     line cut into segments of ``segment`` springs (one, where it is at least the longest line), a thread a
-    segment, every per-slot array stored ``interleaved`` or contiguous (slot_layout)."""
+    segment, every per-slot array stored ``interleaved`` or contiguous (slot_layout). Rounds take the families
+    forwards and backwards in turn: in one order, a family's corrections where it meets the last family are undone
+    by the first family of the next round, round after round, and the 1024^2 sphere cloth's solves reached
+    their cap (docs/notebook/strain-solve.md, "Families forwards and backwards")."""
 
     def __init__(self, model: DeviceModel, lines: list[Family], hold_margin: float, newton_steps: int,
                  segment: int, interleaved: bool) -> None:
@@ -164,9 +167,10 @@ class LineSolves:
             raise ValueError(f"line segments of {segment} springs: at least 2")
         self.model = model
         self.name = (f"line solves ({len(lines)} families, each {newton_steps} times: eliminate_segments, "
-                     "solve_separators, finish_segments)")
+                     "solve_separators, finish_segments; forwards and backwards in turn: turn_order)")
         self.hold_margin, self.newton_steps = hold_margin, newton_steps
         self.segment, self.interleaved = segment, interleaved
+        self.reversed = wp.zeros(1, dtype=int, device=model.device)  # 1: the next round takes the families backwards
         self.families = []
         for family in lines:
             uploaded, segments = upload_family(family, segment, interleaved, model.device)
@@ -185,8 +189,13 @@ class LineSolves:
         return cls(model, lines, solve.line_hold_margin, solve.line_newton_steps, segment, interleaved)
 
     def run(self, state: DeviceState) -> None:
+        wp.capture_if(self.reversed, on_true=lambda: self._solve(self.families[::-1], state),
+                      on_false=lambda: self._solve(self.families, state))
+        wp.launch(turn_order, dim=1, outputs=[self.reversed], device=state.device)
+
+    def _solve(self, families: list[FamilySolve], state: DeviceState) -> None:
         inv_mass, device = self.model.inv_mass, state.device
-        for family in self.families:
+        for family in families:
             for _ in range(self.newton_steps):
                 wp.launch(eliminate_segments, dim=family.segment_count,
                           inputs=[family.lines, family.segments, inv_mass, self.hold_margin, state.x], device=device)
