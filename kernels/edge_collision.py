@@ -31,15 +31,18 @@ class EdgeContacts:
 
 @wp.struct
 class EdgeRules:
-    """Which edges may touch: as particles' (particle_collision.may_collide), but any two edges that share
-    no particle, however close they lie in the cloth at rest, nor a pair of particles a seam keeps from
-    colliding."""
+    """Which edges (and, face_collision.may_touch, which vertex-triangle pairs) may touch: as particles'
+    (particle_collision.may_collide), but no two that share a particle nor a pair of particles a seam keeps
+    from colliding, and, with a surface thickness, no two of one cloth nearer at rest than its ``rest_apart``
+    (warp_cloth/surface_pairs.py says why)."""
     world: wp.array(dtype=int)  # (n,) each particle's
     cloth_id: wp.array(dtype=int)
     self_collision: int
     between_cloths: int
     sewn_offsets: wp.array(dtype=int)  # as particle_collision.PairRules': empty where no pair is sewn
     sewn_other: wp.array(dtype=int)
+    rest: wp.array(dtype=wp.vec3)  # (n,) where each particle lies at rest, or empty: no pair left out by it
+    rest_apart: wp.array(dtype=float)  # (cloths,) a pair of one cloth nearer than this at rest is none
 
 
 @wp.func
@@ -107,7 +110,14 @@ def may_touch(rules: EdgeRules, a: wp.vec2i, b: wp.vec2i) -> bool:
         return False
     if rules.cloth_id[i] != rules.cloth_id[j]:
         return rules.between_cloths != 0
-    return rules.self_collision != 0
+    if rules.self_collision == 0:
+        return False
+    if rules.rest.shape[0] > 0:
+        rest = rules.rest
+        st = closest_points(rest[a[0]], rest[a[1]], rest[b[0]], rest[b[1]])
+        apart = wp.length(wp.lerp(rest[a[0]], rest[a[1]], st[0]) - wp.lerp(rest[b[0]], rest[b[1]], st[1]))
+        return apart >= rules.rest_apart[rules.cloth_id[i]]
+    return True
 
 
 @wp.func

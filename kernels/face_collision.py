@@ -37,24 +37,6 @@ class FaceContacts:
 
 
 @wp.func
-def may_touch(rules: EdgeRules, v: int, t: wp.vec3i) -> bool:
-    """Whether vertex v and triangle t may touch: as edge_collision's pairs, v not one of t's vertices nor
-    sewn to one."""
-    if v == t[0] or v == t[1] or v == t[2]:
-        return False
-    if rules.sewn_offsets.shape[0] > 0:
-        for k in range(rules.sewn_offsets[v], rules.sewn_offsets[v + 1]):
-            other = rules.sewn_other[k]
-            if other == t[0] or other == t[1] or other == t[2]:
-                return False
-    if rules.world[v] != rules.world[t[0]]:
-        return False
-    if rules.cloth_id[v] != rules.cloth_id[t[0]]:
-        return rules.between_cloths != 0
-    return rules.self_collision != 0
-
-
-@wp.func
 def closest_weights(p: wp.vec3, a: wp.vec3, b: wp.vec3, c: wp.vec3) -> wp.vec3:
     """The barycentric weights of the point of triangle a, b, c closest to p (Ericson, Real-Time Collision
     Detection, 5.1.5); all three above zero where p projects inside the triangle."""
@@ -93,6 +75,34 @@ def closest_weights(p: wp.vec3, a: wp.vec3, b: wp.vec3, c: wp.vec3) -> wp.vec3:
     s = vb / total
     u = vc / total
     return wp.vec3(1.0 - s - u, s, u)
+
+
+@wp.func
+def may_touch(rules: EdgeRules, v: int, t: wp.vec3i) -> bool:
+    """Whether vertex v and triangle t may touch: as edge_collision's pairs, v not one of t's vertices nor
+    sewn to one, nor (with a rest rule) of t's cloth and nearer it at rest than the cloth's ``rest_apart``."""
+    if v == t[0] or v == t[1] or v == t[2]:
+        return False
+    if rules.sewn_offsets.shape[0] > 0:
+        for k in range(rules.sewn_offsets[v], rules.sewn_offsets[v + 1]):
+            other = rules.sewn_other[k]
+            if other == t[0] or other == t[1] or other == t[2]:
+                return False
+    if rules.world[v] != rules.world[t[0]]:
+        return False
+    if rules.cloth_id[v] != rules.cloth_id[t[0]]:
+        return rules.between_cloths != 0
+    if rules.self_collision == 0:
+        return False
+    if rules.rest.shape[0] > 0:
+        rest = rules.rest
+        a = rest[t[0]]
+        b = rest[t[1]]
+        c = rest[t[2]]
+        weights = closest_weights(rest[v], a, b, c)
+        apart = wp.length(rest[v] - (weights[0] * a + weights[1] * b + weights[2] * c))
+        return apart >= rules.rest_apart[rules.cloth_id[v]]
+    return True
 
 
 @wp.func

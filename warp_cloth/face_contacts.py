@@ -17,7 +17,6 @@ import warp as wp
 
 from warp_cloth.kernels import edge_collision, face_collision, spatial_hash
 from warp_cloth.kernels.colliders import RigidColliders
-from warp_cloth.kernels.edge_collision import EdgeRules
 from warp_cloth.kernels.face_collision import FaceContacts as FaceContactsArgs
 from warp_cloth.kernels.face_separation import FaceSeparationPassArgs, face_separation_pass_kernel
 from warp_cloth.kernels.neighbour_search import gather_face_vertices, gather_vertex_faces
@@ -59,11 +58,7 @@ class FaceContacts:
         self.reach = self.thickness + 2.0 * rebuild_distance(device_model)
         rest = model.positions[triangles]
         self.longest = float(np.linalg.norm(rest - np.roll(rest, 1, axis=1), axis=2).max(initial=0.0))
-        rules = self.rules = EdgeRules()
-        particle_rules = contacts.rules
-        rules.world, rules.cloth_id = particle_rules.world, particle_rules.cloth_id
-        rules.self_collision, rules.between_cloths = particle_rules.self_collision, particle_rules.between_cloths
-        rules.sewn_offsets, rules.sewn_other = particle_rules.sewn_offsets, particle_rules.sewn_other
+        self.rules = contacts.surface_rules
         args = self.args = FaceContactsArgs()
         args.triangles = wp.array(triangles, dtype=wp.vec3i, device=device)
         offsets, incident = incidence(triangles, n)
