@@ -19,7 +19,7 @@ wp.set_module_options(FAST_MATH)
 class SurfaceFrictionArgs:
     faces: FaceContacts
     edges: EdgeContacts
-    v_start: wp.array(dtype=wp.vec3)  # where the contacts started each particle's velocity this substep
+    v_start: wp.array(dtype=wp.vec3)  # each particle's velocity at the contacts' start this substep
     inv_mass: wp.array(dtype=float)
     friction: float  # the collision table's coefficient
     cloth_friction: wp.array(dtype=float)  # (n,) each particle's cloth's coefficient, or empty: none
