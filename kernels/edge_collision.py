@@ -31,15 +31,18 @@ class EdgeContacts:
 
 @wp.struct
 class EdgeRules:
-    """Which edges may touch: as particles' (particle_collision.may_collide), but any two edges that share
-    no particle, however close they lie in the cloth at rest, nor a pair of particles a seam keeps from
-    colliding."""
+    """Which edges (and, face_collision.may_touch, which vertex-triangle pairs) may touch: as particles'
+    (particle_collision.may_collide), but no two that share a particle nor a pair of particles a seam keeps
+    from colliding, and, with a surface thickness, no two of one cloth nearer at rest than its ``rest_apart``
+    (warp_cloth/surface_pairs.py says why)."""
     world: wp.array(dtype=int)  # (n,) each particle's
     cloth_id: wp.array(dtype=int)
     self_collision: int
     between_cloths: int
     sewn_offsets: wp.array(dtype=int)  # as particle_collision.PairRules': empty where no pair is sewn
     sewn_other: wp.array(dtype=int)
+    rest: wp.array(dtype=wp.vec3)  # (n,) where each particle lies at rest, or empty: no pair left out by it
+    rest_apart: wp.array(dtype=float)  # (cloths,) a pair of one cloth nearer than this at rest is none
 
 
 @wp.func
@@ -107,7 +110,14 @@ def may_touch(rules: EdgeRules, a: wp.vec2i, b: wp.vec2i) -> bool:
         return False
     if rules.cloth_id[i] != rules.cloth_id[j]:
         return rules.between_cloths != 0
-    return rules.self_collision != 0
+    if rules.self_collision == 0:
+        return False
+    if rules.rest.shape[0] > 0:
+        rest = rules.rest
+        st = closest_points(rest[a[0]], rest[a[1]], rest[b[0]], rest[b[1]])
+        apart = wp.length(wp.lerp(rest[a[0]], rest[a[1]], st[0]) - wp.lerp(rest[b[0]], rest[b[1]], st[1]))
+        return apart >= rules.rest_apart[rules.cloth_id[i]]
+    return True
 
 
 @wp.func
@@ -183,15 +193,15 @@ def edge_push(edges: EdgeContacts, i: int, e: int, f: int, x: wp.array(dtype=wp.
     The pair is worked out in one order, the lower-numbered edge first, whichever of its edges' particles
     asks: in float32 two edges' closest points seen from each side differ by rounding, and where the edges
     (nearly) meet, so would the directions each side pushes its edge."""
-    first = wp.min(e, f)
     second = wp.max(e, f)
-    ends_1 = edges.ends[first]
+    ends_1 = edges.ends[wp.min(e, f)]
     ends_2 = edges.ends[second]
     p1 = x[ends_1[0]]
     q1 = x[ends_1[1]]
     p2 = x[ends_2[0]]
     q2 = x[ends_2[1]]
-    st, d = pair_closest(edges, e, f, x)
+    st = closest_points(p1, q1, p2, q2)
+    d = wp.lerp(p1, q1, st[0]) - wp.lerp(p2, q2, st[1])
     gap = wp.length(d)
     if gap >= edges.thickness:
         return wp.vec3(0.0), 0
@@ -236,3 +246,57 @@ def deepest_edge_overlap(edges: EdgeContacts, i: int, x: wp.array(dtype=wp.vec3)
             unused_st, d = pair_closest(edges, e, edges.neighbors[e * edges.max_neighbors + c], x)
             worst = wp.max(worst, (edges.thickness - wp.length(d)) / edges.thickness)
     return worst
+
+
+@wp.func
+def sliding_taken(relative: wp.vec3, start_relative: wp.vec3, n: wp.vec3, coefficient: float) -> wp.vec3:
+    """The tangential relative velocity friction takes off a touching pair: in proportion to the normal speed
+    its contacts gave it since the contacts' start (relative now less ``start_relative``, along ``n``), as
+    particle_collision.inelastic_change and the colliders take it, at most all of it."""
+    vn = wp.dot(relative, n)
+    stopped = wp.max(0.0, vn - wp.dot(start_relative, n))
+    tangential = relative - vn * n
+    speed = wp.length(tangential)
+    if speed > 0.0:
+        return tangential * wp.min(1.0, coefficient * stopped / speed)
+    return wp.vec3(0.0)
+
+
+@wp.func
+def edge_friction(edges: EdgeContacts, i: int, e: int, f: int, x: wp.array(dtype=wp.vec3),
+                  v: wp.array(dtype=wp.vec3), v_start: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float),
+                  coefficient: float, slack: float):
+    """Particle i's velocity change (an end of edge e) from friction with edge f times its end's weight in
+    the pair, and that weight if the two touch (within ``slack`` thicknesses), else zero and 0 (summed and
+    divided as ``face_collision.face_friction``'s): the closest points' relative velocity loses
+    ``sliding_taken`` of it, each end taking its share over the pair's inverse mass (as
+    ``edge_push``, worked out lower-numbered edge first)."""
+    ends_1 = edges.ends[wp.min(e, f)]
+    ends_2 = edges.ends[wp.max(e, f)]
+    p1 = x[ends_1[0]]
+    q1 = x[ends_1[1]]
+    p2 = x[ends_2[0]]
+    q2 = x[ends_2[1]]
+    st = closest_points(p1, q1, p2, q2)
+    d = wp.lerp(p1, q1, st[0]) - wp.lerp(p2, q2, st[1])
+    gap = wp.length(d)
+    if gap >= slack * edges.thickness:
+        return wp.vec3(0.0), 0.0
+    w_1 = (1.0 - st[0]) * (1.0 - st[0]) * inv_mass[ends_1[0]] + st[0] * st[0] * inv_mass[ends_1[1]]
+    w_2 = (1.0 - st[1]) * (1.0 - st[1]) * inv_mass[ends_2[0]] + st[1] * st[1] * inv_mass[ends_2[1]]
+    if w_1 + w_2 == 0.0:
+        return wp.vec3(0.0), 0.0
+    n = apart_direction(d, gap, p1, q1, p2, q2, edges.thickness)
+    relative = wp.lerp(v[ends_1[0]], v[ends_1[1]], st[0]) - wp.lerp(v[ends_2[0]], v[ends_2[1]], st[1])
+    start = wp.lerp(v_start[ends_1[0]], v_start[ends_1[1]], st[0]) - \
+        wp.lerp(v_start[ends_2[0]], v_start[ends_2[1]], st[1])
+    along = st[0]
+    sign = float(1.0)
+    if e != wp.min(e, f):
+        along = st[1]
+        sign = -1.0
+    weight = 1.0 - along
+    if i == edges.ends[e][1]:
+        weight = along
+    return (-sign * inv_mass[i] * weight * weight / (w_1 + w_2)) * sliding_taken(relative, start, n, coefficient), \
+        weight

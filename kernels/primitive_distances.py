@@ -1,6 +1,6 @@
-"""The nearest distance of each vertex to the primitives that share no vertex with a primitive of its own, within
-a query radius r: each vertex against the triangles, each edge against the edges (Offset Geometric Contact's
-d_min, Chen et al. 2025). Each such pair closer than r lowers ``nearest`` (filled with r before) at every
+"""The nearest distance of each vertex to the primitives that share no vertex with a primitive of its own and that
+the surfaces' contact rule lets touch it (``Primitives.rules``), within a query radius r: each vertex against
+the triangles, each edge against the edges (Offset Geometric Contact's d_min, Chen et al. 2025). Each such pair closer than r lowers ``nearest`` (filled with r before) at every
 vertex of the pair, so that a vertex's entry is the least of its own distance to the triangles, that of each
 of its triangles to the vertices and that of each of its edges to the edges. kernels/displacement_bounds.py
 turns it into the vertex's bound; warp_cloth/displacement_bounds.py launches both.
@@ -17,20 +17,22 @@ numbered one's thread.
 
 import warp as wp
 
-from .edge_collision import closest_points
+from .edge_collision import EdgeRules, closest_points, may_touch
+from .face_collision import may_touch as may_touch_face
 from .spatial_hash import cell_of, count_in, neighbour_bucket, stamp_of
 
 
 @wp.struct
 class Primitives:
-    """A cloth mesh's triangles and edges, and each particle's world (pairs of different worlds are none)."""
+    """A cloth mesh's triangles and edges, and which of their pairs count (``rules``: the surfaces' contact
+    rule, warp_cloth/surface_pairs.py)."""
     triangles: wp.array(dtype=wp.vec3i)
     owned_offsets: wp.array(dtype=int)  # (n + 1,) particle i's triangles, those whose first vertex it is, are
     owned: wp.array(dtype=int)  # owned[owned_offsets[i]:owned_offsets[i + 1]]
     ends: wp.array(dtype=wp.vec2i)  # each edge's, once per edge
     edge_offsets: wp.array(dtype=int)  # (n + 1,) particle i's edges are edges_at[edge_offsets[i]:...[i + 1]]
     edges_at: wp.array(dtype=int)
-    world: wp.array(dtype=int)
+    rules: EdgeRules
 
 
 @wp.struct
@@ -110,7 +112,7 @@ def nearest_to_triangles(x: wp.array(dtype=wp.vec3), mesh: Primitives, grid: Dis
     ``nearest`` at its four vertices."""
     v = wp.tid()
     p = x[v]
-    world = mesh.world[v]
+    world = mesh.rules.world[v]
     reach = radius + longest[0]
     center = cell_of(p, grid.inv_cell[0])
     stamp = stamp_of(grid.epoch[0])
@@ -118,7 +120,7 @@ def nearest_to_triangles(x: wp.array(dtype=wp.vec3), mesh: Primitives, grid: Dis
         bucket = neighbour_bucket(center, world, k, grid.mask)
         for s in range(wp.min(count_in(grid.bucket_size[bucket], stamp), grid.capacity)):
             q = grid.bucket_items[bucket * grid.capacity + s]
-            if mesh.world[q] == world and wp.length_sq(x[q] - p) < reach * reach:
+            if mesh.rules.world[q] == world and wp.length_sq(x[q] - p) < reach * reach:
                 for o in range(mesh.owned_offsets[q], mesh.owned_offsets[q + 1]):
                     t = mesh.triangles[mesh.owned[o]]
                     if t[0] != v and t[1] != v and t[2] != v:
@@ -127,7 +129,7 @@ def nearest_to_triangles(x: wp.array(dtype=wp.vec3), mesh: Primitives, grid: Dis
                         c = x[t[2]]
                         if box_gap_sq(p, p, wp.min(wp.min(a, b), c), wp.max(wp.max(a, b), c)) < radius * radius:
                             d = point_triangle_distance(p, a, b, c)
-                            if d < radius:
+                            if d < radius and may_touch_face(mesh.rules, v, t):
                                 lower_nearest(nearest, v, d)
                                 lower_nearest(nearest, t[0], d)
                                 lower_nearest(nearest, t[1], d)
@@ -145,7 +147,7 @@ def nearest_between_edges(x: wp.array(dtype=wp.vec3), mesh: Primitives, grid: Di
     pa = x[a]
     pb = x[b]
     middle = 0.5 * (pa + pb)
-    world = mesh.world[a]
+    world = mesh.rules.world[a]
     reach = radius + 0.5 * (wp.length(pb - pa) + longest[0])
     center = cell_of(middle, grid.inv_cell[0])
     stamp = stamp_of(grid.epoch[0])
@@ -153,7 +155,7 @@ def nearest_between_edges(x: wp.array(dtype=wp.vec3), mesh: Primitives, grid: Di
         bucket = neighbour_bucket(center, world, k, grid.mask)
         for s in range(wp.min(count_in(grid.bucket_size[bucket], stamp), grid.capacity)):
             c = grid.bucket_items[bucket * grid.capacity + s]
-            if mesh.world[c] == world and wp.length_sq(x[c] - middle) < reach * reach:
+            if mesh.rules.world[c] == world and wp.length_sq(x[c] - middle) < reach * reach:
                 for o in range(mesh.edge_offsets[c], mesh.edge_offsets[c + 1]):
                     f = mesh.edges_at[o]
                     if f > e:
@@ -167,7 +169,7 @@ def nearest_between_edges(x: wp.array(dtype=wp.vec3), mesh: Primitives, grid: Di
                                 if box_gap_sq(wp.min(pa, pb), wp.max(pa, pb), wp.min(pg, ph),
                                               wp.max(pg, ph)) < radius * radius:
                                     d = segment_distance(pa, pb, pg, ph)
-                                    if d < radius:
+                                    if d < radius and may_touch(mesh.rules, mesh.ends[e], mesh.ends[f]):
                                         lower_nearest(nearest, a, d)
                                         lower_nearest(nearest, b, d)
                                         lower_nearest(nearest, g, d)

@@ -19,8 +19,8 @@ Per run, over every frame written (frame 0 included):
 - the converged limit solve's passes a substep (mean, most, the cap) and the frames whose solve ended at
   its cap outside its tolerance;
 - wall time of the frames (kernels loaded before the clock starts), substeps a frame;
-- the closest surfaces: the least distance of a vertex-triangle or edge-edge pair sharing no vertex, at most
-  the gap (kernels/primitive_distances.py), over every frame (of triangles that cross, no such pair need
+- the closest surfaces: the least distance of a vertex-triangle or edge-edge pair that is a contact (sharing
+  no vertex; warp_cloth/surface_pairs.py), at most the gap (kernels/primitive_distances.py), over every frame (of triangles that cross, no such pair need
   touch: an edge through a face's middle).
 A run the start check refuses, or that blows up, is reported as such: that is a result too.
 

@@ -21,7 +21,7 @@ from warp_cloth.kernels.bending import Bending
 from warp_cloth.kernels.springs import Springs
 from warp_cloth.kernels.wind import Wind
 
-from . import contact_thickness
+from . import contact_thickness, surface_pairs
 from .collider_kinds import KINDS, Meshes, upload
 from .model import Model, Worlds
 from .scene import Collision, Scene, WindKey
@@ -104,6 +104,7 @@ class ParticleContacts:
     max_radius: float
     min_radius: float
     thickness: float  # metres, what edge and face contacts hold (contact_thickness.py: the scene's or the rule)
+    surface_rules: EdgeRules  # which vertex-triangle and edge-edge pairs are contacts (surface_pairs.py)
     edges: DeviceContactEdges | None
 
 
@@ -248,18 +249,23 @@ class DeviceModel:
             rules.sewn_other = upload(contacts.sewn.other, int, device)
         rules.search_scale = particle_collision.SEARCH_SCALE
         thickness = contact_thickness.thickness(settings, contacts.max_radius)
+        surface = surface_pairs.surface_rules(model, rules, device)
         return ParticleContacts(settings, upload(contacts.radius, float, device), rules, contacts.max_radius,
-                                float(contacts.radius.min()), thickness, self._contact_edges(model, rules, thickness))
+                                float(contacts.radius.min()), thickness, surface,
+                                self._contact_edges(model, surface, thickness))
 
-    def _contact_edges(self, model: Model, particle_rules: PairRules, thickness: float) -> DeviceContactEdges | None:
+    def surface_rules(self, model: Model) -> EdgeRules:
+        """Which vertex-triangle and edge-edge pairs are contacts (surface_pairs.py): particle collision's, or
+        every pair of a world where the scene has none."""
+        if self.contacts is not None:
+            return self.contacts.surface_rules
+        return surface_pairs.surface_rules(model, None, self.device)
+
+    def _contact_edges(self, model: Model, rules: EdgeRules, thickness: float) -> DeviceContactEdges | None:
         contacts, device = model.contacts, self.device
         edges = contacts.edges
         if edges is None:
             return None
-        rules = EdgeRules()
-        rules.world, rules.cloth_id = particle_rules.world, particle_rules.cloth_id
-        rules.self_collision, rules.between_cloths = particle_rules.self_collision, particle_rules.between_cloths
-        rules.sewn_offsets, rules.sewn_other = particle_rules.sewn_offsets, particle_rules.sewn_other
         return DeviceContactEdges(upload(edges.ends, wp.vec2i, device),
                                   upload(model.particle_world[edges.ends[:, 0]], int, device),
                                   upload(edges.incidence.offsets, int, device),

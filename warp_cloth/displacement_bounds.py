@@ -1,7 +1,7 @@
 """Displacement bounds (issue 34): a step that never creates a crossing, as in Offset Geometric Contact
 (Chen et al. 2025). At a substep's start every vertex's bound is measured (kernels/primitive_distances.py: the
-nearest vertex-triangle and edge-edge pairs sharing no vertex, within the query radius, through a spatial hash
-of the particles); after the integrator and the solves each particle's displacement from the start is clamped
+nearest vertex-triangle and edge-edge pairs that are contacts, surface_pairs.py, within the query radius,
+through a spatial hash of the particles); after the integrator and the solves each particle's displacement from the start is clamped
 to its bound and its velocity made the clamped displacement over the substep, before the contact velocities
 where the scene has them (kernels/displacement_bounds.py, whose docstring proves that no pair of triangles
 apart at the start then crosses). With ``rounds`` above 1, the bounds are measured again where a clamp left the
@@ -116,7 +116,7 @@ class DisplacementBounds:
         mesh.ends = wp.array(ends, dtype=wp.vec2i, device=device)
         mesh.edge_offsets = wp.array(edges_at.offsets, dtype=int, device=device)
         mesh.edges_at = wp.array(edges_at.spring, dtype=int, device=device)
-        mesh.world = device_model.particle_world
+        mesh.rules = device_model.surface_rules(model)
         table = hash_table_size(n)
         grid = self.grid = DistanceHash()
         grid.inv_cell = wp.zeros(1, dtype=float, device=device)
@@ -152,7 +152,7 @@ class DisplacementBounds:
                   outputs=[self.longest], device=device)
         wp.launch(primitive_distances.next_table, dim=1, inputs=[radius, self.longest, grid], device=device)
         wp.launch(spatial_hash.insert_points_at_chosen_width, dim=self.n,
-                  inputs=[x, self.mesh.world, grid.inv_cell, grid.mask, grid.capacity, grid.epoch,
+                  inputs=[x, self.mesh.rules.world, grid.inv_cell, grid.mask, grid.capacity, grid.epoch,
                           self.insert_always],
                   outputs=[grid.bucket_size, grid.bucket_items, self.overflow], device=device)
         self.nearest.fill_(radius)

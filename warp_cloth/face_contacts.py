@@ -7,7 +7,8 @@ builds (warp_cloth/plan.py): the particle lists' remake then remakes its candida
 (``remake_if_asked``), each vertex's triangles and each triangle's vertices within the thickness plus twice
 the lists' rebuild distance (valid as long as the particle lists are), found through a spatial hash of the
 particles whose cells are as wide as that reach plus the longest triangle side at the remake; and its pass
-(``separation_pass``) joins the edge contacts' passes of the solve, whose check then reads its pairs. The
+(``separation_pass``) joins the edge contacts' passes of the solve, whose check then reads its pairs; with a
+friction coefficient, its ``friction_pass`` takes sliding off both kinds' touching pairs after the solve. The
 lists are the plan's carried arrays (``carried``), so that a checkpoint or a frame made again keeps them."""
 
 from __future__ import annotations
@@ -17,17 +18,17 @@ import warp as wp
 
 from warp_cloth.kernels import edge_collision, face_collision, spatial_hash
 from warp_cloth.kernels.colliders import RigidColliders
-from warp_cloth.kernels.edge_collision import EdgeRules
 from warp_cloth.kernels.face_collision import FaceContacts as FaceContactsArgs
 from warp_cloth.kernels.face_separation import FaceSeparationPassArgs, face_separation_pass_kernel
 from warp_cloth.kernels.neighbour_search import gather_face_vertices, gather_vertex_faces
 from warp_cloth.kernels.particle_collision import ListState
+from warp_cloth.kernels.surface_friction import SurfaceFrictionArgs, surface_friction_kernel
 
 from .device_model import DeviceModel
 from .model import Model
 from .neighbour_lists import rebuild_distance
-from .passes import GatheringPass
-from .state import hash_table_size
+from .passes import CONTACT_SLACK, GatheringPass, edge_contacts_args
+from .state import DeviceState, hash_table_size
 
 
 FACE_NEIGHBORS = 32  # pairs a vertex's or a triangle's list holds (the nearest; more are counted in its overflow)
@@ -59,11 +60,7 @@ class FaceContacts:
         self.reach = self.thickness + 2.0 * rebuild_distance(device_model)
         rest = model.positions[triangles]
         self.longest = float(np.linalg.norm(rest - np.roll(rest, 1, axis=1), axis=2).max(initial=0.0))
-        rules = self.rules = EdgeRules()
-        particle_rules = contacts.rules
-        rules.world, rules.cloth_id = particle_rules.world, particle_rules.cloth_id
-        rules.self_collision, rules.between_cloths = particle_rules.self_collision, particle_rules.between_cloths
-        rules.sewn_offsets, rules.sewn_other = particle_rules.sewn_offsets, particle_rules.sewn_other
+        self.rules = contacts.surface_rules
         args = self.args = FaceContactsArgs()
         args.triangles = wp.array(triangles, dtype=wp.vec3i, device=device)
         offsets, incident = incidence(triangles, n)
@@ -120,6 +117,21 @@ class FaceContacts:
         args.colliders = bundle if bundle is not None else device_model.no_colliders()
         return GatheringPass("face_separation" + ("+colliders" if bundle is not None else ""),
                              face_separation_pass_kernel(threads), threads, args, device_model.device)
+
+    def friction_pass(self, device_model: DeviceModel, state: DeviceState, threads: int) -> GatheringPass | None:
+        """Friction on the face and edge contacts' touching pairs (kernels/surface_friction.py), at the
+        collision table's ``friction`` or the cloths' materials' (the larger, as particle contacts take it);
+        None where the table's is zero and no material sets one."""
+        contacts = device_model.contacts
+        if contacts.settings.friction == 0.0 and device_model.cloth_friction.shape[0] == 0:
+            return None
+        args = SurfaceFrictionArgs()
+        args.faces, args.edges = self.args, edge_contacts_args(device_model, state)
+        args.v_start, args.inv_mass = state.contacts.v_start, device_model.inv_mass
+        args.friction, args.cloth_friction = contacts.settings.friction, device_model.cloth_friction
+        args.slack = CONTACT_SLACK
+        return GatheringPass("surface_friction", surface_friction_kernel(threads), threads, args, self.device,
+                             new_positions=False, new_velocities=True)
 
     def carried(self) -> dict[str, wp.array]:
         """The lists a substep reads before it remakes them, by name (for the plan's carried arrays)."""

@@ -14,6 +14,7 @@ import numpy as np
 
 from warp_cloth.kernels import springs as spring_kernels
 
+from . import surface_pairs
 from .adjacency import Adjacency
 from .cloth_grid import build_grid
 from .cloth_mesh import BEND, SHEAR, STRUCTURAL, BendStencils, ClothMesh, enclosing_radii, rest_adjacent_pairs
@@ -200,6 +201,8 @@ class ParticleContacts:
     rest_adjacent: Adjacency | None  # particles that share a face, both ways, each list sorted
     edges: ContactEdges | None = None  # where the scene asks for edge contacts
     sewn: Adjacency | None = None  # pairs a seam keeps from colliding (seams.sewn_neighbourhood), each list sorted
+    rest_apart: np.ndarray | None = None  # (cloths,) float32 with a surface thickness: a pair of one cloth's
+    # surfaces nearer than this at rest is no contact (surface_pairs.py)
 
     @property
     def max_radius(self) -> float:
@@ -631,7 +634,8 @@ def _contacts(scene: Scene, meshes, sewn: SewnPairs | None) -> ParticleContacts 
     sewn_apart = None if sewn is None else Adjacency.of(
         sewn_neighbourhood(sewn, [m.face_counts for m in meshes], [m.face_indices for m in meshes], list(offsets)),
         int(offsets[-1]))
+    apart = None if collision.thickness is None else surface_pairs.rest_apart(scene.cloths, collision.thickness)
     if not exclude.any():
-        return ParticleContacts(radius, None, None, edges, sewn_apart)
+        return ParticleContacts(radius, None, None, edges, sewn_apart, apart)
     pairs = np.concatenate([a + o for a, o in zip(adjacent, offsets)])
-    return ParticleContacts(radius, exclude, Adjacency.of(pairs, int(offsets[-1])), edges, sewn_apart)
+    return ParticleContacts(radius, exclude, Adjacency.of(pairs, int(offsets[-1])), edges, sewn_apart, apart)

@@ -160,6 +160,9 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
             passes.extend(edge_passes + projection_passes(model, state, solve, chosen, rigid))
         if bounds is not None:
             passes.append(bounds.clamp)
+        friction = faces.friction_pass(model, state, chosen) if faces is not None else None
+        if friction is not None:
+            passes.append(friction)
         passes.append(contact_velocities(model, state, chosen))
     elif model.limits is not None and converged and lines is not None:
         projection = line_projection(model, state, solve, chosen, rigid, lines)

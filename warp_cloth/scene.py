@@ -739,9 +739,11 @@ class Collision:
     resolution (issue 34): every triangle edge and every vertex-triangle pair sharing no vertex
     (kernels/edge_collision.py, kernels/face_collision.py), in the converged solve, whose check then reads
     those pairs too, and each substep's displacements clamped to bounds under which no step makes a crossing
-    (warp_cloth/displacement_bounds.py). The particles' default radius is then at most ``thickness /
-    separation``, so that particle contacts reach no farther than the surfaces'; layers that start closer
-    than the thickness are refused. Every cloth needs a strain limit, as with ``edges``.
+    (warp_cloth/displacement_bounds.py), with ``friction`` on those pairs too. The particles' default radius
+    is then at most ``thickness / separation``, so that particle contacts reach no farther than the
+    surfaces'; layers that start closer than the thickness are refused. A cloth's own pairs nearer at rest
+    than thickness / (1 - its compression limit) are none (warp_cloth/surface_pairs.py), so its triangles may
+    be finer than the thickness. Every cloth needs a strain limit, as with ``edges``.
     """
 
     self_collision: bool = field(default=True, metadata={"toml": "self"})

@@ -293,7 +293,8 @@ class Simulator:
         if self.device.is_cuda:
             self._frame_done = [wp.Event(self.device), wp.Event(self.device)]
         self.stopped_worlds: dict[int, UnstableSimulation] = {}  # of a batch: each world stopped, and why
-        refuse_surfaces_closer_than_thickness(self.scene, self.model, self.device_model, self.state.x)
+        refuse_surfaces_closer_than_thickness(self.scene, self.model, self.device_model, self._bounds,
+                                              self.state.x)
         self._refuse_initial_overlap()
         self._refuse_start_inside_colliders()
         check_pins_within_reach(self.scene, self.model)
