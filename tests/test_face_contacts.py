@@ -183,3 +183,19 @@ def test_layers_closer_than_the_thickness_are_refused_in_one_line(tmp_path):
     assert err.strip() == ("warp-cloth: error: layers.toml: collision.thickness: expected surfaces at least the "
                            "thickness apart at the start: those of 'layer0' and 'layer1' start 0.003 m apart, the "
                            "thickness is 0.004 m; move the cloths apart or make the thickness smaller"), err
+
+
+def test_a_run_with_a_thickness_reports_no_particle_contact_it_did_not_list(tmp_path):
+    """Layers a thickness apart list no particle pair (their contact distance is capped below the thickness):
+    the closest particle contact is none, not the lists' empty value (1e30), and ``--check`` leaves it out."""
+    from conftest import run_cli_in_process
+
+    sim = wc.Simulator(wc.load_scene(tmp_path / layers_file(tmp_path, 0.01, 4)), device="cpu")
+    sim.step()
+    assert sim.closest_contact() is None
+    code, out, err = run_cli_in_process("run", "layers.toml", "--device", "cpu", "--check", "--no-poly",
+                                        "--out", str(tmp_path / "out"), cwd=tmp_path)
+    assert code == 0, err
+    frame_lines = [line for line in (out + err).splitlines() if line.startswith("frame ")]
+    assert frame_lines and all("intersecting triangle pairs" in line and "closest contact" not in line
+                               for line in frame_lines), out + err

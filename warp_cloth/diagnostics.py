@@ -43,13 +43,13 @@ class TriangleIntersections:
 
 class ContactGaps:
     """The closest approach of two particles that may collide, as a fraction of their contact distance
-    (1.0 or more: no pair overlaps)."""
+    (1.0 or more: no pair overlaps; None where no pair is listed)."""
 
     def __init__(self, sim: Simulator) -> None:
         if sim.scene.collision is None:
             raise ValueError("the scene declares no [collision]")
 
-    def __call__(self, sim: Simulator) -> float:
+    def __call__(self, sim: Simulator) -> float | None:
         return sim.closest_contact()
 
 
@@ -75,8 +75,8 @@ class CheckReport:
         line = f"frame {frame}: {count} intersecting triangle pairs"
         if count > self.worst_intersections[0]:
             self.worst_intersections = (count, frame)
-        if self.gaps is not None:
-            ratio = self.gaps(sim)
+        ratio = self.gaps(sim) if self.gaps is not None else None
+        if ratio is not None:
             line += f", closest contact {ratio:.3f} of contact distance"
             if self.closest_contact is None or ratio < self.closest_contact[0]:
                 self.closest_contact = (ratio, frame)
