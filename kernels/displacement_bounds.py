@@ -1,5 +1,5 @@
 """A substep's displacements clamped to conservative per-vertex bounds (Offset Geometric Contact, Chen et al.
-2025): vertex v moves at most b_v <= gamma * nearest_v from where its step started, nearest_v being the least
+2025): vertex v moves at most b_v = gamma * nearest_v from where its step started, nearest_v being the least
 distance, at most r, of a vertex-triangle or edge-edge pair sharing no vertex that v belongs to
 (primitive_distances.py), and gamma < 1/2. Then no pair of triangles sharing no vertex that are apart at the
 start crosses at the end:
@@ -27,19 +27,17 @@ LEAST_GAP = wp.constant(1.0e-4)  # metres: see the module's docstring
 
 @wp.kernel
 def clamp_to_bounds(target: wp.array(dtype=wp.vec3), nearest: wp.array(dtype=float), gamma: float,
-                    least_radius: float, inertial: wp.array(dtype=float), inv_mass: wp.array(dtype=float),
-                    position: wp.array(dtype=wp.vec3), clamped: wp.array(dtype=int), slot: int):
-    """Moves each free particle from ``position`` toward ``target`` by at most its bound (a pinned one all the
-    way; none nearer than LEAST_GAP), counting in ``clamped[slot]`` the particles held short. The bound is
-    gamma * nearest, at most the larger of gamma * ``least_radius`` and the particle's inertial step
-    (``inertial``): a particle with nothing near goes as far as it falls, and one the solves push, with
-    nothing within ``least_radius``, as far as at a query radius of ``least_radius``."""
+                    inv_mass: wp.array(dtype=float), position: wp.array(dtype=wp.vec3),
+                    clamped: wp.array(dtype=int), slot: int):
+    """Moves each free particle from ``position`` toward ``target`` by at most its bound, gamma * nearest
+    (a pinned one all the way; none nearer than LEAST_GAP), counting in ``clamped[slot]`` the particles held
+    short."""
     i = wp.tid()
     step = target[i] - position[i]
     length = wp.length(step)
     bound = float(0.0)
     if nearest[i] >= LEAST_GAP:
-        bound = wp.min(gamma * nearest[i], wp.max(gamma * least_radius, inertial[i]))
+        bound = gamma * nearest[i]
     if inv_mass[i] == 0.0 or length <= bound:
         position[i] = target[i]
     else:

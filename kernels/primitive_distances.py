@@ -6,10 +6,10 @@ entry is the least of its own distance to the triangles, that of each of its tri
 that of each of its edges to the edges. kernels/displacement_bounds.py turns it into the vertex's bound;
 warp_cloth/displacement_bounds.py launches both.
 
-r is chosen on the device (``query[0]``): the settings' radius, widened at a substep's start so that gamma r
-covers the longest inertial step of a free particle (``widen_to_motion``): every pair nearer than a
-particle's own inertial step over gamma is measured, so its bound may reach that step
-(kernels/displacement_bounds.py).
+r is chosen on the device (``query[0]``): the settings' radius, widened where a step is measured so that
+gamma r covers the longest motion of a free particle (``widen_to_motion``). Nothing within r of a particle
+then bounds it at gamma r, at least its own step: a particle with nothing near takes its whole step, and a
+pair found nearer than r bounds its vertices as before.
 
 The pairs are found through a spatial hash of the particles (spatial_hash.py) whose cells are r plus the
 longest edge wide (``next_table``): a triangle within r of a vertex has every vertex within r + L of it (L
@@ -104,18 +104,13 @@ def longest_edge(x: wp.array(dtype=wp.vec3), ends: wp.array(dtype=wp.vec2i), lon
 
 
 @wp.kernel
-def widen_to_motion(v: wp.array(dtype=wp.vec3), world: wp.array(dtype=int), gravity: wp.array(dtype=wp.vec3),
-                    inv_mass: wp.array(dtype=float), h: float, gamma: float, inertial: wp.array(dtype=float),
-                    radius: wp.array(dtype=float)):
-    """Each free particle's inertial step in the substep, h |v| + h^2 |g| (with ``MOTION_SLACK``), into
-    ``inertial``, and ``radius[0]`` raised so that gamma times it covers the longest: a particle no pair is
-    near within it may then take that whole step. Other forces' motion shows in the next substep's
-    velocities."""
+def widen_to_motion(x: wp.array(dtype=wp.vec3), target: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float),
+                    gamma: float, radius: wp.array(dtype=float)):
+    """Raises ``radius[0]`` so that gamma times it covers the longest step a free particle takes from ``x`` to
+    ``target`` (with ``MOTION_SLACK``): a particle no pair is near within it then takes its whole step."""
     i = wp.tid()
     if inv_mass[i] > 0.0:
-        step = MOTION_SLACK * h * (wp.length(v[i]) + h * wp.length(gravity[world[i]]))
-        inertial[i] = step
-        wp.atomic_max(radius, 0, step / gamma)
+        wp.atomic_max(radius, 0, MOTION_SLACK * wp.length(target[i] - x[i]) / gamma)
 
 
 @wp.kernel

@@ -121,22 +121,20 @@ def test_bounded_step_does_not_cross(rounds):
     np.testing.assert_allclose(v[moved], (x[moved] - start[moved]) / bounded.device_model.h, rtol=1e-3, atol=1e-4)
 
 
-def test_query_radius_widens_to_the_longest_inertial_step():
-    """Measured with the substep's starting velocities, the query radius is the longest inertial step of a
-    free particle, h (|v| + h |g|), over gamma (with the kernel's 1.001 slack) where that exceeds the
-    settings' radius, and the distances are all pairs' within it; without velocities (the start check, the
-    tools), the settings' radius."""
+def test_query_radius_widens_to_the_longest_free_step():
+    """Measured with the step's targets, the query radius is the longest step of a free particle over gamma
+    (with the kernel's 1.001 slack) where that exceeds the settings' radius, and the distances are all pairs'
+    within it; measured without targets (the start check, the tools), the settings' radius."""
     sim = wc.Simulator(crumpled_cloths(), device="cpu")
     settings = BoundSettings(radius=0.02)
     bounds = DisplacementBounds(sim.model, sim.device_model, settings)
     x = sim.model.positions.astype(np.float32)
-    v = np.zeros_like(x)
-    v[7] = (0.0, 30.0, 0.0)
-    h = sim.device_model.h
-    bounds.measure_at(wp.array(x, dtype=wp.vec3, device="cpu"), wp.array(v, dtype=wp.vec3, device="cpu"))
+    step = np.zeros_like(x)
+    step[7] = (0.0, 0.045, 0.0)  # gamma r = 0.0405 at r = 0.09
+    target = (x + step).astype(np.float32)
+    bounds.measure_at(wp.array(x, dtype=wp.vec3, device="cpu"), wp.array(target, dtype=wp.vec3, device="cpu"))
     radius = float(bounds.query.numpy()[0])
-    expected = 1.001 * h * (30.0 + h * 9.81) / settings.gamma
-    assert expected > 2 * settings.radius and radius == pytest.approx(expected, rel=1e-5)
+    assert radius == pytest.approx(1.001 * 0.045 / settings.gamma, rel=1e-6)
     triangles, ends = mesh_primitives(sim.model)
     np.testing.assert_allclose(bounds.nearest.numpy(), brute_force_nearest(x, triangles, ends, radius),
                                rtol=1e-4, atol=1e-6)

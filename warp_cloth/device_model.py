@@ -127,7 +127,7 @@ class DeviceModel:
         self.world_start = upload(model.world_start, int, device)
         self.free_particles = upload(np.maximum(np.bincount(world[model.inv_mass != 0], minlength=worlds.count), 1),
                                      float, device)  # each world's, for RMS residuals
-        self.gravity = upload(worlds.gravity, wp.vec3, device)  # each world's, (w,)
+        self._gravity = upload(worlds.gravity, wp.vec3, device)
         self._drag = simulation.drag
         self.wind = self._wind(model, scene.wind)
         self.compensated = simulation.compensated
@@ -275,7 +275,7 @@ class DeviceModel:
         """The external forces as the kernels take them, each particle's wind acceleration in ``wind`` (the
         state's, which the wind pass rewrites every substep)."""
         forces = ExternalForces()
-        forces.gravity, forces.world, forces.drag, forces.wind = self.gravity, self.particle_world, self._drag, wind
+        forces.gravity, forces.world, forces.drag, forces.wind = self._gravity, self.particle_world, self._drag, wind
         soft = self.soft_pins
         if soft is None:
             forces.pin_rate = forces.pin_damping = wp.zeros(0, dtype=float, device=self.device)
