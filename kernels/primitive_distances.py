@@ -132,10 +132,10 @@ def lower_nearest(nearest: wp.array(dtype=float), i: int, d: float):
 
 
 @wp.kernel
-def nearest_to_triangles(x: wp.array(dtype=wp.vec3), mesh: Primitives, grid: DistanceHash, query: wp.array(dtype=float),
-                         longest: wp.array(dtype=float), nearest: wp.array(dtype=float)):
-    """Each vertex against the triangles it is not a vertex of: a pair closer than ``radius`` lowers
-    ``nearest`` at its four vertices."""
+def nearest_to_triangles(x: wp.array(dtype=wp.vec3), mesh: Primitives, grid: DistanceHash,
+                         query: wp.array(dtype=float), longest: wp.array(dtype=float), nearest: wp.array(dtype=float)):
+    """Each vertex against the triangles it is not a vertex of: a pair closer than the query radius
+    (``query[0]``) lowers ``nearest`` at its four vertices."""
     v = wp.tid()
     radius = query[0]
     p = x[v]
@@ -164,10 +164,10 @@ def nearest_to_triangles(x: wp.array(dtype=wp.vec3), mesh: Primitives, grid: Dis
 
 
 @wp.kernel
-def nearest_between_edges(x: wp.array(dtype=wp.vec3), mesh: Primitives, grid: DistanceHash, query: wp.array(dtype=float),
-                          longest: wp.array(dtype=float), nearest: wp.array(dtype=float)):
-    """Each edge against the higher numbered edges it shares no vertex with: a pair closer than ``radius``
-    lowers ``nearest`` at its four vertices."""
+def nearest_between_edges(x: wp.array(dtype=wp.vec3), mesh: Primitives, grid: DistanceHash,
+                          query: wp.array(dtype=float), longest: wp.array(dtype=float), nearest: wp.array(dtype=float)):
+    """Each edge against the higher numbered edges it shares no vertex with: a pair closer than the query
+    radius (``query[0]``) lowers ``nearest`` at its four vertices."""
     e = wp.tid()
     radius = query[0]
     a = mesh.ends[e][0]
