@@ -1,9 +1,15 @@
 """The nearest distance of each vertex to the primitives that share no vertex with a primitive of its own and that
 the surfaces' contact rule lets touch it (``Primitives.rules``), within a query radius r: each vertex against
-the triangles, each edge against the edges (Offset Geometric Contact's d_min, Chen et al. 2025). Each such pair closer than r lowers ``nearest`` (filled with r before) at every
-vertex of the pair, so that a vertex's entry is the least of its own distance to the triangles, that of each
-of its triangles to the vertices and that of each of its edges to the edges. kernels/displacement_bounds.py
-turns it into the vertex's bound; warp_cloth/displacement_bounds.py launches both.
+the triangles, each edge against the edges (Offset Geometric Contact's d_min, Chen et al. 2025). Each such
+pair closer than r lowers ``nearest`` (filled with r before) at every vertex of the pair, so that a vertex's
+entry is the least of its own distance to the triangles, that of each of its triangles to the vertices and
+that of each of its edges to the edges. kernels/displacement_bounds.py turns it into the vertex's bound;
+warp_cloth/displacement_bounds.py launches both.
+
+r is chosen on the device (``query[0]``): the settings' radius, widened where a step is measured so that
+gamma r covers the longest motion of a free particle (``widen_to_motion``). Nothing within r of a particle
+then bounds it at gamma r, at least its own step: a particle with nothing near takes its whole step, and a
+pair found nearer than r bounds its vertices as before.
 
 The pairs are found through a spatial hash of the particles (spatial_hash.py) whose cells are r plus the
 longest edge wide (``next_table``): a triangle within r of a vertex has every vertex within r + L of it (L
@@ -20,6 +26,10 @@ import warp as wp
 from .edge_collision import EdgeRules, closest_points, may_touch
 from .face_collision import may_touch as may_touch_face
 from .spatial_hash import cell_of, count_in, neighbour_bucket, stamp_of
+
+# The radius a step's longest motion asks for, over motion / gamma: so that gamma times it, rounded, is not
+# below the motion and a particle with nothing near is never held short by a rounding.
+MOTION_SLACK = wp.constant(1.001)
 
 
 @wp.struct
@@ -94,10 +104,26 @@ def longest_edge(x: wp.array(dtype=wp.vec3), ends: wp.array(dtype=wp.vec2i), lon
 
 
 @wp.kernel
-def next_table(radius: float, longest: wp.array(dtype=float), grid: DistanceHash):
+def widen_to_motion(x: wp.array(dtype=wp.vec3), target: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float),
+                    gamma: float, radius: wp.array(dtype=float)):
+    """Raises ``radius[0]`` so that gamma times it covers the longest step a free particle takes from ``x`` to
+    ``target`` (with ``MOTION_SLACK``): a particle no pair is near within it then takes its whole step."""
+    i = wp.tid()
+    if inv_mass[i] > 0.0:
+        wp.atomic_max(radius, 0, MOTION_SLACK * wp.length(target[i] - x[i]) / gamma)
+
+
+@wp.kernel
+def fill_with_radius(radius: wp.array(dtype=float), nearest: wp.array(dtype=float)):
+    """Every particle's ``nearest`` at the query radius, before the pairs lower it."""
+    nearest[wp.tid()] = radius[0]
+
+
+@wp.kernel
+def next_table(radius: wp.array(dtype=float), longest: wp.array(dtype=float), grid: DistanceHash):
     """By one thread: the hash's next epoch (an empty table), its cells ``radius`` plus the longest edge wide."""
     grid.epoch[0] = grid.epoch[0] + 1
-    grid.inv_cell[0] = 1.0 / (radius + longest[0])
+    grid.inv_cell[0] = 1.0 / (radius[0] + longest[0])
 
 
 @wp.func
@@ -106,11 +132,12 @@ def lower_nearest(nearest: wp.array(dtype=float), i: int, d: float):
 
 
 @wp.kernel
-def nearest_to_triangles(x: wp.array(dtype=wp.vec3), mesh: Primitives, grid: DistanceHash, radius: float,
-                         longest: wp.array(dtype=float), nearest: wp.array(dtype=float)):
-    """Each vertex against the triangles it is not a vertex of: a pair closer than ``radius`` lowers
-    ``nearest`` at its four vertices."""
+def nearest_to_triangles(x: wp.array(dtype=wp.vec3), mesh: Primitives, grid: DistanceHash,
+                         query: wp.array(dtype=float), longest: wp.array(dtype=float), nearest: wp.array(dtype=float)):
+    """Each vertex against the triangles it is not a vertex of: a pair closer than the query radius
+    (``query[0]``) lowers ``nearest`` at its four vertices."""
     v = wp.tid()
+    radius = query[0]
     p = x[v]
     world = mesh.rules.world[v]
     reach = radius + longest[0]
@@ -137,11 +164,12 @@ def nearest_to_triangles(x: wp.array(dtype=wp.vec3), mesh: Primitives, grid: Dis
 
 
 @wp.kernel
-def nearest_between_edges(x: wp.array(dtype=wp.vec3), mesh: Primitives, grid: DistanceHash, radius: float,
-                          longest: wp.array(dtype=float), nearest: wp.array(dtype=float)):
-    """Each edge against the higher numbered edges it shares no vertex with: a pair closer than ``radius``
-    lowers ``nearest`` at its four vertices."""
+def nearest_between_edges(x: wp.array(dtype=wp.vec3), mesh: Primitives, grid: DistanceHash,
+                          query: wp.array(dtype=float), longest: wp.array(dtype=float), nearest: wp.array(dtype=float)):
+    """Each edge against the higher numbered edges it shares no vertex with: a pair closer than the query
+    radius (``query[0]``) lowers ``nearest`` at its four vertices."""
     e = wp.tid()
+    radius = query[0]
     a = mesh.ends[e][0]
     b = mesh.ends[e][1]
     pa = x[a]

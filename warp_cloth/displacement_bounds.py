@@ -1,17 +1,22 @@
 """Displacement bounds (issue 34): a step that never creates a crossing, as in Offset Geometric Contact
-(Chen et al. 2025). At a substep's start every vertex's bound is measured (kernels/primitive_distances.py: the
-nearest vertex-triangle and edge-edge pairs that are contacts, surface_pairs.py, within the query radius,
-through a spatial hash of the particles); after the integrator and the solves each particle's displacement from the start is clamped
-to its bound and its velocity made the clamped displacement over the substep, before the contact velocities
-where the scene has them (kernels/displacement_bounds.py, whose docstring proves that no pair of triangles
-apart at the start then crosses). With ``rounds`` above 1, the bounds are measured again where a clamp left the
-particles and the rest of each step clamped to them, so that a step may go farther than the start's bounds
-allow and still never cross.
+(Chen et al. 2025). A substep records where it starts; after the integrator and the solves every vertex's
+bound is measured there (kernels/primitive_distances.py: the nearest vertex-triangle and edge-edge pairs that
+are contacts, surface_pairs.py, within the query radius, through a spatial hash of the particles), each
+particle's displacement from the start is clamped to its bound and its velocity made the clamped displacement
+over the substep, before the contact velocities where the scene has them (kernels/displacement_bounds.py,
+whose docstring proves that no pair of triangles apart at the start then crosses). With ``rounds`` above 1,
+the bounds are measured again where a clamp left the particles and the rest of each step clamped to them, so
+that a step may go farther than the start's bounds allow and still never cross.
+
+The query radius is the settings' or, where the step's longest motion asks for more, motion / gamma: OGC
+bounds a vertex with nothing within the radius at gamma times the radius, which at a fixed radius caps the
+speed of a cloth falling through empty air (1.1 thicknesses a substep at 2.5 thicknesses); measured after
+the solve, the radius follows the step, and a particle with nothing near takes its whole step.
 
 A scene with a surface thickness (``[collision] thickness``) has them at ``for_thickness``'s settings. The
 lab's ``lab_hooks`` set others (more rounds), or put them on a scene without one (particle contacts alone).
 The simulator makes one ``DisplacementBounds`` where either asks, and hands it to every plan it builds
-(warp_cloth/plan.py: its ``measure`` pass first, its ``clamp`` pass after the solves)."""
+(warp_cloth/plan.py: its ``record_start`` pass first, its ``clamp`` pass after the solves)."""
 
 from __future__ import annotations
 
@@ -34,7 +39,8 @@ from .state import DeviceState, hash_table_size
 
 @dataclass(frozen=True)
 class BoundSettings:
-    """``radius``: the query radius r in metres (no bound exceeds gamma r); ``gamma``: below 1/2; ``rounds``:
+    """``radius``: the least query radius r in metres (a step's longest motion / gamma widens it); ``gamma``:
+    below 1/2; ``rounds``:
     clamps a substep, each after bounds measured where the last left the particles (1: the start's alone)."""
     radius: float = 0.01
     gamma: float = 0.45
@@ -61,8 +67,8 @@ class BoundSettings:
 
 
 # The query radius, in thicknesses: 10 mm at the 4 mm the stacked drape was measured at. Above 1, so that
-# pairs held at the thickness are measured at their distance (a bound of gamma times it); a particle with no
-# pair within the radius moves at most gamma x radius a substep (1.1 thicknesses).
+# pairs held at the thickness are measured at their distance (a bound of gamma times it); the least radius:
+# a step that moves a particle farther than gamma times it widens it (``widen_to_motion``).
 RADIUS_THICKNESSES = 2.5
 
 
@@ -94,7 +100,7 @@ def mesh_primitives(model: Model) -> tuple[np.ndarray, np.ndarray]:
 
 
 class DisplacementBounds:
-    """The bounds' arrays and their two passes (``measure`` and ``clamp``), made once per simulator. A particle
+    """The bounds' arrays and their two passes (``record_start`` and ``clamp``), made once per simulator. A particle
     that does not fit its hash bucket is counted in ``overflow`` and its pairs go unmeasured (the tools report
     it: the guarantee needs none)."""
 
@@ -127,13 +133,14 @@ class DisplacementBounds:
         grid.bucket_items = wp.zeros(table * BUCKET_CAPACITY, dtype=int, device=device)
         self.insert_always = wp.ones(1, dtype=int, device=device)  # the hash's request to fill: every table
         self.longest = wp.zeros(1, dtype=float, device=device)
+        self.query = wp.zeros(1, dtype=float, device=device)  # the query radius of the last measure
         self.nearest = wp.zeros(n, dtype=float, device=device)
         self.start = wp.zeros(n, dtype=wp.vec3, device=device)
         self.position = wp.zeros(n, dtype=wp.vec3, device=device)
         self.overflow = wp.zeros(1, dtype=int, device=device)
         self.clamped = wp.zeros(settings.rounds, dtype=int, device=device)  # particles held short, by round
         self.held_back = wp.zeros(1, dtype=float, device=device)
-        self.measure = MeasureBounds(self)
+        self.record_start = RecordStart(self)
         self.clamp = ClampToBounds(self)
 
     @classmethod
@@ -144,25 +151,33 @@ class DisplacementBounds:
         settings = BOUNDS if BOUNDS is not None or thickness is None else BoundSettings.for_thickness(thickness)
         return None if settings is None else cls(model, device_model, settings)
 
-    def measure_at(self, x: wp.array) -> None:
-        """Each particle's nearest pair distance (at most the radius) at positions ``x``, into ``nearest``."""
-        device, radius, grid = self.device, self.settings.radius, self.grid
+    def measure_at(self, x: wp.array, target: wp.array | None = None) -> None:
+        """Each particle's nearest pair distance at positions ``x``, into ``nearest``, within the query radius
+        (``query``): the settings' radius, or, with the positions the step would take the particles to
+        (``target``), wider where gamma times it would hold a free particle short of its step."""
+        device, grid, model = self.device, self.grid, self.device_model
+        self.query.fill_(self.settings.radius)
+        if target is not None:
+            wp.launch(primitive_distances.widen_to_motion, dim=self.n,
+                      inputs=[x, target, model.inv_mass, self.settings.gamma], outputs=[self.query], device=device)
         self.longest.zero_()
         wp.launch(primitive_distances.longest_edge, dim=self.edge_count, inputs=[x, self.mesh.ends],
                   outputs=[self.longest], device=device)
-        wp.launch(primitive_distances.next_table, dim=1, inputs=[radius, self.longest, grid], device=device)
+        wp.launch(primitive_distances.next_table, dim=1, inputs=[self.query, self.longest, grid], device=device)
         wp.launch(spatial_hash.insert_points_at_chosen_width, dim=self.n,
                   inputs=[x, self.mesh.rules.world, grid.inv_cell, grid.mask, grid.capacity, grid.epoch,
                           self.insert_always],
                   outputs=[grid.bucket_size, grid.bucket_items, self.overflow], device=device)
-        self.nearest.fill_(radius)
+        wp.launch(primitive_distances.fill_with_radius, dim=self.n, inputs=[self.query], outputs=[self.nearest],
+                  device=device)
         wp.launch(primitive_distances.nearest_to_triangles, dim=self.n,
-                  inputs=[x, self.mesh, grid, radius, self.longest], outputs=[self.nearest], device=device)
+                  inputs=[x, self.mesh, grid, self.query, self.longest], outputs=[self.nearest], device=device)
         wp.launch(primitive_distances.nearest_between_edges, dim=self.edge_count,
-                  inputs=[x, self.mesh, grid, radius, self.longest], outputs=[self.nearest], device=device)
+                  inputs=[x, self.mesh, grid, self.query, self.longest], outputs=[self.nearest], device=device)
 
-    MEASURE_LAUNCHES = ["a zeroed longest edge", "longest_edge", "next_table", "insert_points_at_chosen_width",
-                        "nearest filled with the radius", "nearest_to_triangles", "nearest_between_edges"]
+    MEASURE_LAUNCHES = ["the query radius filled with the settings'", "widen_to_motion", "a zeroed longest edge",
+                        "longest_edge", "next_table", "insert_points_at_chosen_width", "fill_with_radius",
+                        "nearest_to_triangles", "nearest_between_edges"]
 
     def read_stats(self) -> tuple[list[int], float, int]:
         """Particles held short in each round, the distance they gave up (metres, summed) and the hash's
@@ -174,27 +189,26 @@ class DisplacementBounds:
         return clamped, held_back, overflow
 
 
-class MeasureBounds:
-    """The substep's first pass: where it starts, and the bounds there."""
+class RecordStart:
+    """The substep's first pass: where it starts, from which the clamp measures the bounds and each step."""
 
-    name = "bounds:measure"
+    name = "bounds:start"
 
     def __init__(self, bounds: DisplacementBounds) -> None:
         self.bounds = bounds
 
     def describe(self) -> list[str]:
-        return [f"{self.name}:", "    a copy of the positions"] + \
-            [f"    {launch}" for launch in DisplacementBounds.MEASURE_LAUNCHES]
+        return [f"{self.name}:", "    a copy of the positions"]
 
     def run(self, state: DeviceState) -> None:
         wp.copy(self.bounds.start, state.x)
-        self.bounds.measure_at(state.x)
 
 
 class ClampToBounds:
-    """After the solves: each particle's step from the start clamped to its bound (in rounds, the bounds
-    measured again before each after the first), then the particles held short moved there, with the
-    velocity of their clamped step."""
+    """After the solves: the bounds measured where the substep started, within a query radius wide enough for
+    the step's longest motion, and each particle's step from the start clamped to its bound (in rounds, the
+    bounds measured again where the last clamp left the particles, for the rest of the step), then the
+    particles held short moved there, with the velocity of their clamped step."""
 
     name = "bounds:clamp"
 
@@ -203,11 +217,10 @@ class ClampToBounds:
 
     def describe(self) -> list[str]:
         rounds = self.bounds.settings.rounds
-        lines = [f"{self.name}:", "    a copy of the start", f"    {displacement_bounds.clamp_to_bounds.key}"]
+        measure_and_clamp = DisplacementBounds.MEASURE_LAUNCHES + [displacement_bounds.clamp_to_bounds.key]
+        lines = [f"{self.name}:", "    a copy of the start"] + [f"    {launch}" for launch in measure_and_clamp]
         if rounds > 1:
-            lines += [f"    then {rounds - 1} more rounds of:"] + \
-                [f"      {launch}" for launch in DisplacementBounds.MEASURE_LAUNCHES] + \
-                [f"      {displacement_bounds.clamp_to_bounds.key}"]
+            lines += [f"    then {rounds - 1} more rounds of:"] + [f"      {launch}" for launch in measure_and_clamp]
         return lines + [f"    {displacement_bounds.take_bounded_step.key}"]
 
     def run(self, state: DeviceState) -> None:
@@ -215,8 +228,7 @@ class ClampToBounds:
         model = bounds.device_model
         wp.copy(bounds.position, bounds.start)
         for slot in range(bounds.settings.rounds):
-            if slot > 0:
-                bounds.measure_at(bounds.position)
+            bounds.measure_at(bounds.position, state.x)
             wp.launch(displacement_bounds.clamp_to_bounds, dim=bounds.n,
                       inputs=[state.x, bounds.nearest, bounds.settings.gamma, model.inv_mass, bounds.position,
                               bounds.clamped, slot], device=device)

@@ -121,7 +121,7 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
         soft_motion.insert(0, DrivePins(model, soft=True))
     driven_pins = oscillating_pins or bool(hard_motion) or "pins" in control
     converged = solve.converged
-    passes: list[Pass] = [bounds.measure] if bounds is not None else []
+    passes: list[Pass] = [bounds.record_start] if bounds is not None else []
     passes.extend(model.collider_motion)
     passes.extend(control.get("colliders", []))
     if model.seams is not None:
