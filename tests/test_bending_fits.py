@@ -113,7 +113,7 @@ def test_the_kernels_gather_as_wide_stencils_as_the_host_makes():
 def test_every_particle_of_the_drape_specimens_rim_is_bent_along_warp_and_weft(tmp_path, resolution):
     """The specimen's rim of triangles (drape_geometry.py): every particle of them has a stencil along the
     warp and one along the weft, a row's or a fit's (those with fewer points than a quadratic's six
-    coefficients fitted to their neighbours' neighbours: 39 of 207 at 30 cells had none), and each reads
+    coefficients fitted to their neighbours' neighbours: 40 of 207 at 30 cells lacked one), and each reads
     the curvature of heights 1/2 (a x^2 + 2 b x z + c z^2) exactly, a along the warp and c along the weft,
     away from the hem (where a fit takes the curvature across it as zero)."""
     from warp_cloth.cloth_mesh import lumped_masses
