@@ -75,20 +75,21 @@ def fitted_stencils(points, counts, indices, sides, tensors, particles, rows, be
     if not len(particles):
         return BendStencils(np.zeros((0, WIDTH), dtype=np.int64), np.zeros((0, WIDTH)), np.zeros(0), np.zeros(0))
     adjacency = Adjacency.of(sides, len(points))
-    border = _border(points, counts, indices, particles)
-    u, first = _fits(points, tensors, particles, _rings(points, adjacency, particles, 1), border)
-    _, wider = _fits(points, tensors, particles, _rings(points, adjacency, particles, 2), border)
+    along_border, straight, corner = _border(points, counts, indices, particles)
+    ring, ring_2 = (_rings(points, adjacency, particles, depth) for depth in (1, 2))
+    u, first = _fits(points, tensors, particles, ring, along_border, straight)
+    _, wider = _fits(points, tensors, particles, ring_2, along_border, straight)
     covered = _row_directions(rows, particles, u)
     area = lumped_masses(points, counts, indices, 1.0)[particles]
     parts = []
     for axis, stiff in enumerate(bending):
-        (ring, weights, told, at_rest), (ring_2, weights_2, told_2, at_rest_2) = first[axis], wider[axis]
-        widen = ~told & told_2 & ~border[2]  # where the first ring cannot tell: every other fit as it was
-        ring, weights = np.where(widen[:, None], ring_2, ring), np.where(widen[:, None], weights_2, weights)
+        (weights, told, at_rest), (weights_2, told_2, at_rest_2) = first[axis], wider[axis]
+        widen = ~told & told_2 & ~corner  # where the first ring cannot tell: every other fit as it was
+        stencil, weights = np.where(widen[:, None], ring_2, ring), np.where(widen[:, None], weights_2, weights)
         keep = np.where(widen, at_rest_2, told & at_rest) & ~covered[:, axis]
         stiffness = stiff * area[keep]
-        used = ring[keep] >= 0
-        parts.append(BendStencils(np.where(used, ring[keep], particles[keep][:, None]),
+        used = stencil[keep] >= 0
+        parts.append(BendStencils(np.where(used, stencil[keep], particles[keep][:, None]),
                                   np.where(used, weights[keep], 0.0), stiffness, damping * stiffness))
     return BendStencils.joined(parts)
 
@@ -108,8 +109,8 @@ def _rings(points, adjacency: Adjacency, particles, depth: int) -> np.ndarray:
     return ring
 
 
-def _fits(points, tensors, particles, ring, border) -> tuple[np.ndarray, list[tuple]]:
-    """Each particle's u, and per direction (u, v) the ring, the fit's weights (p, WIDTH), whether they tell
+def _fits(points, tensors, particles, ring, along_border, straight) -> tuple[np.ndarray, list[tuple]]:
+    """Each particle's u, and per direction (u, v) the fit's weights (p, WIDTH) on ``ring``, whether they tell
     that direction's curvature (exact for every quadratic, not leaning on points too nearly on one conic) and
     whether they read none at rest."""
     used = ring >= 0
@@ -121,7 +122,6 @@ def _fits(points, tensors, particles, ring, border) -> tuple[np.ndarray, list[tu
     v = np.cross(normal, u)
     s, t = (np.einsum("prk,pk->pr", offsets, axis) / scale[:, None] for axis in (u, v))
     design = np.stack([np.ones_like(s), s, t, 0.5 * s * s, s * t, 0.5 * t * t], axis=2) * used[:, :, None]
-    along_border, straight, _ = border
     across = np.where(straight[:, None], np.cross(normal, along_border), 0.0)  # kappa across it taken as zero
     a_s, a_t = np.einsum("pk,pk->p", across, u), np.einsum("pk,pk->p", across, v)
     zero = np.zeros_like(a_s)
@@ -136,7 +136,7 @@ def _fits(points, tensors, particles, ring, border) -> tuple[np.ndarray, list[tu
         total = np.abs(weights).sum(axis=1) * scale ** 2
         bounded = (total < _MOST_WEIGHT) & (total > 1e-6)  # none at all: a border's bend across itself
         at_rest = np.linalg.norm(np.einsum("pr,prk->pk", weights, offsets), axis=1) * scale < _FLAT
-        fits.append((ring, weights, exact & bounded, at_rest))
+        fits.append((weights, exact & bounded, at_rest))
     return u, fits
 
 
