@@ -15,6 +15,13 @@ across itself, so the fit takes that curvature as zero (the plate's free edge: M
 kappa_nn = 0 where, as here, a bend along one direction does not bend the other), and reads the bend along
 the border, as a hem bends in a drape's folds. Where the border turns by more than ``_STRAIGHT`` at a
 particle (a corner), it has no such direction and the fit none but what its points tell.
+
+A quadratic has six coefficients: a particle with fewer points than that to fit (one of four neighbours
+inside the mesh; a hem's with one neighbour inside, whose free edge gives one equation more) cannot tell
+a bend from a twist, and was left unbent (of the drape specimen's 207 rim particles at 30 cells 38 both
+ways and 2 one way; 76 and 5 of 421 at 60). Such a particle is fitted to the nearest of its neighbours
+and their neighbours instead (up to seven), which tell every quadratic; a corner's stays as its own points
+tell (a free corner carries no moment either way).
 """
 
 from __future__ import annotations
@@ -60,19 +67,52 @@ def fitted_stencils(points, counts, indices, sides, tensors, particles, rows, be
                     damping: float) -> BendStencils:
     """The stencils of ``particles`` along u and v (see the module's docstring), each standing for its
     particle's area with the stiffness ``bending`` (B_u, B_v) times it, but along a direction a row's stencil
-    already bends the particle in (``rows``: each row's middle particle and direction), or its neighbours
-    cannot tell (a hem's particle with one neighbour inside, a corner's), or where it is not flat at rest.
-    ``tensors`` (n, 3, 3) sum the warp's directions at each particle (None: no UVs, u along its first side)."""
+    already bends the particle in (``rows``: each row's middle particle and direction), or where it is not
+    flat at rest. A particle whose neighbours cannot tell a direction (a hem's particle with one neighbour
+    inside, one of four neighbours: fewer points than a quadratic has coefficients) is fitted to the nearest
+    of its neighbours and theirs instead. ``tensors`` (n, 3, 3) sum the warp's directions at each particle
+    (None: no UVs, u along its first side)."""
     if not len(particles):
         return BendStencils(np.zeros((0, WIDTH), dtype=np.int64), np.zeros((0, WIDTH)), np.zeros(0), np.zeros(0))
-    n = len(points)
-    adjacency = Adjacency.of(sides, n)
+    adjacency = Adjacency.of(sides, len(points))
+    along_border, straight, corner = _border(points, counts, indices, particles)
+    ring, ring_2 = (_rings(points, adjacency, particles, depth) for depth in (1, 2))
+    u, first = _fits(points, tensors, particles, ring, along_border, straight)
+    _, wider = _fits(points, tensors, particles, ring_2, along_border, straight)
+    covered = _row_directions(rows, particles, u)
+    area = lumped_masses(points, counts, indices, 1.0)[particles]
+    parts = []
+    for axis, stiff in enumerate(bending):
+        (weights, told, at_rest), (weights_2, told_2, at_rest_2) = first[axis], wider[axis]
+        widen = ~told & told_2 & ~corner  # where the first ring cannot tell: every other fit as it was
+        stencil, weights = np.where(widen[:, None], ring_2, ring), np.where(widen[:, None], weights_2, weights)
+        keep = np.where(widen, at_rest_2, told & at_rest) & ~covered[:, axis]
+        stiffness = stiff * area[keep]
+        used = stencil[keep] >= 0
+        parts.append(BendStencils(np.where(used, stencil[keep], particles[keep][:, None]),
+                                  np.where(used, weights[keep], 0.0), stiffness, damping * stiffness))
+    return BendStencils.joined(parts)
+
+
+def _rings(points, adjacency: Adjacency, particles, depth: int) -> np.ndarray:
+    """(p, WIDTH): each particle and the nearest WIDTH - 1 of the particles within ``depth`` sides of it
+    (-1 where there are fewer)."""
     ring = np.full((len(particles), WIDTH), -1, dtype=np.int64)
     ring[:, 0] = particles
     for k, i in enumerate(particles):
-        others = adjacency.other[adjacency.offsets[i]:adjacency.offsets[i + 1]]
+        near = {int(i)}
+        for _ in range(depth):
+            near |= {int(o) for j in near for o in adjacency.other[adjacency.offsets[j]:adjacency.offsets[j + 1]]}
+        others = np.array(sorted(near - {int(i)}), dtype=np.int64)
         nearest = others[np.argsort(np.linalg.norm(points[others] - points[i], axis=1), kind="stable")]
         ring[k, 1:1 + min(len(nearest), WIDTH - 1)] = nearest[:WIDTH - 1]
+    return ring
+
+
+def _fits(points, tensors, particles, ring, along_border, straight) -> tuple[np.ndarray, list[tuple]]:
+    """Each particle's u, and per direction (u, v) the fit's weights (p, WIDTH) on ``ring``, whether they tell
+    that direction's curvature (exact for every quadratic, not leaning on points too nearly on one conic) and
+    whether they read none at rest."""
     used = ring >= 0
     offsets = np.where(used[:, :, None], points[np.maximum(ring, 0)] - points[particles][:, None, :], 0.0)
     scale = np.sqrt(np.sum(offsets ** 2, axis=(1, 2)) / np.maximum(used.sum(axis=1) - 1, 1))  # mean side
@@ -82,31 +122,27 @@ def fitted_stencils(points, counts, indices, sides, tensors, particles, rows, be
     v = np.cross(normal, u)
     s, t = (np.einsum("prk,pk->pr", offsets, axis) / scale[:, None] for axis in (u, v))
     design = np.stack([np.ones_like(s), s, t, 0.5 * s * s, s * t, 0.5 * t * t], axis=2) * used[:, :, None]
-    across = _across_border(points, counts, indices, particles, normal)
+    across = np.where(straight[:, None], np.cross(normal, along_border), 0.0)  # kappa across it taken as zero
     a_s, a_t = np.einsum("pk,pk->p", across, u), np.einsum("pk,pk->p", across, v)
     zero = np.zeros_like(a_s)
     free_edge = np.stack([zero, zero, zero, a_s * a_s, 2 * a_s * a_t, a_t * a_t], axis=1)  # kappa_nn = 0
     design = np.concatenate([design, free_edge[:, None, :]], axis=1)
     inverse = np.linalg.pinv(design)  # (p, 6, WIDTH + 1): the fit's coefficients from the heights and the edge
-    covered = _row_directions(rows, particles, u)
-    parts = []
-    for coefficient, axis, stiff in ((3, 0, bending[0]), (5, 1, bending[1])):
+    fits = []
+    for coefficient in (3, 5):
         weights = inverse[:, coefficient, :WIDTH] / scale[:, None] ** 2
         exact = np.abs(np.einsum("pr,prj->pj", inverse[:, coefficient, :], design)
                        - np.eye(6)[coefficient]).max(axis=1) < 1e-6
         total = np.abs(weights).sum(axis=1) * scale ** 2
         bounded = (total < _MOST_WEIGHT) & (total > 1e-6)  # none at all: a border's bend across itself
         at_rest = np.linalg.norm(np.einsum("pr,prk->pk", weights, offsets), axis=1) * scale < _FLAT
-        keep = exact & bounded & at_rest & ~covered[:, axis]
-        stiffness = stiff * lumped_masses(points, counts, indices, 1.0)[particles[keep]]
-        parts.append(BendStencils(np.where(used[keep], ring[keep], particles[keep][:, None]),
-                                  np.where(used[keep], weights[keep], 0.0), stiffness, damping * stiffness))
-    return BendStencils.joined(parts)
+        fits.append((weights, exact & bounded, at_rest))
+    return u, fits
 
 
-def _across_border(points, counts, indices, particles, normal) -> np.ndarray:
-    """Each particle's direction in its tangent plane across the border it is on (zero off the border and
-    where the border turns by more than ``_STRAIGHT``)."""
+def _border(points, counts, indices, particles) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each particle's direction along the border it is on, whether the border runs straight there (turning
+    by no more than ``_STRAIGHT``) and whether it is a corner (on the border, not straight)."""
     n = len(points)
     sides, uses = unique_pairs(face_edges(counts, indices), n)
     border = sides[uses == 1]
@@ -116,7 +152,7 @@ def _across_border(points, counts, indices, particles, normal) -> np.ndarray:
     np.add.at(spread, border.ravel(), np.repeat(direction[:, :, None] * direction[:, None, :], 2, axis=0))
     values, vectors = np.linalg.eigh(spread[particles])
     straight = (values[:, 2] > 0) & (values[:, 1] <= _STRAIGHT * values[:, 2])
-    return np.where(straight[:, None], np.cross(normal, vectors[:, :, 2]), 0.0)
+    return vectors[:, :, 2], straight, (values[:, 2] > 0) & ~straight
 
 
 def _warp_axes(tensors, particles, first_side, normal) -> np.ndarray:

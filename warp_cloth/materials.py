@@ -49,8 +49,9 @@ Between two triangles flat at rest (a mesh of triangles, the drape specimen's ri
 spring joining their far corners goes, and each particle of such triangles that no row runs through along the
 warp (or the weft) is bent along it by its fit (bend_fits.py): the weights that read the curvature along u
 from the quadratic fitting the particle and its neighbours at rest, exact for every quadratic on any mesh (on
-a free border, taking the curvature across it as zero), stand in a stencil as a row's do, k = B_u A (B_v A
-along v), A the particle's area. Bent round a cylinder, a grid of right triangles stores the plate's energy
+a free border, taking the curvature across it as zero; where its neighbours are fewer points than a
+quadratic has coefficients, from theirs too), stand in a stencil as a row's do, k = B_u A (B_v A along v),
+A the particle's area. Bent round a cylinder, a grid of right triangles stores the plate's energy
 but half a cell at the two ends along the bend, converging as the cell squared (0.9934, 0.9983, 0.9996 at 1,
 0.5, 0.25 cm), its points moved by up to a fifth of a cell 0.987 to 0.991; a twist costs nothing and lets no
 bend off, and Peirce's cantilever of triangles sags as the elastica within 0.4%, 0.08%, 0.02% at 10, 20, 40
