@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from .adjacency import Adjacency
-from .cloth_mesh import STENCIL_WIDTH as WIDTH, BendStencils, lumped_masses, shared_edges
+from .cloth_mesh import BendStencils, lumped_masses, shared_edges
 from .mesh_io import face_edges, face_starts, pair_keys, unique_pairs
 
 # The most a fit may read at rest, as a dihedral angle per side's length, for the particle to count as flat
@@ -31,6 +31,8 @@ _FLAT = 1e-4
 # A fit whose weights sum (in absolute value) to more than this over its mean side squared leans on points
 # too nearly on one conic to tell a bend apart: that direction is left to the rows or unbent.
 _MOST_WEIGHT = 64.0
+# The most points a fit reads: its particle and its nearest seven neighbours by sides.
+_WIDTH = 8
 # The most a border may turn at a particle, as sin^2 of the angle between its two sides, for the fit there
 # to take the curvature across it as zero (below 30 degrees).
 _STRAIGHT = 0.25
@@ -64,15 +66,16 @@ def fitted_stencils(points, counts, indices, sides, tensors, particles, rows, be
     cannot tell (a hem's particle with one neighbour inside, a corner's), or where it is not flat at rest.
     ``tensors`` (n, 3, 3) sum the warp's directions at each particle (None: no UVs, u along its first side)."""
     if not len(particles):
-        return BendStencils(np.zeros((0, WIDTH), dtype=np.int64), np.zeros((0, WIDTH)), np.zeros(0), np.zeros(0))
+        return BendStencils(np.zeros(1, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0),
+                            np.zeros(0))
     n = len(points)
     adjacency = Adjacency.of(sides, n)
-    ring = np.full((len(particles), WIDTH), -1, dtype=np.int64)
+    ring = np.full((len(particles), _WIDTH), -1, dtype=np.int64)
     ring[:, 0] = particles
     for k, i in enumerate(particles):
         others = adjacency.other[adjacency.offsets[i]:adjacency.offsets[i + 1]]
         nearest = others[np.argsort(np.linalg.norm(points[others] - points[i], axis=1), kind="stable")]
-        ring[k, 1:1 + min(len(nearest), WIDTH - 1)] = nearest[:WIDTH - 1]
+        ring[k, 1:1 + min(len(nearest), _WIDTH - 1)] = nearest[:_WIDTH - 1]
     used = ring >= 0
     offsets = np.where(used[:, :, None], points[np.maximum(ring, 0)] - points[particles][:, None, :], 0.0)
     scale = np.sqrt(np.sum(offsets ** 2, axis=(1, 2)) / np.maximum(used.sum(axis=1) - 1, 1))  # mean side
@@ -87,11 +90,11 @@ def fitted_stencils(points, counts, indices, sides, tensors, particles, rows, be
     zero = np.zeros_like(a_s)
     free_edge = np.stack([zero, zero, zero, a_s * a_s, 2 * a_s * a_t, a_t * a_t], axis=1)  # kappa_nn = 0
     design = np.concatenate([design, free_edge[:, None, :]], axis=1)
-    inverse = np.linalg.pinv(design)  # (p, 6, WIDTH + 1): the fit's coefficients from the heights and the edge
+    inverse = np.linalg.pinv(design)  # (p, 6, _WIDTH + 1): the fit's coefficients from the heights and the edge
     covered = _row_directions(rows, particles, u)
     parts = []
     for coefficient, axis, stiff in ((3, 0, bending[0]), (5, 1, bending[1])):
-        weights = inverse[:, coefficient, :WIDTH] / scale[:, None] ** 2
+        weights = inverse[:, coefficient, :_WIDTH] / scale[:, None] ** 2
         exact = np.abs(np.einsum("pr,prj->pj", inverse[:, coefficient, :], design)
                        - np.eye(6)[coefficient]).max(axis=1) < 1e-6
         total = np.abs(weights).sum(axis=1) * scale ** 2
@@ -99,8 +102,7 @@ def fitted_stencils(points, counts, indices, sides, tensors, particles, rows, be
         at_rest = np.linalg.norm(np.einsum("pr,prk->pk", weights, offsets), axis=1) * scale < _FLAT
         keep = exact & bounded & at_rest & ~covered[:, axis]
         stiffness = stiff * lumped_masses(points, counts, indices, 1.0)[particles[keep]]
-        parts.append(BendStencils(np.where(used[keep], ring[keep], particles[keep][:, None]),
-                                  np.where(used[keep], weights[keep], 0.0), stiffness, damping * stiffness))
+        parts.append(BendStencils.of_table(ring[keep], weights[keep], used[keep], stiffness, damping * stiffness))
     return BendStencils.joined(parts)
 
 
