@@ -1,31 +1,32 @@
 """Bending linear in the curvature: a material's stencils (warp_cloth/materials.py derives them), and
 their Jacobians for the implicit solve.
 
-A stencil names STENCIL_WIDTH particles and their weights w (1/m^2), which sum to zero and make the
-curvature vector d = sum_r w_r x_r vanish at the flat rest state, and grow as the curvature there times the
-cloth's normal: three particles p, m, q along a straight row (the second difference over its spacings,
-the other weights zero), or a particle and its neighbours, the weights that read the curvature along the
+A stencil names its particles and their weights w (1/m^2), which sum to zero and make the curvature
+vector d = sum_r w_r x_r vanish at the flat rest state, and grow as the curvature there times the cloth's
+normal: three particles p, m, q along a straight row (the second difference over its spacings), or a
+particle and up to seven neighbours, the weights that read the curvature along the
 warp or the weft from the quadratic fitting them (warp_cloth/bend_fits.py). Its
 energy 1/2 k |d|^2 and dashpot 1/2 c |sum_r w_r v_r|^2 give each of its particles
 r the force -w_r (k d + c sum_s w_s v_s). Linear in the positions: the stiffness Jacobian is the constant
 k w_r w_s I between particles r and s, and the damping one c w_r w_s I.
 
-Gathered per particle, as the springs are: ``offsets`` lists each particle's incidences, each naming a
-stencil and the particle's place in it, so every particle sums its own forces without atomics.
+Each stencil's entries lie in ``particles`` and ``weights`` from ``starts[s]`` to ``starts[s + 1]``, so a
+row reads its three and a fit its own. Gathered per particle, as the springs are: ``offsets`` lists each
+particle's incidences, each naming a stencil and the particle's entry in it, so every particle sums its own
+forces without atomics.
 """
 
 import warp as wp
-
-STENCIL_WIDTH = wp.constant(8)  # particles a stencil names, as cloth_mesh.STENCIL_WIDTH (a row's last five zero)
 
 
 @wp.struct
 class Bending:
     offsets: wp.array(dtype=int)  # (n + 1,) particle i's incidences are offsets[i]:offsets[i + 1]
     stencil: wp.array(dtype=int)  # per incidence: the stencil
-    place: wp.array(dtype=int)  # per incidence: the particle's place in it, 0 to STENCIL_WIDTH - 1
-    particles: wp.array(dtype=int)  # (STENCIL_WIDTH s,) each stencil's particles
-    weights: wp.array(dtype=float)  # (STENCIL_WIDTH s,) 1/m^2
+    entry: wp.array(dtype=int)  # per incidence: the particle's entry in it, an index of particles and weights
+    starts: wp.array(dtype=int)  # (s + 1,) stencil s's entries are starts[s]:starts[s + 1]
+    particles: wp.array(dtype=int)  # (e,) each stencil's particles
+    weights: wp.array(dtype=float)  # (e,) 1/m^2
     stiffness: wp.array(dtype=float)  # (s,) N m^3: the bending stiffness times the area the stencil stands for
     damping: wp.array(dtype=float)  # (s,) N m^3 s
 
@@ -34,8 +35,8 @@ class Bending:
 def stencil_sum(bending: Bending, s: int, u: wp.array(dtype=wp.vec3)) -> wp.vec3:
     """sum_r w_r u_r over stencil s."""
     total = wp.vec3(0.0)
-    for r in range(STENCIL_WIDTH):
-        total = total + bending.weights[STENCIL_WIDTH * s + r] * u[bending.particles[STENCIL_WIDTH * s + r]]
+    for e in range(bending.starts[s], bending.starts[s + 1]):
+        total = total + bending.weights[e] * u[bending.particles[e]]
     return total
 
 
@@ -46,7 +47,7 @@ def bending_forces(bending: Bending, i: int, first: int, stride: int, x: wp.arra
     f = wp.vec3(0.0)
     for k in range(bending.offsets[i] + first, bending.offsets[i + 1], stride):
         s = bending.stencil[k]
-        w = bending.weights[STENCIL_WIDTH * s + bending.place[k]]
+        w = bending.weights[bending.entry[k]]
         f = f - w * (bending.stiffness[s] * stencil_sum(bending, s, x) + bending.damping[s] * stencil_sum(bending, s, v))
     return f
 
@@ -56,7 +57,7 @@ def add_bending_times(bending: Bending, i: int, p: wp.array(dtype=wp.vec3), h: f
     """``total`` plus the stencils' part of particle i's row of the step's matrix (h D + h^2 K) times p."""
     for k in range(bending.offsets[i], bending.offsets[i + 1]):
         s = bending.stencil[k]
-        w = bending.weights[STENCIL_WIDTH * s + bending.place[k]]
+        w = bending.weights[bending.entry[k]]
         total = total + (w * (h * bending.damping[s] + h * h * bending.stiffness[s])) * stencil_sum(bending, s, p)
     return total
 
@@ -67,7 +68,7 @@ def add_bending_diagonal(bending: Bending, i: int, h: float, block: wp.mat33) ->
     scale = float(0.0)
     for k in range(bending.offsets[i], bending.offsets[i + 1]):
         s = bending.stencil[k]
-        w = bending.weights[STENCIL_WIDTH * s + bending.place[k]]
+        w = bending.weights[bending.entry[k]]
         scale = scale + w * w * (h * bending.damping[s] + h * h * bending.stiffness[s])
     return block + scale * wp.identity(n=3, dtype=float)
 
@@ -78,6 +79,6 @@ def bending_stiffness_times(bending: Bending, i: int, u: wp.array(dtype=wp.vec3)
     total = wp.vec3(0.0)
     for k in range(bending.offsets[i], bending.offsets[i + 1]):
         s = bending.stencil[k]
-        w = bending.weights[STENCIL_WIDTH * s + bending.place[k]]
+        w = bending.weights[bending.entry[k]]
         total = total + (w * bending.stiffness[s]) * stencil_sum(bending, s, u)
     return total

@@ -14,7 +14,7 @@ import pytest
 import warp_cloth as wc
 from warp_cloth.auto_substeps import DOWN, HOLD, MISS, MISS_MEMORY, SolveCaps, SubstepChoice, judge
 from warp_cloth.implicit import SolveStats
-from warp_cloth.limit_solve import lab_hooks
+from warp_cloth.limit_solve import SolveChoices, lab_hooks
 from warp_cloth.metrics import read_metrics
 
 from conftest import run_cli_in_process
@@ -59,7 +59,7 @@ FLOOR, MISSED_AT = 10, 12  # the floor, and the frame that misses there
 def jacobi_passes():
     """The limit solved by Jacobi passes alone: the default's line rounds hold these scenes at the floor (the
     test below), and these tests need frames that miss."""
-    with lab_hooks(line_solve=False):
+    with lab_hooks(SolveChoices(line_solve=False)):
         yield
 
 
@@ -104,7 +104,7 @@ def test_a_frame_whose_solve_misses_is_made_again_with_more_substeps_and_none_en
 
 
 def test_the_default_solve_holds_the_swing_at_the_floor_where_the_jacobi_passes_miss(swing):
-    with lab_hooks():  # the default: a Jacobi pair, then line rounds
+    with lab_hooks(SolveChoices()):  # the default: a Jacobi pair, then line rounds
         sim = wc.Simulator(with_simulation(swing, frames=MISSED_AT + 4), device="cpu")
     summary = sim.run()
     assert summary.frame_substeps == (FLOOR,) * (MISSED_AT + 4) and summary.substeps == FLOOR * (MISSED_AT + 4)

@@ -10,12 +10,8 @@ from warp_cloth.fabric_presets import PRESETS
 from warp_cloth.model import build_model
 
 
-def _curvatures(bending, x: np.ndarray) -> np.ndarray:
-    return np.einsum("sr,srk->sk", bending.weights, x[bending.particles])
-
-
 def _energy(bending, x: np.ndarray) -> float:
-    curvature = _curvatures(bending, x)
+    curvature = bending.curvatures(x)
     return float(np.sum(0.5 * bending.stiffness * np.einsum("sk,sk->s", curvature, curvature)))
 
 
@@ -54,11 +50,11 @@ def test_no_fit_pulls_on_a_flat_placement_of_its_rest_state(tmp_path, uvs):
     turn, _ = np.linalg.qr(rng.normal(size=(3, 3)))
     bent = flat.copy()
     bent[:, 0], bent[:, 2] = 0.1 * np.sin(flat[:, 0] / 0.1), 0.1 * (1.0 - np.cos(flat[:, 0] / 0.1))
-    scale = np.abs(_curvatures(model.bending, bent)).max()
+    scale = np.abs(model.bending.curvatures(bent)).max()
     assert len(model.bending.stiffness) > 150  # both directions at most of the 130 particles
     for mirror in (1.0, -1.0):
         placed = (flat * [mirror, 1.0, 1.0]) @ turn.T + rng.normal(size=3)
-        assert np.abs(_curvatures(model.bending, placed)).max() < 1e-9 * scale
+        assert np.abs(model.bending.curvatures(placed)).max() < 1e-9 * scale
 
 
 def test_a_twist_costs_nothing_and_lets_no_bend_off(tmp_path):
@@ -102,11 +98,16 @@ def test_a_clamped_strip_of_triangles_sags_as_the_elastica(tmp_path, preset, len
                                     "denim": [-0.00387, -0.00079, -0.00008]}[preset], abs=5e-5)
 
 
-def test_the_kernels_gather_as_wide_stencils_as_the_host_makes():
-    from warp_cloth.cloth_mesh import STENCIL_WIDTH
-    from warp_cloth.kernels.bending import STENCIL_WIDTH as KERNELS_WIDTH
-
-    assert int(KERNELS_WIDTH) == STENCIL_WIDTH
+def test_a_rows_stencil_names_its_three_particles_and_a_fit_its_own(tmp_path):
+    """Stencils are as wide as they are (kernels/bending.py reads each one's entries alone): a grid's rows
+    three particles each; a mesh of triangles' fits a particle and up to seven neighbours, as many as it
+    has."""
+    rows = build_model(_scene(resolution=[8, 6], size=[0.4, 0.3], material="denim")).bending
+    assert (np.diff(rows.starts) == 3).all() and len(rows.particles) == 3 * len(rows.stiffness)
+    mesh = write_grid_obj(tmp_path / "panel.obj", 8, 6, 0.4, 0.3, triangles=True)
+    fits = build_model(_scene(mesh=str(mesh), material="denim")).bending
+    widths = np.diff(fits.starts)
+    assert widths.max() <= 8 and len(set(widths)) > 1  # a right-triangle grid: 7 inside, 5 on a side
 
 
 @pytest.mark.parametrize("resolution", [30, 61])
@@ -129,8 +130,10 @@ def test_every_particle_of_the_drape_specimens_rim_is_bent_along_warp_and_weft(t
     sides, uses = unique_pairs(face_edges(counts, indices), len(rest))
     hem = np.unique(sides[uses == 1])
     bending = model.bending
-    row = (bending.weights[:, 3:] == 0).all(axis=1) & (bending.particles[:, 1] == bending.particles[:, 3])
-    centre = np.where(row, bending.particles[:, 1], bending.particles[:, 0])
+    first = bending.starts[:-1]
+    row = np.diff(bending.starts) == 3  # a row's ends and middle; a fit reads its particle first
+    centre = np.where(row, bending.particles[np.minimum(first + 1, len(bending.particles) - 1)],
+                      bending.particles[first])
     area = lumped_masses(rest, counts, indices, 1.0)[centre]
     along_warp = np.isclose(bending.stiffness / area, PRESETS["denim"].bending[0])
     for axis, stencils in ((0, along_warp), (1, ~along_warp)):
@@ -138,7 +141,6 @@ def test_every_particle_of_the_drape_specimens_rim_is_bent_along_warp_and_weft(t
         for a, b, c in ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)):
             bent = rest.copy()
             bent[:, 1] = 0.5 * (a * rest[:, 0] ** 2 + 2 * b * rest[:, 0] * rest[:, 2] + c * rest[:, 2] ** 2)
-            read = _curvatures(bending, bent)[:, 1]
+            read = bending.curvatures(bent)[:, 1]
             inside = stencils & np.isin(centre, rim) & ~np.isin(centre, hem)
             assert read[inside] == pytest.approx((a, c)[axis], abs=1e-4)  # exact within 1e-6 in a fit's scaled terms
-

@@ -10,7 +10,7 @@ import warp as wp
 
 import warp_cloth as wc
 from conftest import assert_restored_run_continues, with_simulation
-from warp_cloth.limit_solve import lab_hooks
+from warp_cloth.limit_solve import SolveChoices, lab_hooks
 
 pytestmark = pytest.mark.cuda
 
@@ -159,7 +159,7 @@ def test_converged_limit_solve_runs_in_the_captured_graph_and_holds_the_limit(rh
     scene = dataclasses.replace(scene, simulation=dataclasses.replace(
         scene.simulation, integrator="implicit", dt=0.04165, substeps=None, limit_solve="converged",
         limit_max_passes=1000))
-    with lab_hooks(chebyshev_rho=rho):
+    with lab_hooks(SolveChoices(chebyshev_rho=rho)):
         sim = wc.Simulator(scene, device="cuda")
     monitor = wc.StrainMonitor()
     sim.run(24, writers=[monitor])

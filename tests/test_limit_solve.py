@@ -9,7 +9,7 @@ import pytest
 
 import warp_cloth as wc
 from conftest import run_cli_in_process
-from warp_cloth.limit_solve import lab_hooks
+from warp_cloth.limit_solve import SolveChoices, lab_hooks
 from warp_cloth.strain import StrainMonitor
 
 TOLERANCE = 0.005
@@ -29,7 +29,7 @@ def worst_over_run(scene: wc.Scene, frames: int, rho: float | None = 0.0, lines:
     """The worst strain, the solve's figures and the simulator after ``frames`` frames, its passes
     accelerated with the radius ``rho`` (0: plain passes; None: the solver's estimate), with the line rounds
     after the first Jacobi pair where ``lines`` (the default) or Jacobi passes throughout."""
-    with lab_hooks(chebyshev_rho=rho, line_solve=lines):
+    with lab_hooks(SolveChoices(chebyshev_rho=rho, line_solve=lines)):
         sim = wc.Simulator(scene, device="cpu")
     monitor = StrainMonitor()
     sim.run(frames, writers=[monitor])

@@ -15,7 +15,7 @@ import warp_cloth as wc
 from warp_cloth.cloth_lines import cloth_lines, mesh_chains
 from warp_cloth.diagnostics import ContactGaps, TriangleIntersections
 from warp_cloth.lab.bench_meshes import as_mesh_cloth
-from warp_cloth.limit_solve import lab_hooks
+from warp_cloth.limit_solve import SolveChoices, lab_hooks
 from warp_cloth.scene_file import scene_from_dict
 from warp_cloth.line_solve import LineSolves, line_segments, longest_line, slot_layout
 from warp_cloth.model import build_model
@@ -77,7 +77,7 @@ def test_rounds_of_line_solves_hold_the_hanging_cloth_within_the_tolerance(mesh)
     scene = hanging(mesh)
     scene = dataclasses.replace(scene, simulation=dataclasses.replace(
         scene.simulation, limit_solve="converged", limit_tolerance=0.005))
-    with lab_hooks(chebyshev_rho=0.0, line_solve=True):
+    with lab_hooks(SolveChoices(chebyshev_rho=0.0, line_solve=True)):
         sim = wc.Simulator(scene, device="cpu")
     assert "line solves" in str(sim.plan)
     monitor = StrainMonitor()
@@ -90,8 +90,8 @@ def test_rounds_of_line_solves_hold_the_hanging_cloth_within_the_tolerance(mesh)
 def test_a_scene_without_strain_limits_runs_under_the_line_solves_hooks_as_without_them():
     scene = wc.load_scene("swing")  # springs only: no limit, so no lines and no limit solve
     runs = []
-    for hooks in ({}, {"line_solve": True}):
-        with lab_hooks(**hooks):
+    for choices in (SolveChoices(), SolveChoices(line_solve=True)):
+        with lab_hooks(choices):
             sim = wc.Simulator(scene, device="cpu")
         sim.run(2)
         runs.append(sim.positions())
@@ -102,7 +102,8 @@ def test_rounds_of_line_solves_with_self_collision_hold_the_limit_and_keep_the_c
     scene = hard_cases.twisted()  # released from a twist onto the ground, folding onto itself
     scene = dataclasses.replace(scene, simulation=dataclasses.replace(
         scene.simulation, limit_solve="converged", limit_tolerance=0.005))
-    with pytest.warns(wc.UnstableStepWarning), lab_hooks(chebyshev_rho=0.0, line_solve=True, line_contacts=True):
+    lines = SolveChoices(chebyshev_rho=0.0, line_solve=True, line_contacts=True)
+    with pytest.warns(wc.UnstableStepWarning), lab_hooks(lines):
         sim = wc.Simulator(scene, device="cpu")
     assert "line solves" in str(sim.plan) and "separation" in str(sim.plan)
     monitor = StrainMonitor()
@@ -142,7 +143,7 @@ def test_the_interleaved_layout_stores_each_segments_j_th_slot_at_its_segment_pl
 
 @pytest.mark.parametrize("device", ["cpu", pytest.param("cuda", marks=pytest.mark.cuda)])
 def test_the_device_chooses_whole_contiguous_lines_on_the_cpu_and_interleaved_segments_of_32_on_cuda(device):
-    with lab_hooks(line_solve=True):
+    with lab_hooks(SolveChoices(line_solve=True)):
         sim = wc.Simulator(wc.load_scene("hanging"), device=device, graph=False)
     line_solves = sim.plan.projection.later_body[0]
     assert isinstance(line_solves, LineSolves)
@@ -162,8 +163,8 @@ def test_lines_solved_in_segments_move_the_particles_as_whole_lines_do(device):
     rng = np.random.default_rng(3)
     moved = {}
     for segment, interleaved in [(whole, False), (whole, True)] + [(s, i) for s in (2, 3, 32) for i in (False, True)]:
-        with lab_hooks(chebyshev_rho=0.0, line_solve=True, line_hold_margin=1.0, line_newton_steps=2,
-                       line_segment=segment, line_interleaved=interleaved):
+        with lab_hooks(SolveChoices(chebyshev_rho=0.0, line_solve=True, line_hold_margin=1.0, line_newton_steps=2,
+                                    line_segment=segment, line_interleaved=interleaved)):
             sim = wc.Simulator(scene, device=device, graph=False)
         if not moved:
             start = sim.positions() + rng.normal(0.0, 0.2, sim.positions().shape) * sim.model.edge_rest.mean()
@@ -187,7 +188,7 @@ def test_the_hanging_cloth_comes_to_rest_under_the_line_solve_as_under_the_defau
     scene = wc.load_scene("hanging")
     scene = dataclasses.replace(scene, simulation=dataclasses.replace(scene.simulation, drag=1.0,
                                                                       integrator="symplectic"))
-    with lab_hooks(line_solve=True):
+    with lab_hooks(SolveChoices(line_solve=True)):
         sim = wc.Simulator(scene, device="cpu")
     assert sim.plan.projection.later_body is not None
     for _ in range(480):
@@ -201,7 +202,7 @@ def test_a_scene_whose_only_limited_springs_are_a_seams_has_no_lines_and_keeps_t
                                         "origin": [0.9, 0.4, 0.0], "rotation": [0.0, 0.0, 180.0]}],
             "seam": [{"a": {"cloth": "a", "edge": "right"}, "b": {"cloth": "b", "edge": "right"}}]}
     scene = scene_from_dict(data)
-    with lab_hooks(line_solve=True):
+    with lab_hooks(SolveChoices(line_solve=True)):
         sim = wc.Simulator(scene, device="cpu")
     assert cloth_lines(sim.model, scene) == [] and sim.model.limits is not None
     assert sim.plan.projection.later_body is None  # the default's Jacobi pairs

@@ -163,7 +163,7 @@ def test_a_grid_bent_round_a_cylinder_stores_the_plates_bending_energy(axis):
     bent = flat.copy()
     bent[:, axis] = radius * np.sin(along / radius)
     bent[:, 2] = flat[:, 2] + radius * (1.0 - np.cos(along / radius))
-    curvature = np.einsum("sr,srk->sk", bending.weights, bent[bending.particles])
+    curvature = bending.curvatures(bent)
     energy = np.sum(0.5 * bending.stiffness * np.einsum("sk,sk->s", curvature, curvature))
     cells = (nx, ny)[axis]
     length = size[axis] * (cells - 1) / cells
@@ -180,7 +180,12 @@ def _tip_sag(preset: str, length: float, resolution: tuple[int, int], mesh: Path
     model = build_model(_scene(material=preset, **cloth))
     springs, x = model.springs, model.positions.astype(float)
     pairs, rest, k = springs.pairs, springs.rest.astype(float), springs.stiffness.astype(float)
-    bending = model.bending or BendStencils(np.zeros((0, 4), dtype=int), np.zeros((0, 4)), np.zeros(0), np.zeros(0))
+    bending = model.bending or BendStencils(np.zeros(1, dtype=int), np.zeros(0, dtype=int), np.zeros(0), np.zeros(0),
+                                            np.zeros(0))
+    widths = np.diff(bending.starts)  # the stencils as a table, each row padded with zero weights
+    used = np.arange(max(widths, default=1)) < widths[:, None]
+    particles, weights = np.zeros(used.shape, dtype=int), np.zeros(used.shape)
+    particles[used], weights[used] = bending.particles, bending.weights
     column = np.arange(len(x)) % (resolution[0] + 1)
     free = np.repeat(column > resolution[0] // 5, 3)
     weight = model.masses.astype(float) * 9.81
@@ -201,7 +206,7 @@ def _tip_sag(preset: str, length: float, resolution: tuple[int, int], mesh: Path
         strain = length / rest - 1.0
         acting = np.where(strain > 0, springs.flags & 1, springs.flags & 2) != 0
         kk = np.where(acting, k, 0.0)
-        curvature = np.einsum("sr,srk->sk", bending.weights, x[bending.particles])
+        curvature = np.einsum("sr,srk->sk", weights, x[particles])
         total = (np.sum(0.5 * kk * rest * strain ** 2) + np.sum(weight * x[:, 2])
                  + np.sum(0.5 * bending.stiffness * np.einsum("sk,sk->s", curvature, curvature)))
         if not with_derivatives:
@@ -211,13 +216,13 @@ def _tip_sag(preset: str, length: float, resolution: tuple[int, int], mesh: Path
         gradient = np.zeros_like(x)
         np.add.at(gradient, pairs[:, 0], force)
         np.add.at(gradient, pairs[:, 1], -force)
-        np.add.at(gradient, bending.particles, (bending.stiffness[:, None] * curvature)[:, None, :] * bending.weights[:, :, None])
+        np.add.at(gradient, particles, (bending.stiffness[:, None] * curvature)[:, None, :] * weights[:, :, None])
         gradient[:, 2] += weight
         outer = unit[:, :, None] * unit[:, None, :]
         blocks = (kk / rest)[:, None, None] * (outer + (1.0 - rest / length)[:, None, None] * (np.eye(3) - outer))
         hessian = assembled(pairs, np.stack([np.stack([blocks, -blocks], 1), np.stack([-blocks, blocks], 1)], 1))
-        stencil = bending.stiffness[:, None, None] * bending.weights[:, :, None] * bending.weights[:, None, :]
-        hessian += assembled(bending.particles, stencil[:, :, :, None, None] * np.eye(3))
+        stencil = bending.stiffness[:, None, None] * weights[:, :, None] * weights[:, None, :]
+        hessian += assembled(particles, stencil[:, :, :, None, None] * np.eye(3))
         return total, gradient.ravel()[free], hessian[np.ix_(free, free)]
 
     shift = 1e-3

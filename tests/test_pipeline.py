@@ -12,7 +12,7 @@ import warp as wp
 import warp_cloth as wc
 from conftest import with_simulation
 from warp_cloth import neighbour_lists
-from warp_cloth.limit_solve import lab_hooks
+from warp_cloth.limit_solve import SolveChoices, lab_hooks
 from warp_cloth.kernels import particle_collision
 from warp_cloth.neighbour_lists import LIST_THREADS_BY_SIZE
 from warp_cloth.passes import ContactStart
@@ -145,7 +145,7 @@ def test_lists_remade_every_substep_where_a_test_asks(launches, monkeypatch):
 
 
 def test_sequential_projection_runs_the_limit_and_then_the_separation_in_each_pass_that_has_both(launches):
-    with lab_hooks(joint_passes=0):  # the fixed passes sequential from the first
+    with lab_hooks(SolveChoices(joint_passes=0)):  # the fixed passes sequential from the first
         sim = wc.Simulator(fixed_collision("pile"), device="cpu", graph=False)
     launches.clear()
     sim.substep()
@@ -162,7 +162,7 @@ def test_a_converged_solve_with_contacts_projects_jointly_then_sequentially(laun
     for joint_passes, expected in ((4, {"limit_and_separation_pass": 4, "limit_pass": 4, "separation_pass": 4}),
                                    (10, {"limit_and_separation_pass": 10}),
                                    (0, {"limit_pass": 6, "separation_pass": 6})):
-        with lab_hooks(joint_passes=joint_passes):
+        with lab_hooks(SolveChoices(joint_passes=joint_passes)):
             sim = wc.Simulator(scene, device="cpu", graph=False)
         sim.state.x.assign(sim.state.x.numpy() * 1.2)
         launches.clear()
@@ -174,7 +174,7 @@ def test_a_converged_solve_with_contacts_projects_jointly_then_sequentially(laun
 def test_the_converged_solve_repeats_its_pair_of_passes_and_check_until_within_tolerance(launches):
     # The step, then pairs of limit passes (colliders in each), each pair followed by the check of the
     # residual and the loop's bookkeeping, as many pairs as the substep needs.
-    with lab_hooks(chebyshev_rho=0.0):  # plain passes
+    with lab_hooks(SolveChoices(chebyshev_rho=0.0)):  # plain passes
         sim = wc.Simulator(wc.load_scene("sphere_push"), device="cpu")
     assert sim.plan.pass_names == ["spheres:move", "integrate:explicit", "converged solve", "clock"]
     for _ in range(20):
@@ -190,7 +190,7 @@ def test_the_converged_solve_repeats_its_pair_of_passes_and_check_until_within_t
 def test_an_accelerated_solve_adds_its_extrapolation_and_no_other_launch_a_pair(launches):
     # Chebyshev's weight, its restart test and the loop's bookkeeping are one kernel: a small cloth's
     # iteration costs its launches.
-    with lab_hooks(chebyshev_rho=0.95):
+    with lab_hooks(SolveChoices(chebyshev_rho=0.95)):
         sim = wc.Simulator(wc.load_scene("sphere_push"), device="cpu")
     for _ in range(20):
         launches.clear()

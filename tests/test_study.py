@@ -11,7 +11,7 @@ import pytest
 
 import warp_cloth as wc
 import warp_cloth.lab.study as study_module
-from warp_cloth.limit_solve import lab_hooks
+from warp_cloth.limit_solve import SolveChoices, lab_hooks
 from warp_cloth.lab.study import (StudyRun, Trajectory, converged_frames, main, pareto_front, run_study,
                               with_resolution)
 
@@ -97,7 +97,8 @@ def test_unstable_runs_are_reported_not_raised(tmp_path, capsys):
     assert "\n[simulation]\n" in text
     scene = tmp_path / "hanging.toml"
     scene.write_text(text.replace("\n[simulation]\n", "\n[simulation]\nlimit_max_passes = 200\n", 1))
-    with lab_hooks(chebyshev_rho=0.0, line_solve=False):  # plain Jacobi passes (the line rounds hold 0.0208 s)
+    plain = SolveChoices(chebyshev_rho=0.0, line_solve=False)  # plain Jacobi passes (the line rounds hold 0.0208 s)
+    with lab_hooks(plain):
         code = main([str(scene), "--dt", "0.0208", "0.0104", "--frames", "24", "--device", "cpu", "--out", str(out)])
     assert code == 0
     with open(out / "study.csv") as handle:

@@ -19,7 +19,7 @@ import numpy as np
 
 import warp_cloth as wc
 from warp_cloth.lab.bench import matrix_scene
-from warp_cloth.limit_solve import lab_hooks
+from warp_cloth.limit_solve import SolveChoices, lab_hooks
 from warp_cloth.spring_paths import nearest_along_edges
 
 TOLERANCE = 0.005
@@ -138,7 +138,7 @@ def converged_sphere_cloth(n: int, device: str = "cpu", rho: float = 0.0) -> wc.
     """The speed matrix's sphere cloth at n^2 with the converged limit solve, at most CAP passes, accelerated
     by Chebyshev at ``rho`` (0: plain Jacobi)."""
     scene = matrix_scene("sphere", n, "symplectic")
-    with lab_hooks(chebyshev_rho=rho):
+    with lab_hooks(SolveChoices(chebyshev_rho=rho)):
         return wc.Simulator(dataclasses.replace(scene, simulation=dataclasses.replace(
             scene.simulation, limit_solve="converged", limit_max_passes=CAP)), device=device)
 

@@ -5,8 +5,8 @@
         semi_implicit vbd] [--target 0.11]   each engine from 10 substeps, doubling until it holds the target
 
 variant is hanging, sphere or self; engine is ours (the matrix's fixed 2 limit passes), ours_sequential
-(the self rows' collision passes projected sequentially, ``lab_hooks(joint_passes=0)``), ours_METHOD for a method of
-tools/strain_solve_probe.py (``ours_chebyshev``: the limit solved, Chebyshev 0.95, at most 400 passes a
+(the self rows' collision passes projected sequentially, ``SolveChoices(joint_passes=0)``), ours_METHOD for a method
+of tools/strain_solve_probe.py (``ours_chebyshev``: the limit solved, Chebyshev 0.95, at most 400 passes a
 substep), semi_implicit, xpbd or vbd; substeps (default 10) sets the step,
 the springs stiffening with 1/dt^2 in both engines (``matrix_scene``, newton_compare), and worlds (default
 1) runs that many copies, as the worlds of one batch (ours) or of one model (Newton's). Each row is 2 warm-up
@@ -24,7 +24,7 @@ import warp as wp
 
 from warp_cloth.lab.bench import Case, environment, matrix_scene, time_case
 from warp_cloth.lab.newton_compare import time_newton
-from warp_cloth.limit_solve import lab_hooks
+from warp_cloth.limit_solve import SolveChoices, lab_hooks
 from strain_solve_probe import configured
 
 REPEATS = 3
@@ -36,11 +36,11 @@ def time_ours(variant: str, n: int, device: str, frames: int, engine: str, subst
     """``bench.time_case`` of the matrix scene so configured (as ``worlds`` copies in one batch)."""
     scene = matrix_scene(variant, n, "symplectic", substeps)
     method = engine.partition("_")[2] or "fixed"
-    hooks = dict(joint_passes=0)  # the fixed passes, sequential
+    choices = SolveChoices(joint_passes=0)  # the fixed passes, sequential
     if method != "sequential":
         scene, rho = configured(scene, method, MAX_PASSES, RHO)
-        hooks = dict(chebyshev_rho=rho)
-    with lab_hooks(**hooks):
+        choices = SolveChoices(chebyshev_rho=rho)
+    with lab_hooks(choices):
         result = time_case(Case(engine, scene, frames, fresh=False, worlds=worlds), device, REPEATS)
     if not result.stable:
         return {"solver": engine, "variant": variant, "n": n, "worlds": worlds, "substeps": substeps,

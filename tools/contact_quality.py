@@ -28,7 +28,7 @@ import hard_cases  # noqa: E402
 import warp_cloth as wc  # noqa: E402
 from warp_cloth.lab.bench import environment, matrix_scene  # noqa: E402
 from warp_cloth.diagnostics import ContactGaps, TriangleIntersections  # noqa: E402
-from warp_cloth.limit_solve import JOINT_PASSES, lab_hooks  # noqa: E402
+from warp_cloth.limit_solve import SolveChoices, lab_hooks  # noqa: E402
 
 SCENES = {
     "fold": lambda: wc.load_scene("fold"),
@@ -55,8 +55,9 @@ def measure(name: str, frames: int | None, device: str, projection: str | None) 
     scene = SCENES[name]()
     if frames is not None:
         scene = dataclasses.replace(scene, simulation=dataclasses.replace(scene.simulation, frames=frames))
-    joint_passes = {"joint": 10**9, "sequential": 0}.get(projection, JOINT_PASSES)  # None: the solver's
-    with lab_hooks(joint_passes=joint_passes):
+    choices = {"joint": SolveChoices(joint_passes=10**9), "sequential": SolveChoices(joint_passes=0)}.get(
+        projection, SolveChoices())  # None: the solver's
+    with lab_hooks(choices):
         sim = wc.Simulator(scene, device=device)
     crossings, gaps = TriangleIntersections(sim), ContactGaps(sim)
     worst = {"closest_contact": np.inf, "most_crossings": 0, "stretch": -np.inf, "compression": np.inf}

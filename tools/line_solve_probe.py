@@ -47,19 +47,17 @@ from warp_cloth.displacement_bounds import BoundSettings
 from warp_cloth.displacement_bounds import lab_hooks as bound_hooks
 from warp_cloth.lab.bench_meshes import as_mesh_cloth
 from warp_cloth.cloth_mesh import BEND
-from warp_cloth.limit_solve import lab_hooks
+from warp_cloth.limit_solve import SolveChoices, lab_hooks
 from warp_cloth.stability import at_substeps
 
 WHOLE_LINES = 1 << 30  # a segment longer than any line (the layout keeps only the longest's slots)
-# method: the hooks its simulator is built with
-METHODS = {"default": {}, "jacobi": {"line_solve": False}, "lines": {"line_solve": True, "line_contacts": True, "chebyshev_rho": 0.0, "line_segment": WHOLE_LINES},
-           "lines-segments": {"line_solve": True, "line_contacts": True, "chebyshev_rho": 0.0, "line_segment": 32},
-           "lines-segments-contiguous": {"line_solve": True, "line_contacts": True, "chebyshev_rho": 0.0, "line_segment": 32,
-                                         "line_interleaved": False},
-           "lines-segments-interleaved": {"line_solve": True, "line_contacts": True, "chebyshev_rho": 0.0, "line_segment": 32,
-                                          "line_interleaved": True},
-           "lines-held-all": {"line_solve": True, "line_contacts": True, "chebyshev_rho": 0.0, "line_hold_margin": 1.0,
-                              "line_newton_steps": 1, "line_segment": WHOLE_LINES}}
+# method: the solver's choices its simulator is built with
+LINES = SolveChoices(line_solve=True, line_contacts=True, chebyshev_rho=0.0, line_segment=WHOLE_LINES)
+METHODS = {"default": SolveChoices(), "jacobi": SolveChoices(line_solve=False), "lines": LINES,
+           "lines-segments": dataclasses.replace(LINES, line_segment=32),
+           "lines-segments-contiguous": dataclasses.replace(LINES, line_segment=32, line_interleaved=False),
+           "lines-segments-interleaved": dataclasses.replace(LINES, line_segment=32, line_interleaved=True),
+           "lines-held-all": dataclasses.replace(LINES, line_hold_margin=1.0, line_newton_steps=1)}
 
 
 def measure(n: int, method: str, frames: int, cap: int, device: str, cloth: str = "grid",
@@ -112,7 +110,7 @@ def measure_run(scene: wc.Scene, method: str, frames: int, device: str, bounds: 
     substep on average. A scene the simulator refuses, or a run that blows up, is a row too."""
     load = round(os.getloadavg()[0], 2)
     try:
-        with lab_hooks(**METHODS[method]), bound_hooks(BoundSettings.parse(bounds)):
+        with lab_hooks(METHODS[method]), bound_hooks(BoundSettings.parse(bounds)):
             sim = wc.Simulator(scene, device=device)
     except wc.SceneError as exc:
         return {"stable": None, "refused": str(exc), "load_average": load}

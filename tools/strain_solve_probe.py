@@ -29,7 +29,7 @@ import warp as wp
 import warp_cloth as wc
 from warp_cloth.lab.bench import environment, matrix_scene, seconds_of_runs
 from warp_cloth.diagnostics import CheckReport
-from warp_cloth.limit_solve import lab_hooks
+from warp_cloth.limit_solve import SolveChoices, lab_hooks
 
 METHODS = {"fixed": ("fixed", 0.0), "jacobi": ("converged", 0.0), "chebyshev": ("converged", 0.99)}
 
@@ -123,7 +123,7 @@ def main() -> None:
             for variant in ("sphere", "self"):
                 for method in args.methods or list(METHODS):
                     scene, rho = configured(matrix_scene(variant, n, args.integrator), method, args.cap, args.rho)
-                    with lab_hooks(chebyshev_rho=rho):
+                    with lab_hooks(SolveChoices(chebyshev_rho=rho)):
                         row = {"scene": scene.name, "method": method, "rho": rho,
                                "cap": args.cap, **timed(scene, 48, args.device, 3 if n <= 256 else 1)}
                     rows.append(row)
@@ -137,7 +137,7 @@ def main() -> None:
                                                                               ("chebyshev", 0.95)]
             for method, rho in chosen:
                 scene, radius = configured(wc.load_scene(name), method, 400, rho)
-                with lab_hooks(chebyshev_rho=radius):
+                with lab_hooks(SolveChoices(chebyshev_rho=radius)):
                     row = {"scene": name, "frames": 72, "method": method, "rho": rho,
                            **contacts(scene, 72, args.device)}
                 rows.append(row)
@@ -155,7 +155,7 @@ def main() -> None:
     rows = []
     for scene, frames, method, rho, cap in cases:
         scene, radius = configured(scene, method, cap, rho)
-        with lab_hooks(chebyshev_rho=radius):
+        with lab_hooks(SolveChoices(chebyshev_rho=radius)):
             row = {"scene": scene.name, "frames": frames, "method": method,
                    "rho": METHODS[method][1] if rho is None else rho, **measure(scene, frames, args.device)}
         rows.append(row)

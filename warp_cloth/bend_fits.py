@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from .adjacency import Adjacency
-from .cloth_mesh import STENCIL_WIDTH as WIDTH, BendStencils, lumped_masses, shared_edges
+from .cloth_mesh import BendStencils, lumped_masses, shared_edges
 from .mesh_io import face_edges, face_starts, pair_keys, unique_pairs
 
 # The most a fit may read at rest, as a dihedral angle per side's length, for the particle to count as flat
@@ -38,6 +38,8 @@ _FLAT = 1e-4
 # A fit whose weights sum (in absolute value) to more than this over its mean side squared leans on points
 # too nearly on one conic to tell a bend apart: that direction is left to the rows or unbent.
 _MOST_WEIGHT = 64.0
+# The most points a fit reads: its particle and its nearest seven neighbours by sides.
+_WIDTH = 8
 # The most a border may turn at a particle, as sin^2 of the angle between its two sides, for the fit there
 # to take the curvature across it as zero (below 30 degrees).
 _STRAIGHT = 0.25
@@ -73,7 +75,8 @@ def fitted_stencils(points, counts, indices, sides, tensors, particles, rows, be
     of its neighbours and theirs instead. ``tensors`` (n, 3, 3) sum the warp's directions at each particle
     (None: no UVs, u along its first side)."""
     if not len(particles):
-        return BendStencils(np.zeros((0, WIDTH), dtype=np.int64), np.zeros((0, WIDTH)), np.zeros(0), np.zeros(0))
+        return BendStencils(np.zeros(1, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0),
+                            np.zeros(0))
     adjacency = Adjacency.of(sides, len(points))
     along_border, straight, corner = _border(points, counts, indices, particles)
     ring, ring_2 = (_rings(points, adjacency, particles, depth) for depth in (1, 2))
@@ -88,16 +91,15 @@ def fitted_stencils(points, counts, indices, sides, tensors, particles, rows, be
         stencil, weights = np.where(widen[:, None], ring_2, ring), np.where(widen[:, None], weights_2, weights)
         keep = np.where(widen, at_rest_2, told & at_rest) & ~covered[:, axis]
         stiffness = stiff * area[keep]
-        used = stencil[keep] >= 0
-        parts.append(BendStencils(np.where(used, stencil[keep], particles[keep][:, None]),
-                                  np.where(used, weights[keep], 0.0), stiffness, damping * stiffness))
+        parts.append(BendStencils.of_table(stencil[keep], weights[keep], stencil[keep] >= 0, stiffness,
+                                           damping * stiffness))
     return BendStencils.joined(parts)
 
 
 def _rings(points, adjacency: Adjacency, particles, depth: int) -> np.ndarray:
-    """(p, WIDTH): each particle and the nearest WIDTH - 1 of the particles within ``depth`` sides of it
+    """(p, _WIDTH): each particle and the nearest _WIDTH - 1 of the particles within ``depth`` sides of it
     (-1 where there are fewer)."""
-    ring = np.full((len(particles), WIDTH), -1, dtype=np.int64)
+    ring = np.full((len(particles), _WIDTH), -1, dtype=np.int64)
     ring[:, 0] = particles
     for k, i in enumerate(particles):
         near = {int(i)}
@@ -105,12 +107,12 @@ def _rings(points, adjacency: Adjacency, particles, depth: int) -> np.ndarray:
             near |= {int(o) for j in near for o in adjacency.other[adjacency.offsets[j]:adjacency.offsets[j + 1]]}
         others = np.array(sorted(near - {int(i)}), dtype=np.int64)
         nearest = others[np.argsort(np.linalg.norm(points[others] - points[i], axis=1), kind="stable")]
-        ring[k, 1:1 + min(len(nearest), WIDTH - 1)] = nearest[:WIDTH - 1]
+        ring[k, 1:1 + min(len(nearest), _WIDTH - 1)] = nearest[:_WIDTH - 1]
     return ring
 
 
 def _fits(points, tensors, particles, ring, along_border, straight) -> tuple[np.ndarray, list[tuple]]:
-    """Each particle's u, and per direction (u, v) the fit's weights (p, WIDTH) on ``ring``, whether they tell
+    """Each particle's u, and per direction (u, v) the fit's weights (p, _WIDTH) on ``ring``, whether they tell
     that direction's curvature (exact for every quadratic, not leaning on points too nearly on one conic) and
     whether they read none at rest."""
     used = ring >= 0
@@ -127,10 +129,10 @@ def _fits(points, tensors, particles, ring, along_border, straight) -> tuple[np.
     zero = np.zeros_like(a_s)
     free_edge = np.stack([zero, zero, zero, a_s * a_s, 2 * a_s * a_t, a_t * a_t], axis=1)  # kappa_nn = 0
     design = np.concatenate([design, free_edge[:, None, :]], axis=1)
-    inverse = np.linalg.pinv(design)  # (p, 6, WIDTH + 1): the fit's coefficients from the heights and the edge
+    inverse = np.linalg.pinv(design)  # (p, 6, _WIDTH + 1): the fit's coefficients from the heights and the edge
     fits = []
     for coefficient in (3, 5):
-        weights = inverse[:, coefficient, :WIDTH] / scale[:, None] ** 2
+        weights = inverse[:, coefficient, :_WIDTH] / scale[:, None] ** 2
         exact = np.abs(np.einsum("pr,prj->pj", inverse[:, coefficient, :], design)
                        - np.eye(6)[coefficient]).max(axis=1) < 1e-6
         total = np.abs(weights).sum(axis=1) * scale ** 2

@@ -19,38 +19,58 @@ STRUCTURAL, SHEAR, BEND = 0, 1, 2
 SPRING_KINDS = ("structural", "shear", "bend")
 
 
-STENCIL_WIDTH = 8  # particles a bending stencil names: a particle and up to seven neighbours (kernels/bending.py's)
-
-
 @dataclass(frozen=True)
 class BendStencils:
-    """A material's bending linear in the curvature (materials.py; kernels/bending.py): per stencil,
-    STENCIL_WIDTH particles (a row's three and zero weights, or a particle's fit, bend_fits.py), their weights
-    and the stencil's stiffness and damping."""
+    """A material's bending linear in the curvature (materials.py; kernels/bending.py), each stencil as wide
+    as it is (a row's three particles, a particle's fit its particle and up to seven neighbours, bend_fits.py):
+    stencil s's particles and weights are entries ``starts[s]`` to ``starts[s + 1]`` of ``particles`` and
+    ``weights``; then the stencil's stiffness and damping."""
 
-    particles: np.ndarray  # (b, STENCIL_WIDTH) int: a row's ends and middle, the middle again; a fit's particle and neighbours
-    weights: np.ndarray  # (b, STENCIL_WIDTH) 1/m^2: whose sum over the particles is the curvature vector
+    starts: np.ndarray  # (b + 1,) int
+    particles: np.ndarray  # (e,) int: a row's ends and middle, p, m, q; a fit's particle and its neighbours
+    weights: np.ndarray  # (e,) 1/m^2: whose sum over a stencil's particles is its curvature vector
     stiffness: np.ndarray  # (b,) N m^3
     damping: np.ndarray  # (b,) N m^3 s
 
+    @staticmethod
+    def of_table(particles: np.ndarray, weights: np.ndarray, used: np.ndarray, stiffness: np.ndarray,
+                 damping: np.ndarray) -> "BendStencils":
+        """The stencils of the rows of ``particles`` and ``weights`` (b, w), each of its ``used`` entries."""
+        starts = np.zeros(len(particles) + 1, dtype=np.int64)
+        np.cumsum(used.sum(axis=1), out=starts[1:])
+        return BendStencils(starts, particles[used], weights[used], stiffness, damping)
+
     def shifted(self, offset: int) -> "BendStencils":
-        return BendStencils(self.particles + offset, self.weights, self.stiffness, self.damping)
+        return BendStencils(self.starts, self.particles + offset, self.weights, self.stiffness, self.damping)
 
     @staticmethod
     def joined(parts: "list[BendStencils]") -> "BendStencils":
-        return BendStencils(*(np.concatenate([getattr(p, key) for p in parts])
-                              for key in ("particles", "weights", "stiffness", "damping")))
+        begins = np.cumsum([0] + [len(p.particles) for p in parts])
+        starts = np.concatenate([[0]] + [p.starts[1:] + begin for p, begin in zip(parts, begins)])
+        return BendStencils(starts.astype(np.int64), *(np.concatenate([getattr(p, key) for p in parts])
+                                                       for key in ("particles", "weights", "stiffness", "damping")))
+
+    def owners(self) -> np.ndarray:
+        """Each entry's stencil."""
+        return np.repeat(np.arange(len(self.stiffness)), np.diff(self.starts))
+
+    def sums(self, values: np.ndarray) -> np.ndarray:
+        """Per stencil, the sum of ``values`` (one a row per entry) over its entries."""
+        return np.add.reduceat(values, self.starts[:-1], axis=0)
+
+    def curvatures(self, x: np.ndarray) -> np.ndarray:
+        """(b, 3): each stencil's curvature vector d = sum_r w_r x_r at the positions ``x``."""
+        return self.sums(self.weights[:, None] * x[self.particles])
 
     def incidences(self, particle_count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(offsets (n + 1,), stencil, place): each particle's incidences in order (those of weight zero left
-        out), as kernels/bending.py gathers them."""
-        width = self.particles.shape[1]
-        entry = np.nonzero(self.weights.reshape(-1) != 0.0)[0]
-        owner = self.particles.reshape(-1)[entry]
+        """(offsets (n + 1,), stencil, entry): each particle's incidences in order (those of weight zero left
+        out), each naming a stencil and the particle's entry in it, as kernels/bending.py gathers them."""
+        entry = np.nonzero(self.weights != 0.0)[0]
+        owner = self.particles[entry]
         order = np.lexsort((entry, owner))
         offsets = np.zeros(particle_count + 1, dtype=np.int32)
         np.cumsum(np.bincount(owner, minlength=particle_count), out=offsets[1:])
-        return offsets, (entry[order] // width).astype(np.int32), (entry[order] % width).astype(np.int32)
+        return offsets, self.owners()[entry[order]].astype(np.int32), entry[order].astype(np.int32)
 
 
 @dataclass(frozen=True)

@@ -186,15 +186,17 @@ class DeviceModel:
         stencils = model.bending
         if stencils is None:
             bending.offsets = wp.zeros(n + 1, dtype=int, device=device)
-            bending.stencil = bending.place = bending.particles = wp.zeros(0, dtype=int, device=device)
+            bending.stencil = bending.entry = bending.particles = wp.zeros(0, dtype=int, device=device)
+            bending.starts = wp.zeros(1, dtype=int, device=device)
             bending.weights = bending.stiffness = bending.damping = wp.zeros(0, dtype=float, device=device)
             return bending
-        offsets, stencil, place = stencils.incidences(n)
+        offsets, stencil, entry = stencils.incidences(n)
         bending.offsets = upload(offsets, int, device)
         bending.stencil = upload(stencil, int, device)
-        bending.place = upload(place, int, device)
-        bending.particles = upload(stencils.particles.reshape(-1), int, device)
-        bending.weights = upload(stencils.weights.reshape(-1), float, device)
+        bending.entry = upload(entry, int, device)
+        bending.starts = upload(stencils.starts, int, device)
+        bending.particles = upload(stencils.particles, int, device)
+        bending.weights = upload(stencils.weights, float, device)
         bending.stiffness = upload(stencils.stiffness, float, device)
         bending.damping = upload(stencils.damping, float, device)
         return bending

@@ -26,83 +26,80 @@ from .passes import Pass, attachments_of, contacts_args, edge_contacts_args
 from .scene import Simulation
 from .state import DeviceState
 
-# The lab's hooks, not scene keys (the solver chooses both; tools/strain_solve_probe.py and the tests set
-# them before building a simulator to measure against the choice):
-# a fixed spectral radius for the Chebyshev acceleration, 0 for plain passes (None: the solver estimates it);
-CHEBYSHEV_RHO: float | None = None
-# with strain limits and particle collision, the passes projected jointly before the rest are projected
-# sequentially (0: sequential throughout; at least the cap: joint throughout). 200 was the cap's default
-# before issue 32, within which every built-in scene but seed_default converged: the joint pass takes from
-# each limit correction the part that pulls into a contact, so a chain of springs pulled taut over a
-# contact cannot shorten, and seed_default's solves stalled at the cap there 2 to 4 tolerances out, where
-# the sequential ones converge (docs/notebook/strain-solve.md).
-JOINT_PASSES = 200
-# the converged solve of cloths without particle collision: a Jacobi pair, then, where it leaves a limit out,
-# rounds of line solves (warp_cloth/line_solve.py, the lines from warp_cloth/cloth_lines.py; plan.line_projection):
-# the default (LINE_SOLVE), which the lab turns off to measure the Jacobi passes alone. With particle
-# collision the Jacobi passes stay unless the lab asks for line rounds there too (LINE_CONTACTS: each round
-# followed by the contacts' separating passes; slower than the joint passes on pile). The springs are held
-# within LINE_HOLD_MARGIN of a limit (1: every spring), LINE_NEWTON_STEPS linearised steps a line a round
-# (kernels/line_solve.py), a thread a segment of LINE_SEGMENT springs (at least the longest line: whole
-# lines), the per-slot arrays stored interleaved where LINE_INTERLEAVED, else contiguous; None leaves either
-# to the device where the simulator builds the solves (line_solve.LineSolves.of: CUDA segments of 32,
-# interleaved; the CPU whole lines, contiguous).
-LINE_SOLVE = True
-LINE_CONTACTS = False
-LINE_HOLD_MARGIN = 0.02
-LINE_NEWTON_STEPS = 2
-LINE_SEGMENT: int | None = None
-LINE_INTERLEAVED: bool | None = None
+
+@dataclass(frozen=True)
+class SolveChoices:
+    """What the converged solve chooses for itself, not scene keys: the lab and the tests fix others with
+    ``lab_hooks`` (tools/strain_solve_probe.py, tools/line_solve_probe.py) to measure against the choice.
+
+    ``chebyshev_rho``: a fixed spectral radius for the Chebyshev acceleration, 0 for plain passes (None: the
+    solver estimates it). ``joint_passes``: with strain limits and particle collision, the passes projected
+    jointly before the rest are projected sequentially (0: sequential throughout; at least the cap: joint
+    throughout). 200 was the cap's default before issue 32, within which every built-in scene but
+    seed_default converged: the joint pass takes from each limit correction the part that pulls into a
+    contact, so a chain of springs pulled taut over a contact cannot shorten, and seed_default's solves
+    stalled at the cap there 2 to 4 tolerances out, where the sequential ones converge
+    (docs/notebook/strain-solve.md).
+
+    ``line_solve``: the converged solve of cloths without particle collision is a Jacobi pair, then, where it
+    leaves a limit out, rounds of line solves (warp_cloth/line_solve.py, the lines from
+    warp_cloth/cloth_lines.py; plan.line_projection): the default, which the lab turns off to measure the
+    Jacobi passes alone. With particle collision the Jacobi passes stay unless the lab asks for line rounds
+    there too (``line_contacts``: each round followed by the contacts' separating passes; slower than the
+    joint passes on pile). The springs are held within ``line_hold_margin`` of a limit (1: every spring),
+    ``line_newton_steps`` linearised steps a line a round (kernels/line_solve.py), a thread a segment of
+    ``line_segment`` springs (at least the longest line: whole lines), the per-slot arrays stored interleaved
+    where ``line_interleaved``, else contiguous; None leaves either to the device where the simulator builds
+    the solves (line_solve.LineSolves.of: CUDA segments of 32, interleaved; the CPU whole lines, contiguous)."""
+    chebyshev_rho: float | None = None
+    joint_passes: int = 200
+    line_solve: bool = True
+    line_contacts: bool = False
+    line_hold_margin: float = 0.02
+    line_newton_steps: int = 2
+    line_segment: int | None = None
+    line_interleaved: bool | None = None
+
+
+# The choices simulators are built with: the solver's own, or the lab's while ``lab_hooks`` holds others.
+CHOICES = SolveChoices()
 
 
 @contextmanager
-def lab_hooks(chebyshev_rho: float | None = None, joint_passes: int = JOINT_PASSES, line_solve: bool = True,
-              line_contacts: bool = False, line_hold_margin: float = LINE_HOLD_MARGIN,
-              line_newton_steps: int = LINE_NEWTON_STEPS, line_segment: int | None = LINE_SEGMENT,
-              line_interleaved: bool | None = LINE_INTERLEAVED) -> Iterator[None]:
-    """Simulators built inside take these hooks' values (the lab's and tests', never a scene's); the line
-    solve's segment and layout, where None, are the device's (CUDA: segments of 32, interleaved; CPU: whole
-    lines, contiguous)."""
-    global CHEBYSHEV_RHO, JOINT_PASSES, LINE_SOLVE, LINE_CONTACTS, LINE_HOLD_MARGIN, LINE_NEWTON_STEPS
-    global LINE_SEGMENT, LINE_INTERLEAVED
-    before = (CHEBYSHEV_RHO, JOINT_PASSES, LINE_SOLVE, LINE_CONTACTS, LINE_HOLD_MARGIN, LINE_NEWTON_STEPS,
-              LINE_SEGMENT, LINE_INTERLEAVED)
-    (CHEBYSHEV_RHO, JOINT_PASSES, LINE_SOLVE, LINE_CONTACTS, LINE_HOLD_MARGIN, LINE_NEWTON_STEPS, LINE_SEGMENT,
-     LINE_INTERLEAVED) = (chebyshev_rho, joint_passes, line_solve, line_contacts, line_hold_margin,
-                          line_newton_steps, line_segment, line_interleaved)
+def lab_hooks(choices: SolveChoices) -> Iterator[None]:
+    """Simulators built inside take ``choices`` (the lab's and tests', never a scene's)."""
+    global CHOICES
+    before, CHOICES = CHOICES, choices
     try:
         yield
     finally:
-        (CHEBYSHEV_RHO, JOINT_PASSES, LINE_SOLVE, LINE_CONTACTS, LINE_HOLD_MARGIN, LINE_NEWTON_STEPS,
-         LINE_SEGMENT, LINE_INTERLEAVED) = before
+        CHOICES = before
 
 
 @dataclass(frozen=True)
 class LimitSolveSettings:
     """How the plan solves the strain limits (and, with particle collision, the contacts with them):
     ``converged`` repeats its passes until within ``tolerance`` (a fraction of an allowed length), at most
-    ``max_passes`` a substep; else ``iterations`` fixed passes a substep. ``chebyshev_rho``, ``joint_passes``
-    and the ``line_`` ones: the lab's hooks above, as they were when the settings were made."""
+    ``max_passes`` a substep; else ``iterations`` fixed passes a substep. ``choices``: the solver's own
+    (``SolveChoices``), or the lab's, as they were when the settings were made; the line rounds are the
+    converged solve's alone (``line_rounds``)."""
     converged: bool
     iterations: int
     tolerance: float
     max_passes: int
-    chebyshev_rho: float | None
-    joint_passes: int
-    line_solve: bool = LINE_SOLVE
-    line_contacts: bool = LINE_CONTACTS
-    line_hold_margin: float = LINE_HOLD_MARGIN
-    line_newton_steps: int = LINE_NEWTON_STEPS
-    line_segment: int | None = LINE_SEGMENT
-    line_interleaved: bool | None = LINE_INTERLEAVED
+    choices: SolveChoices
+
+    @property
+    def line_rounds(self) -> bool:
+        """Whether the converged solve takes rounds of line solves (with particle collision, only where
+        ``choices.line_contacts`` too)."""
+        return self.converged and self.choices.line_solve
 
     @classmethod
     def of(cls, simulation: Simulation) -> LimitSolveSettings:
         """The settings of a scene's ``[simulation]`` as the simulator resolved it (its cap chosen)."""
         return cls(simulation.limit_solve == "converged", simulation.limit_iterations, simulation.limit_tolerance,
-                   simulation.limit_max_passes, CHEBYSHEV_RHO, JOINT_PASSES,
-                   LINE_SOLVE and simulation.limit_solve == "converged", LINE_CONTACTS, LINE_HOLD_MARGIN,
-                   LINE_NEWTON_STEPS, LINE_SEGMENT, LINE_INTERLEAVED)
+                   simulation.limit_max_passes, CHOICES)
 
 
 def residual_args(model: DeviceModel, state: DeviceState, settings: LimitSolveSettings, colliders: RigidColliders,
@@ -137,7 +134,7 @@ class ConvergedProjection:
 
     Each iteration is accelerated by Chebyshev's method (``kernels/solve_loop.py``) with a spectral radius
     the solver adjusts from solve to solve (lowered where the residual grows, raised where an accelerated
-    solve converges), or the settings' fixed ``chebyshev_rho`` (0: plain)."""
+    solve converges), or the choices' fixed ``chebyshev_rho`` (0: plain)."""
 
     def __init__(self, model: DeviceModel, state: DeviceState, settings: LimitSolveSettings, body: list[Pass],
                  colliders: RigidColliders | None, counted: int | None = None,
@@ -160,7 +157,7 @@ class ConvergedProjection:
         self.counts = wp.zeros(3, dtype=int, device=device)
         self.residual = wp.zeros(1, dtype=float, device=device)
         self.stats = wp.zeros(4, dtype=float, device=device)  # see kernels/solve_loop.py
-        rho = settings.chebyshev_rho
+        rho = settings.choices.chebyshev_rho
         self.accelerated = rho != 0.0
         if self.accelerated:
             estimated = rho is None

@@ -1,8 +1,8 @@
 """The line solve of the strain limits (issue 33; kernels/line_solve.py): the families of lines that
 cloth_lines.py finds, and a round of it as the passes a converged solve repeats after its first Jacobi pair
-(plan.line_projection, for cloths without particle collision; ``limit_solve.lab_hooks(line_solve=False)``
-turns it off): the families, their lines cut into segments a thread each and stored in the layout this module
-chooses for the device, then the pins and the colliders (with particle collision, only where the lab asks,
+(plan.line_projection, for cloths without particle collision; ``limit_solve.SolveChoices.line_solve``, which
+the lab turns off): the families, their lines cut into segments a thread each and stored in the layout this
+module chooses for the device, then the pins and the colliders (with particle collision, only where the lab asks,
 ``line_contacts``: warp_cloth/plan.py follows it with the contacts' separating passes)."""
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from warp_cloth.kernels.line_solve import (ClothLines, LineSegments, eliminate_s
 
 from .cloth_lines import Family
 from .device_model import DeviceModel
-from .limit_solve import LimitSolveSettings
+from .limit_solve import SolveChoices
 from .passes import attachments_of
 from .state import DeviceState
 
@@ -177,16 +177,16 @@ class LineSolves:
             self.families.append(FamilySolve(uploaded, segments, segments.base.shape[0], len(family[0]) - 1))
 
     @classmethod
-    def of(cls, model: DeviceModel, lines: list[Family], solve: LimitSolveSettings) -> LineSolves:
-        """The line solves of ``lines`` as the lab's settings in ``solve`` ask, or where they leave it to the
-        device (None): on CUDA segments of CUDA_SEGMENT springs, interleaved; on the CPU whole lines,
+    def of(cls, model: DeviceModel, lines: list[Family], choices: SolveChoices) -> LineSolves:
+        """The line solves of ``lines`` as the solver's ``choices`` (or the lab's) ask, or where they leave it to
+        the device (None): on CUDA segments of CUDA_SEGMENT springs, interleaved; on the CPU whole lines,
         contiguous."""
         cuda = model.device.is_cuda
-        segment = solve.line_segment
+        segment = choices.line_segment
         if segment is None:
             segment = CUDA_SEGMENT if cuda else max(longest_line(lines), 2)
-        interleaved = cuda if solve.line_interleaved is None else solve.line_interleaved
-        return cls(model, lines, solve.line_hold_margin, solve.line_newton_steps, segment, interleaved)
+        interleaved = cuda if choices.line_interleaved is None else choices.line_interleaved
+        return cls(model, lines, choices.line_hold_margin, choices.line_newton_steps, segment, interleaved)
 
     def run(self, state: DeviceState) -> None:
         wp.capture_if(self.reversed, on_true=lambda: self._solve(self.families[::-1], state),

@@ -95,7 +95,7 @@ import numpy as np
 from .checks import check_fields
 from .adjacency import Adjacency
 from .bend_fits import fitted_stencils, flat_triangle_bends
-from .cloth_mesh import BEND, SHEAR, STENCIL_WIDTH, STRUCTURAL, BendStencils, ClothMesh, DerivedSprings, lumped_masses
+from .cloth_mesh import BEND, SHEAR, STRUCTURAL, BendStencils, ClothMesh, DerivedSprings, lumped_masses
 from .errors import SceneError
 from .fabric_presets import PRESETS
 from .mesh_io import face_areas, face_edges, face_starts, pair_keys
@@ -261,9 +261,8 @@ def _stencils(points, counts, indices, bends, middle, bending, damping: float) -
     l2 = np.linalg.norm(points[q] - points[middle], axis=1)
     weights = 2.0 * np.stack([1.0 / (l1 * (l1 + l2)), -1.0 / (l1 * l2), 1.0 / (l2 * (l1 + l2))], axis=1)
     stiffness = bending * lumped_masses(points, counts, indices, 1.0)[middle]
-    width = STENCIL_WIDTH - 3
-    return BendStencils(np.concatenate([np.stack([p, middle, q], axis=1), np.repeat(middle[:, None], width, axis=1)],
-                                       axis=1), np.pad(weights, ((0, 0), (0, width))), stiffness, damping * stiffness)
+    return BendStencils.of_table(np.stack([p, middle, q], axis=1), weights, np.ones(weights.shape, dtype=bool),
+                                 stiffness, damping * stiffness)
 
 
 def _side_stiffness(material: Material, tensors, points, counts, indices, wanted) -> np.ndarray:

@@ -181,7 +181,7 @@ def _bending_energy(bending, x: np.ndarray) -> float:
     """1/2 k |d|^2 over the bending stencils, d = sum_r w_r x_r."""
     if bending is None:
         return 0.0
-    curvature = np.einsum("sr,srk->sk", bending.weights, x[bending.particles].astype(np.float64))
+    curvature = bending.curvatures(x.astype(np.float64))
     return float(np.sum(0.5 * bending.stiffness * np.einsum("sk,sk->s", curvature, curvature)))
 
 

@@ -101,8 +101,8 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
     follows a projection; with fixed passes, one edge pass before them) and the contact velocities; without
     it, the strain limit's passes or the colliders alone; the clock last, where something moves with it.
     ``solve``: how the limits and contacts are solved; ``threads``: per particle on the gathering passes
-    (None: by size); ``lines``: the line solves of the cloths' lines where ``solve.line_solve`` and a cloth
-    is limited (with particle collision, where ``solve.line_contacts`` too), made once for every plan a
+    (None: by size); ``lines``: the line solves of the cloths' lines where ``solve.line_rounds`` and a cloth
+    is limited (with particle collision, where ``solve.choices.line_contacts`` too), made once for every plan a
     simulator builds (line_solve.LineSolves); ``bounds``: the displacement bounds
     (displacement_bounds.py, made once per simulator), measured first and clamping the step after the solves
     (before the contact velocities); ``control``: the passes that put what a script sent from Python
@@ -190,16 +190,16 @@ def converged_projection(model: DeviceModel, state: DeviceState, solve: LimitSol
                          rigid: RigidColliders | None, edge_passes: list[Pass],
                          faces: FaceContacts | None = None) -> ConvergedProjection:
     """The converged solve of particle collision (with the strain limits where the scene has them: projected
-    jointly for ``solve.joint_passes`` passes, then sequentially; see limit_solve.JOINT_PASSES); with
+    jointly for ``solve.choices.joint_passes`` passes, then sequentially; see limit_solve.SolveChoices); with
     ``faces`` (a surface thickness's), its check reads the edge and face pairs too."""
-    joint_first = model.limits is None or solve.joint_passes > 0
+    joint_first = model.limits is None or solve.choices.joint_passes > 0
     first = projection_pair(model, state, threads, rigid, edge_passes, "joint" if joint_first else "sequential")
     counted = lambda body: sum(p not in edge_passes for p in body)  # noqa: E731
     if model.limits is None or not joint_first:
         return ConvergedProjection(model, state, solve, first, rigid, counted=counted(first), faces=faces)
     later = projection_pair(model, state, threads, rigid, edge_passes, "sequential")
     return ConvergedProjection(model, state, solve, first, rigid, counted=counted(first), later_body=later,
-                               later_counted=counted(later), switch_at=solve.joint_passes, faces=faces)
+                               later_counted=counted(later), switch_at=solve.choices.joint_passes, faces=faces)
 
 
 def line_round(model: DeviceModel, lines: LineSolves, rigid: RigidColliders | None) -> list[Pass]:
@@ -210,7 +210,7 @@ def line_round(model: DeviceModel, lines: LineSolves, rigid: RigidColliders | No
 
 def line_projection(model: DeviceModel, state: DeviceState, solve: LimitSolveSettings, threads: int,
                     rigid: RigidColliders | None, lines: LineSolves) -> ConvergedProjection:
-    """The converged solve of the strain limits by line solves (``solve.line_solve``, the default): a Jacobi pair
+    """The converged solve of the strain limits by line solves (``solve.line_rounds``, the default): a Jacobi pair
     first, and where it leaves a limit out of tolerance, rounds to the end, each a line round and a Jacobi pair
     (counted together as one pass toward the cap), plain unless the lab fixes a Chebyshev radius. The first pair
     ends every solve of a cloth at rest: rounds alone, exact along their lines, kept the hanging cloth swinging
@@ -220,7 +220,8 @@ def line_projection(model: DeviceModel, state: DeviceState, solve: LimitSolveSet
     11.8, and 193 ms a frame, not 311; Chebyshev's estimated radius over the rounds took 14.4 rounds and 385 ms
     (docs/notebook/strain-solve.md, "A Jacobi pair before the lines", "A Jacobi pair in every round")."""
     pair = [limit_pass(model, threads, rigid, None, 1)] * 2
-    plain = solve if solve.chebyshev_rho is not None else replace(solve, chebyshev_rho=0.0)
+    choices = solve.choices
+    plain = solve if choices.chebyshev_rho is not None else replace(solve, choices=replace(choices, chebyshev_rho=0.0))
     return ConvergedProjection(model, state, plain, pair, rigid, later_body=line_round(model, lines, rigid) + pair,
                                later_counted=1, switch_at=2)
 
@@ -229,7 +230,7 @@ def line_contact_projection(model: DeviceModel, state: DeviceState, solve: Limit
                             rigid: RigidColliders | None, edge_passes: list[Pass], lines: LineSolves,
                             faces: FaceContacts | None = None) -> ConvergedProjection:
     """The converged solve of particle collision with the strain limits by rounds of line solves (the lab's,
-    ``solve.line_solve``): a round, counted as one pass toward the cap, is a line round and then the two
+    ``solve.choices.line_contacts``): a round, counted as one pass toward the cap, is a line round and then the two
     separating passes of the contacts' own converged solve (``edge_passes`` before each), reading the resting
     marks' first bit, then the other, as ``projection_pair`` does; with ``faces`` (a surface thickness's), the
     check reads the edge and face pairs too. (Two line rounds an iteration, each
@@ -263,7 +264,7 @@ def projection_passes(model: DeviceModel, state: DeviceState, solve: LimitSolveS
     together: the larger of the limit's and the collision's iteration counts of passes, every one ending
     with the colliders; the limit and the separation each run in the last of the passes as many times as
     their own count says, so that the last pass runs all of them. A pass that runs both runs them as one
-    Jacobi pass among the first ``solve.joint_passes``, else the limit's pass and then the separation's
+    Jacobi pass among the first ``solve.choices.joint_passes``, else the limit's pass and then the separation's
     (as the converged solve does). The particles the colliders hold up (``resting``, marked at the contacts' start
     and by each pass) do not give way to others in the passes that follow; passes alternate the bit they
     read and the one they write (see kernels/colliders.py)."""
@@ -273,7 +274,7 @@ def projection_passes(model: DeviceModel, state: DeviceState, solve: LimitSolveS
     resting = state.contacts.resting
     passes: list[Pass] = []
     for remaining in range(total, 0, -1):
-        joint = total - remaining < solve.joint_passes
+        joint = total - remaining < solve.choices.joint_passes
         read_bit = 1 if (total - remaining) % 2 == 0 else 2
         separates = remaining <= settings.iterations
         limits_too = remaining <= limit_iterations

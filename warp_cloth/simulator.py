@@ -269,9 +269,10 @@ class Simulator:
         self._threads = threads_per_particle
         # the line solves (line_solve.py): their lines found and uploaded once, for every plan built
         # (none where no cloth is limited: a seam's limited springs make no line)
-        wanted = self.limit_solve.line_solve and (self.device_model.contacts is None or self.limit_solve.line_contacts)
+        solve = self.limit_solve
+        wanted = solve.line_rounds and (self.device_model.contacts is None or solve.choices.line_contacts)
         families = cloth_lines(self.model, self.scene) if wanted and self.model.limits is not None else []
-        self._lines = LineSolves.of(self.device_model, families, self.limit_solve) if families else None
+        self._lines = LineSolves.of(self.device_model, families, solve.choices) if families else None
         # the displacement bounds (displacement_bounds.py: a thickness's or the lab's): made once, for every plan
         self._bounds = DisplacementBounds.of(self.model, self.device_model)
         self._control: Control | None = None  # made when first asked for (``control``)

@@ -173,10 +173,11 @@ def _stencil_rates(bending: BendStencils | None, inv_mass: np.ndarray) -> tuple[
     k_rate, c_rate = np.zeros(len(inv_mass)), np.zeros(len(inv_mass))
     if bending is None:
         return k_rate, c_rate
+    owner = bending.owners()
     a = np.abs(bending.weights) * np.sqrt(inv_mass.astype(np.float64)[bending.particles])
-    share = a * a.sum(axis=1, keepdims=True)
-    k_rate += np.bincount(bending.particles.reshape(-1), (share * bending.stiffness[:, None]).reshape(-1), len(inv_mass))
-    c_rate += np.bincount(bending.particles.reshape(-1), (share * bending.damping[:, None]).reshape(-1), len(inv_mass))
+    share = a * bending.sums(a)[owner]
+    k_rate += np.bincount(bending.particles, share * bending.stiffness[owner], len(inv_mass))
+    c_rate += np.bincount(bending.particles, share * bending.damping[owner], len(inv_mass))
     return k_rate, c_rate
 
 
