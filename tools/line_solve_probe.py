@@ -129,9 +129,7 @@ def measure_run(scene: wc.Scene, method: str, frames: int, device: str, bounds: 
             strain = np.linalg.norm(x[pairs[:, 1]] - x[pairs[:, 0]], axis=1) / rest - 1.0
             stretch, compression = max(stretch, float(strain.max())), max(compression, float(-strain.min()))
         if crossings is not None:
-            contact = sim.closest_contact()
-            closest = closest if contact is None else min(closest, contact)
-            most_crossings = max(most_crossings, crossings(sim))
+            closest, most_crossings = min(closest, sim.closest_contact()), max(most_crossings, crossings(sim))
 
     sim.prepare()  # compiles before the clock starts
     sim.solver_stats()

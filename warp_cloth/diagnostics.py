@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import warp as wp
 
 from warp_cloth.kernels import intersections
@@ -43,13 +45,13 @@ class TriangleIntersections:
 
 class ContactGaps:
     """The closest approach of two particles that may collide, as a fraction of their contact distance
-    (1.0 or more: no pair overlaps; None where no pair is listed)."""
+    (1.0 or more: no pair overlaps; infinite where no pair is listed)."""
 
     def __init__(self, sim: Simulator) -> None:
         if sim.scene.collision is None:
             raise ValueError("the scene declares no [collision]")
 
-    def __call__(self, sim: Simulator) -> float | None:
+    def __call__(self, sim: Simulator) -> float:
         return sim.closest_contact()
 
 
@@ -75,8 +77,8 @@ class CheckReport:
         line = f"frame {frame}: {count} intersecting triangle pairs"
         if count > self.worst_intersections[0]:
             self.worst_intersections = (count, frame)
-        ratio = self.gaps(sim) if self.gaps is not None else None
-        if ratio is not None:
+        ratio = self.gaps(sim) if self.gaps is not None else math.inf
+        if math.isfinite(ratio):
             line += f", closest contact {ratio:.3f} of contact distance"
             if self.closest_contact is None or ratio < self.closest_contact[0]:
                 self.closest_contact = (ratio, frame)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import math
 import os
 import signal
 import threading
@@ -393,11 +394,13 @@ class Simulator:
 
     def closest_contact(self) -> float | None:
         """The closest approach of two particles that may collide, as a fraction of their contact distance
-        (1.0 or more: no pair overlaps; None without particle collision, or where no pair is listed, as with a
-        surface thickness, whose particles' contact distance is below it). It waits for the device and remakes
-        the candidate lists from the current positions."""
+        (1.0 or more: no pair overlaps; infinite where no pair is listed, as with a surface thickness, whose
+        particles' contact distance is below it; None without particle collision). It waits for the device and
+        remakes the candidate lists from the current positions."""
         contacts = self.closest_contacts()
-        return None if contacts is None or contacts.min() >= 1e29 else float(contacts.min())
+        if contacts is None:
+            return None
+        return math.inf if contacts.min() >= 1e29 else float(contacts.min())
 
     def closest_contacts(self, remake: bool = True) -> np.ndarray | None:
         """``closest_contact`` of each world (see ``Batch``; a scene alone is one); without ``remake``, of the
