@@ -173,7 +173,8 @@ def apart_direction(d: wp.vec3, gap: float, p1: wp.vec3, q1: wp.vec3, p2: wp.vec
 @wp.func
 def pair_closest(edges: EdgeContacts, e: int, f: int, x: wp.array(dtype=wp.vec3)):
     """Edges e and f's closest points, worked out in one order (the lower-numbered edge first): their
-    parameters along the two, and the vector from the second's point to the first's."""
+    parameters along the two, the vector from the second's point to the first's, and the four ends' positions
+    (the first edge's, then the second's)."""
     ends_1 = edges.ends[wp.min(e, f)]
     ends_2 = edges.ends[wp.max(e, f)]
     p1 = x[ends_1[0]]
@@ -181,7 +182,7 @@ def pair_closest(edges: EdgeContacts, e: int, f: int, x: wp.array(dtype=wp.vec3)
     p2 = x[ends_2[0]]
     q2 = x[ends_2[1]]
     st = closest_points(p1, q1, p2, q2)
-    return st, wp.lerp(p1, q1, st[0]) - wp.lerp(p2, q2, st[1])
+    return st, wp.lerp(p1, q1, st[0]) - wp.lerp(p2, q2, st[1]), p1, q1, p2, q2
 
 
 @wp.func
@@ -196,12 +197,7 @@ def edge_push(edges: EdgeContacts, i: int, e: int, f: int, x: wp.array(dtype=wp.
     second = wp.max(e, f)
     ends_1 = edges.ends[wp.min(e, f)]
     ends_2 = edges.ends[second]
-    p1 = x[ends_1[0]]
-    q1 = x[ends_1[1]]
-    p2 = x[ends_2[0]]
-    q2 = x[ends_2[1]]
-    st = closest_points(p1, q1, p2, q2)
-    d = wp.lerp(p1, q1, st[0]) - wp.lerp(p2, q2, st[1])
+    st, d, p1, q1, p2, q2 = pair_closest(edges, e, f, x)
     gap = wp.length(d)
     if gap >= edges.thickness:
         return wp.vec3(0.0), 0
@@ -243,7 +239,8 @@ def deepest_edge_overlap(edges: EdgeContacts, i: int, x: wp.array(dtype=wp.vec3)
     for k in range(edges.incident_offsets[i], edges.incident_offsets[i + 1]):
         e = edges.incident[k]
         for c in range(edges.counts[e]):
-            unused_st, d = pair_closest(edges, e, edges.neighbors[e * edges.max_neighbors + c], x)
+            unused_st, d, unused_p1, unused_q1, unused_p2, unused_q2 = pair_closest(
+                edges, e, edges.neighbors[e * edges.max_neighbors + c], x)
             worst = wp.max(worst, (edges.thickness - wp.length(d)) / edges.thickness)
     return worst
 
@@ -273,12 +270,7 @@ def edge_friction(edges: EdgeContacts, i: int, e: int, f: int, x: wp.array(dtype
     ``edge_push``, worked out lower-numbered edge first)."""
     ends_1 = edges.ends[wp.min(e, f)]
     ends_2 = edges.ends[wp.max(e, f)]
-    p1 = x[ends_1[0]]
-    q1 = x[ends_1[1]]
-    p2 = x[ends_2[0]]
-    q2 = x[ends_2[1]]
-    st = closest_points(p1, q1, p2, q2)
-    d = wp.lerp(p1, q1, st[0]) - wp.lerp(p2, q2, st[1])
+    st, d, p1, q1, p2, q2 = pair_closest(edges, e, f, x)
     gap = wp.length(d)
     if gap >= slack * edges.thickness:
         return wp.vec3(0.0), 0.0

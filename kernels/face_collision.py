@@ -145,6 +145,27 @@ def pair_gap(faces: FaceContacts, vertex: int, code: int, x: wp.array(dtype=wp.v
 
 
 @wp.func
+def pair_inverse_mass(vertex: int, t: wp.vec3i, weights: wp.vec3, inv_mass: wp.array(dtype=float)) -> float:
+    """The pair's inverse mass along its normal: the vertex's and the triangle's, its particles' weighted by
+    the squares of the closest point's barycentric ``weights``."""
+    return inv_mass[vertex] + weights[0] * weights[0] * inv_mass[t[0]] + weights[1] * weights[1] * inv_mass[t[1]] \
+        + weights[2] * weights[2] * inv_mass[t[2]]
+
+
+@wp.func
+def particle_share(i: int, t: wp.vec3i, weights: wp.vec3) -> float:
+    """Particle i's share of its pair's move: 1 for the vertex, minus its barycentric weight for a triangle's."""
+    share = float(1.0)
+    if i == t[0]:
+        share = -weights[0]
+    elif i == t[1]:
+        share = -weights[1]
+    elif i == t[2]:
+        share = -weights[2]
+    return share
+
+
+@wp.func
 def face_push(faces: FaceContacts, i: int, vertex: int, code: int, x: wp.array(dtype=wp.vec3),
               inv_mass: wp.array(dtype=float)):
     """Particle i's move (the vertex or one of the triangle's) out of the pair of ``vertex`` and the triangle
@@ -153,17 +174,10 @@ def face_push(faces: FaceContacts, i: int, vertex: int, code: int, x: wp.array(d
     if gap >= faces.thickness:
         return wp.vec3(0.0), 0
     t = faces.triangles[code >> 1]
-    weight = inv_mass[vertex] + weights[0] * weights[0] * inv_mass[t[0]] + weights[1] * weights[1] * inv_mass[t[1]] \
-        + weights[2] * weights[2] * inv_mass[t[2]]
+    weight = pair_inverse_mass(vertex, t, weights, inv_mass)
     if weight == 0.0:
         return wp.vec3(0.0), 0
-    share = float(1.0)
-    if i == t[0]:
-        share = -weights[0]
-    elif i == t[1]:
-        share = -weights[1]
-    elif i == t[2]:
-        share = -weights[2]
+    share = particle_share(i, t, weights)
     return (inv_mass[i] * share * (faces.thickness - gap) / weight) * n, 1
 
 
@@ -231,18 +245,11 @@ def face_friction(faces: FaceContacts, i: int, vertex: int, code: int, x: wp.arr
     if gap >= slack * faces.thickness:
         return wp.vec3(0.0), 0.0
     t = faces.triangles[code >> 1]
-    weight = inv_mass[vertex] + weights[0] * weights[0] * inv_mass[t[0]] + weights[1] * weights[1] * inv_mass[t[1]] \
-        + weights[2] * weights[2] * inv_mass[t[2]]
+    weight = pair_inverse_mass(vertex, t, weights, inv_mass)
     if weight == 0.0:
         return wp.vec3(0.0), 0.0
     relative = v[vertex] - (weights[0] * v[t[0]] + weights[1] * v[t[1]] + weights[2] * v[t[2]])
     start = v_start[vertex] - (weights[0] * v_start[t[0]] + weights[1] * v_start[t[1]] + weights[2] * v_start[t[2]])
-    share = float(1.0)
-    if i == t[0]:
-        share = -weights[0]
-    elif i == t[1]:
-        share = -weights[1]
-    elif i == t[2]:
-        share = -weights[2]
+    share = particle_share(i, t, weights)
     return (-inv_mass[i] * share * wp.abs(share) / weight) * sliding_taken(relative, start, n, coefficient), \
         wp.abs(share)
