@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import time
 
 import numpy as np
@@ -141,7 +142,8 @@ def measure(scene: wc.Scene, gap: float, device: str, bounds: BoundSettings | No
     total = sim.solver_stats(since_start=True)
     counts = per_frame["crossings"]
     crossed = [f for f, c in enumerate(counts) if c > 0]
-    closest = min(per_frame["closest_contact"])
+    closest = min(per_frame["closest_contact"])  # infinite where no particle pair was ever listed: none
+    listed = math.isfinite(closest)
     return {"outcome": outcome, "frames": len(counts) - 1, "particles": sim.model.particle_count,
             "step_seconds": stepping, "prepare_seconds": prepare_seconds,
             "substeps_mean": float(np.mean(per_frame["substeps"])) if per_frame["substeps"] else None,
@@ -150,9 +152,10 @@ def measure(scene: wc.Scene, gap: float, device: str, bounds: BoundSettings | No
             "compression": report.compression, "compression_frame": report.compression_frame,
             "most_crossings": max(counts), "most_crossings_frame": int(np.argmax(counts)),
             "first_crossing_frame": crossed[0] if crossed else None, "frames_with_crossings": len(crossed),
-            "contact_distance": distance, "closest_contact": closest, "closest_contact_m": closest * distance,
-            "closest_contact_of_gap": closest * distance / gap,
-            "start_contact_of_gap": per_frame["closest_contact"][0] * distance / gap,
+            "contact_distance": distance, "closest_contact": closest if listed else None,
+            "closest_contact_m": closest * distance if listed else None,
+            "closest_contact_of_gap": closest * distance / gap if listed else None,
+            "start_contact_of_gap": per_frame["closest_contact"][0] * distance / gap if listed else None,
             "limit_passes_mean": total and total.limit_mean_passes, "limit_passes_most": total and total.limit_passes,
             "limit_passes_cap": sim.limit_solve.max_passes,
             "frames_ending_outside_tolerance": sum(r > 1.0 for r in per_frame["limit_residual"]),
@@ -185,7 +188,8 @@ def table_lines(row: dict) -> list[str]:
     lines = [f"{row['run']:<44} {row['frames']:>6} {row['step_seconds']:>8.1f} {row['substeps_mean']:>8.1f} "
              f"{100 * row['stretch']:>+7.1f}% {-100 * row['compression']:>+7.1f}% "
              f"{row['most_crossings']:>7} (f {row['most_crossings_frame']:>3}) {'-' if first is None else first:>5} "
-             f"{row['closest_contact']:>7.3f} {row['closest_contact_m']:>8.5f} {row['closest_contact_of_gap']:>6.3f} "
+             + (f"{row['closest_contact']:>7.3f} {row['closest_contact_m']:>8.5f} {row['closest_contact_of_gap']:>6.3f} "
+                if row["closest_contact"] is not None else f"{'-':>7} {'-':>8} {'-':>6} ") +
              f"{row['limit_passes_mean']:>7.1f}/{row['limit_passes_most']:>4}/{row['limit_passes_cap']:>5} "
              f"{row['frames_ending_outside_tolerance']:>6} {row['closest_surfaces_m']:>10.5f} "
              f"{row['closest_surfaces_of_thickness']:>8.3f} "

@@ -287,11 +287,11 @@ class Batch:
 
     def closest_contacts(self) -> np.ndarray | None:
         """Each world's closest approach of colliding particles, as a fraction of their contact distance
-        (1e30 where a world has no pair listed; None without particle collision)."""
+        (infinite where a world has no pair listed; None without particle collision)."""
         found = [(group, group.simulator.closest_contacts()) for group in self.groups]
         if all(contacts is None for _, contacts in found):
             return None
-        closest = np.full(self.world_count, 1e30)
+        closest = np.full(self.world_count, np.inf)
         for group, contacts in found:
             if contacts is not None:
                 closest[list(group.members)] = contacts

@@ -122,7 +122,7 @@ class MetricsWriter(StagedOutput):
             row[f"{name}_stretch"] = max(0.0, float(chosen.max())) if len(chosen) else ""
             row[f"{name}_compression"] = max(0.0, float(-chosen.min())) if len(chosen) else ""
         contacts = sim.closest_contacts(remake=False)
-        row["closest_contact"] = "" if contacts is None or contacts.min() >= 1e29 else float(contacts.min())
+        row["closest_contact"] = "" if contacts is None or not np.isfinite(contacts.min()) else float(contacts.min())
         row["crossing_pairs"] = "" if self.check is None else self.check.last_intersections
         row["kinetic_energy"] = 0.5 * float(np.sum(self._masses * np.sum(v * v, axis=1)))
         spring_energy = _spring_energy(model.springs, x) + _bending_energy(model.bending, x)

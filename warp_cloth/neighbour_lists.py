@@ -126,7 +126,7 @@ class NeighbourLists:
 
     def closest_contacts(self, x: wp.array, worlds: int, remake: bool = True) -> np.ndarray:
         """Each world's closest approach of two particles that may collide, as a fraction of their contact
-        distance (1e30 where none is listed; a diagnostic: it waits for the device). With ``remake`` it
+        distance (infinite where none is listed; a diagnostic: it waits for the device). With ``remake`` it
         remakes the lists from ``x`` first, which the simulation may then go on using: they are as valid as
         any it makes itself."""
         if remake:
@@ -134,7 +134,8 @@ class NeighbourLists:
         ratio = wp.full(worlds, 1.0e30, dtype=float, device=x.device)
         wp.launch(particle_collision.closest_contact_ratio, dim=self.n, inputs=[x, self.contacts, self.rules.world],
                   outputs=[ratio], device=x.device)
-        return ratio.numpy()
+        ratios = ratio.numpy()
+        return np.where(ratios >= 1.0e29, np.inf, ratios)  # the kernels' 1e30: nothing listed
 
     def closest_pair(self, x: wp.array) -> tuple[float, int, int, float] | None:
         """The closest approach of two particles that may collide, as a fraction of their contact distance,

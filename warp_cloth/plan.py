@@ -104,8 +104,8 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
     (None: by size); ``lines``: the line solves of the cloths' lines where ``solve.line_rounds`` and a cloth
     is limited (with particle collision, where ``solve.choices.line_contacts`` too), made once for every plan a
     simulator builds (line_solve.LineSolves); ``bounds``: the displacement bounds
-    (displacement_bounds.py, made once per simulator), measured first and clamping the step after the solves
-    (before the contact velocities); ``control``: the passes that put what a script sent from Python
+    (displacement_bounds.py, made once per simulator), the substep's start recorded first, the bounds measured
+    there and the step clamped to them after the solves (before the contact velocities); ``control``: the passes that put what a script sent from Python
     (control.py's ``Control.passes``) after the colliders' motion (``"colliders"``), with the soft pins' motion
     before the step (``"soft pins"``: where their springs pull, which the step reads) and after the hard
     pins' motion (``"pins"``); ``faces``: the face contacts (face_contacts.py, made

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import math
 import os
 import signal
 import threading
@@ -398,9 +397,7 @@ class Simulator:
         particles' contact distance is below it; None without particle collision). It waits for the device and
         remakes the candidate lists from the current positions."""
         contacts = self.closest_contacts()
-        if contacts is None:
-            return None
-        return math.inf if contacts.min() >= 1e29 else float(contacts.min())
+        return None if contacts is None else float(contacts.min())
 
     def closest_contacts(self, remake: bool = True) -> np.ndarray | None:
         """``closest_contact`` of each world (see ``Batch``; a scene alone is one); without ``remake``, of the
