@@ -205,7 +205,7 @@ def seed_default_at_a_fold(k: int, edges: bool) -> wc.Simulator:
     scene = dataclasses.replace(base, simulation=simulation,
                                 collision=dataclasses.replace(base.collision, edges=edges))
     sim = wc.Simulator(scene, device="cpu", graph=False)
-    arrays = {name: array.numpy() for name, array in sim.state.carried().items()}
+    arrays = {name: array.numpy() for name, array in sim.carried().items()}
     with np.load(FOLDS) as state:
         for name in ("x", "v", "clock", "sphere_center", "sphere_velocity"):
             arrays[name] = state[f"k{k}.{name}"]

@@ -1,12 +1,12 @@
 """Checkpoints: what a simulation needs to go on from a frame exactly as if it had never stopped.
 
-A checkpoint is one ``.npz`` file: every device array of the state that a substep reads before it writes it
-(``DeviceState.carried``: positions, velocities, the substep clock, the spheres' centres, the collision's
-neighbour lists and hash table), with the frame, the substep count, with substeps auto the next frame's
-substeps and the counts that missed lately (``auto_substeps.SubstepChoice.carried``), and a fingerprint of the
-scene. The frame
-and the substeps are on the shot's clock (``warp_cloth.shot_clock``), as the simulator's are: a checkpoint of
-a run that starts at 1001 after a preroll of 24 frames may be at frame 990, of its preroll. It is written
+A checkpoint is one ``.npz`` file: every device array that a substep reads before it writes it
+(``Simulator.carried``: the state's positions, velocities, substep clock, order of the next line round,
+spheres' centres and collision lists, and the plan's, such as the face contacts' lists), with the frame, the
+substep count, with substeps auto the next frame's substeps and the counts that missed lately
+(``auto_substeps.SubstepChoice.carried``), and a fingerprint of the scene. The frame and the substeps are on
+the shot's clock (``warp_cloth.shot_clock``), as the simulator's are: a checkpoint of a run that starts at
+1001 after a preroll of 24 frames may be at frame 990, of its preroll. It is written
 under a temporary name and renamed, so a kill leaves the previous one whole.
 """
 
@@ -24,7 +24,7 @@ import numpy as np
 from .errors import SceneError
 from .output import fsync_path, temporary_path
 
-FORMAT = 2  # 2: the state's arrays by name (1 named them by the stage that held them)
+FORMAT = 3  # 3: the plan's carried arrays and the line rounds' order too; 2: the state's arrays by name
 _META_FIELDS = {"format": int, "frame": int, "substeps": int, "scene": str}  # what the metadata must hold
 
 
@@ -53,10 +53,6 @@ def scene_fingerprint(scene) -> str:
     return digest.hexdigest()
 
 
-def _arrays(sim) -> dict:
-    return sim.state.carried()
-
-
 @dataclasses.dataclass
 class Checkpoint:
     frame: int
@@ -68,7 +64,7 @@ class Checkpoint:
 
 
 def save_checkpoint(sim, path: str | Path, extra: dict | None = None) -> None:
-    arrays = {name: array.numpy() for name, array in _arrays(sim).items()}
+    arrays = {name: array.numpy() for name, array in sim.carried().items()}
     choice = sim.auto.carried() if sim.auto is not None else None
     _write(Path(path), Checkpoint(sim.frame, sim.substep_count, scene_fingerprint(sim.scene), arrays, extra or {},
                                   choice))
@@ -126,7 +122,7 @@ def check_scene(checkpoint: Checkpoint, scene, source: str) -> None:
 
 def restore(sim, checkpoint: Checkpoint, source: str = "checkpoint") -> None:
     check_scene(checkpoint, sim.scene, source)
-    arrays = _arrays(sim)
+    arrays = sim.carried()
     if set(arrays) != set(checkpoint.arrays):
         raise SceneError("checkpoint", "the arrays of this simulator", sorted(checkpoint.arrays), source)
     for name, array in arrays.items():

@@ -170,7 +170,6 @@ class LineSolves:
                      "solve_separators, finish_segments; forwards and backwards in turn: turn_order)")
         self.hold_margin, self.newton_steps = hold_margin, newton_steps
         self.segment, self.interleaved = segment, interleaved
-        self.reversed = wp.zeros(1, dtype=int, device=model.device)  # 1: the next round takes the families backwards
         self.families = []
         for family in lines:
             uploaded, segments = upload_family(family, segment, interleaved, model.device)
@@ -189,9 +188,9 @@ class LineSolves:
         return cls(model, lines, choices.line_hold_margin, choices.line_newton_steps, segment, interleaved)
 
     def run(self, state: DeviceState) -> None:
-        wp.capture_if(self.reversed, on_true=lambda: self._solve(self.families[::-1], state),
+        wp.capture_if(state.lines_backwards, on_true=lambda: self._solve(self.families[::-1], state),
                       on_false=lambda: self._solve(self.families, state))
-        wp.launch(turn_order, dim=1, outputs=[self.reversed], device=state.device)
+        wp.launch(turn_order, dim=1, outputs=[state.lines_backwards], device=state.device)
 
     def _solve(self, families: list[FamilySolve], state: DeviceState) -> None:
         inv_mass, device = self.model.inv_mass, state.device

@@ -282,7 +282,7 @@ class Simulator:
                                      threads_per_particle, self._lines, self._bounds, faces=self._faces)
         # with substeps auto: their choice from frame to frame, and a copy of each frame's start to make it again
         self.auto = SubstepChoice(self.substeps_per_frame, most_substeps(self.scene)) if auto else None
-        self._frame_start = FrameStart(self._carried()) if auto else None
+        self._frame_start = FrameStart(self.carried()) if auto else None
         self._stats_since_start: SolveStats | None = None
         self._stats_unread: SolveStats | None = None  # of frames kept, read by the substeps' choice
         # An animated mesh collider's BVH refit is a host call on the CPU, which a CPU graph does not record
@@ -460,7 +460,7 @@ class Simulator:
     def _auto_frame(self) -> None:
         """A frame with substeps auto: made again from its start with twice the substeps while it misses
         (below the most), then kept, and the next frame's substeps chosen."""
-        arrays = self._carried()
+        arrays = self.carried()
         self._frame_start.take(arrays, self.state.parity)
         caps = self._solve_caps()
         while True:
@@ -474,7 +474,7 @@ class Simulator:
             self.frame -= 1
             self.state.parity = self._frame_start.parity
             self._set_substeps(more)
-            self._frame_start.put_back(self._carried())
+            self._frame_start.put_back(self.carried())
             self._set_clock()
             caps = self._solve_caps()
         self._stats_unread = _merged(self._stats_unread, stats)
@@ -484,8 +484,9 @@ class Simulator:
             self._set_substeps(following)
             self._set_clock()
 
-    def _carried(self) -> dict[str, wp.array]:
-        """What a frame starts from: the state's carried arrays and the plan's."""
+    def carried(self) -> dict[str, wp.array]:
+        """What a frame starts from, by name: the state's carried arrays and the plan's (what a frame made
+        again from its start puts back, what a checkpoint keeps)."""
         return {**self.state.carried(), **self.plan.carried()}
 
     def _solve_caps(self) -> SolveCaps:

@@ -1,6 +1,6 @@
-"""The simulation state on the device: positions and velocities (double buffered), the clock, where the
-colliders are, what particle collision carries from one substep to the next, and what a pass hands a later
-one within a substep (the wind's accelerations)."""
+"""The simulation state on the device: positions and velocities (double buffered), the clock, the order the
+next round of line solves takes the families in, where the colliders are, what particle collision carries
+from one substep to the next, and what a pass hands a later one within a substep (the wind's accelerations)."""
 
 from __future__ import annotations
 
@@ -108,6 +108,7 @@ class DeviceState:
         self._x = (x, wp.empty_like(x))
         self._v = (v, wp.empty_like(v))
         self.clock = wp.array([clock], dtype=int, device=device)  # substeps since time 0 (see shot_clock)
+        self.lines_backwards = wp.zeros(1, dtype=int, device=device)  # 1: the next line round goes backwards
         self.parity = 0
         start = model.collider_kinds[Spheres].initial_center
         start = start if start is not None else np.zeros((0, 3), dtype=np.float32)
@@ -167,8 +168,8 @@ class DeviceState:
 
     def carried(self) -> dict[str, wp.array]:
         """Every array a substep reads before writing it, by name: what a checkpoint keeps."""
-        arrays = {"x": self.x, "v": self.v, "clock": self.clock, "sphere_center": self.sphere_center,
-                  "sphere_velocity": self.sphere_velocity}
+        arrays = {"x": self.x, "v": self.v, "clock": self.clock, "lines_backwards": self.lines_backwards,
+                  "sphere_center": self.sphere_center, "sphere_velocity": self.sphere_velocity}
         if self.rounded_away.shape[0] > 0:
             arrays["rounded_away"] = self.rounded_away
         if self.contacts is not None:
