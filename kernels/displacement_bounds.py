@@ -25,6 +25,14 @@ import warp as wp
 LEAST_GAP = wp.constant(1.0e-4)  # metres: see the module's docstring
 
 
+@wp.func
+def bound_of(nearest: float, gamma: float) -> float:
+    """A particle's bound: gamma times its nearest pair's distance, none nearer than LEAST_GAP."""
+    if nearest >= LEAST_GAP:
+        return gamma * nearest
+    return 0.0
+
+
 @wp.kernel
 def clamp_to_bounds(target: wp.array(dtype=wp.vec3), nearest: wp.array(dtype=float), gamma: float,
                     inv_mass: wp.array(dtype=float), position: wp.array(dtype=wp.vec3),
@@ -35,9 +43,7 @@ def clamp_to_bounds(target: wp.array(dtype=wp.vec3), nearest: wp.array(dtype=flo
     i = wp.tid()
     step = target[i] - position[i]
     length = wp.length(step)
-    bound = float(0.0)
-    if nearest[i] >= LEAST_GAP:
-        bound = gamma * nearest[i]
+    bound = bound_of(nearest[i], gamma)
     if inv_mass[i] == 0.0 or length <= bound:
         position[i] = target[i]
     else:
@@ -56,3 +62,22 @@ def take_bounded_step(start: wp.array(dtype=wp.vec3), position: wp.array(dtype=w
         wp.atomic_add(held_back, 0, wp.length(short))
         x[i] = position[i]
         v[i] = (position[i] - start[i]) * inv_h
+
+
+@wp.kernel
+def hold_within_bounds(start: wp.array(dtype=wp.vec3), nearest: wp.array(dtype=float), gamma: float,
+                       inv_mass: wp.array(dtype=float), inv_h: float, x: wp.array(dtype=wp.vec3),
+                       v: wp.array(dtype=wp.vec3)):
+    """Inside the solve: each free particle farther from where the substep started than its bound (gamma *
+    nearest, none nearer than LEAST_GAP) put back onto it, toward the start, its velocity changed by the move
+    over the substep (in place: it reads only its own particle)."""
+    i = wp.tid()
+    if inv_mass[i] == 0.0:
+        return
+    step = x[i] - start[i]
+    length = wp.length(step)
+    bound = bound_of(nearest[i], gamma)
+    if length > bound:
+        held = start[i] + step * (bound / length)
+        v[i] = v[i] + (held - x[i]) * inv_h
+        x[i] = held

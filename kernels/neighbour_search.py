@@ -9,7 +9,7 @@ import warp as wp
 
 from .candidate_lists import keeping_nearest
 from .edge_collision import EdgeContacts, EdgeRules, may_touch, pair_gap
-from .face_collision import FaceContacts, side_bit
+from .face_collision import FaceContacts, side_of
 from .face_collision import may_touch as may_touch_face
 from .gathering import BLOCK, FAST_MATH, sum_over_threads, thread_layout
 from .particle_collision import (Contacts, ListState, PairRules, add_candidate, is_candidate,
@@ -230,14 +230,14 @@ def gather_edge_candidates(x: wp.array(dtype=wp.vec3), midpoint: wp.array(dtype=
 
 
 @wp.kernel
-def gather_vertex_faces(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules: EdgeRules, lists: ListState,
-                        reach: float, owned_offsets: wp.array(dtype=int), owned: wp.array(dtype=int),
-                        inv_cell: wp.array(dtype=float), mask: int, capacity: int, bucket_size: wp.array(dtype=int),
-                        bucket_items: wp.array(dtype=int)):
+def gather_vertex_faces(x: wp.array(dtype=wp.vec3), sides_at: wp.array(dtype=wp.vec3), faces: FaceContacts,
+                        rules: EdgeRules, lists: ListState, reach: float, owned_offsets: wp.array(dtype=int),
+                        owned: wp.array(dtype=int), inv_cell: wp.array(dtype=float), mask: int, capacity: int,
+                        bucket_size: wp.array(dtype=int), bucket_items: wp.array(dtype=int)):
     """Each vertex's candidate triangles, where ``rebuild`` is set: those it may touch within ``reach``
-    (the nearest where more than fit), as 2 t + the side it lies on, in index order. The hash holds the
-    particles (cells ``inv_cell[0]``, wider than the reach plus any triangle's side), each triangle found from
-    its first vertex (``owned``)."""
+    (the nearest where more than fit), as 2 t + the side it lies on at ``sides_at``, in index order. The hash
+    holds the particles (cells ``inv_cell[0]``, wider than the reach plus any triangle's side), each triangle
+    found from its first vertex (``owned``)."""
     if lists.rebuild[0] == 0:
         return
     v = wp.tid()
@@ -267,18 +267,19 @@ def gather_vertex_faces(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules: 
                                 gap = point_triangle_distance(p, a, b, c)
                                 if gap < reach:
                                     count = insert_triangle(faces.vertex_faces, start, count, faces.max_neighbors,
-                                                            2 * t_index + side_bit(p, a, b, c), gap, lists.overflow,
+                                                            2 * t_index + side_of(sides_at, v, t), gap,
+                                                            lists.overflow,
                                                             owner)
     faces.vertex_counts[v] = sort_and_drop_repeats(faces.vertex_faces, start, count)
 
 
 @wp.kernel
-def gather_face_vertices(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules: EdgeRules, lists: ListState,
-                         reach: float, inv_cell: wp.array(dtype=float), mask: int, capacity: int,
-                         bucket_size: wp.array(dtype=int), bucket_items: wp.array(dtype=int)):
+def gather_face_vertices(x: wp.array(dtype=wp.vec3), sides_at: wp.array(dtype=wp.vec3), faces: FaceContacts,
+                         rules: EdgeRules, lists: ListState, reach: float, inv_cell: wp.array(dtype=float), mask: int,
+                         capacity: int, bucket_size: wp.array(dtype=int), bucket_items: wp.array(dtype=int)):
     """Each triangle's candidate vertices, where ``rebuild`` is set: the pairs ``gather_vertex_faces`` lists,
-    seen from the triangle (the same test on the same positions), as 2 v + the side v lies on, in index
-    order; found in the 27 cells around the triangle's first vertex."""
+    seen from the triangle (the same test on the same positions), as 2 v + the side v lies on at
+    ``sides_at``, in index order; found in the 27 cells around the triangle's first vertex."""
     if lists.rebuild[0] == 0:
         return
     t_index = wp.tid()
@@ -306,5 +307,5 @@ def gather_face_vertices(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules:
                         gap = point_triangle_distance(p, a, b, c)
                         if gap < reach:
                             count = insert_vertex(faces.face_vertices, start, count, faces.max_neighbors,
-                                                  2 * v + side_bit(p, a, b, c), gap, lists.overflow, owner)
+                                                  2 * v + side_of(sides_at, v, t), gap, lists.overflow, owner)
     faces.face_counts[t_index] = sort_and_drop_repeats(faces.face_vertices, start, count)

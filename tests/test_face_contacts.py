@@ -81,6 +81,32 @@ def test_a_pair_conserves_momentum_and_a_crossed_pair_goes_back():
         np.testing.assert_allclose(gap, THICKNESS, rtol=1e-5)
 
 
+def test_a_pair_the_step_has_crossed_is_listed_on_its_side_at_the_substeps_start():
+    """A vertex 1 mm above a triangle's middle where the substep starts, which its step (a fast fall: the fold
+    at 4 mm lands at 11 mm a substep) takes 3 mm below it before the lists are made: the pair is listed with the
+    side it started on, and the pass puts the vertex a thickness above the triangle. Listed from where the step
+    put it, the pass held it a thickness below, where the displacement bounds, which never let a pair cross,
+    pressed the two together substep after substep until they stopped moving (the fold at 4 mm: surfaces
+    0.009 of the thickness apart from frame 21 on)."""
+    sim = wc.Simulator(drop_scene(1), device="cpu")
+    triangle = sim.model.triangles[0]
+    vertex = 4  # the square's first particle; its others are put far away
+    start = sim.model.positions.copy()
+    start[5:] = start[5:] + np.array([0.0, 10.0, 0.0], dtype=np.float32)
+    middle = start[triangle].mean(axis=0)
+    start[vertex] = middle + np.array([0.0, 0.001, 0.0], dtype=np.float32)
+    stepped = start.copy()
+    stepped[vertex] = middle - np.array([0.0, 0.003, 0.0], dtype=np.float32)
+    sim.plan.bounds.start.assign(start)
+    sim.state.x.assign(stepped)
+    sim.plan.lists.rebuild.fill_(1)
+    sim.plan.lists.run(sim.state)
+    sim.plan.faces.separation_pass(sim.device_model, 1, None).run(sim.state)
+    after = sim.state.x.numpy()
+    gap = after[vertex, 1] - after[triangle, 1].mean()
+    np.testing.assert_allclose(gap, THICKNESS, rtol=1e-5)
+
+
 def pressed_scene(frames: int, thickness: float | None = THICKNESS, gap: float = 0.01) -> wc.Scene:
     """Two 0.5 m sheets of 12^2 particles (4.5 cm cells, 5.4 times the 8.4 mm contact distance), ``gap``
     apart, pinned at two corners, draped over a 0.125 m sphere (the built-in drape scene's material, as
@@ -120,7 +146,8 @@ def closest_edge_edge(sim: wc.Simulator) -> float:
         return float(segment_segment(x[mine[e, 0]], x[mine[e, 1]], x[others[f, 0]], x[others[f, 1]]).min())
 
 
-def test_sheets_pressed_together_do_not_cross():
+@pytest.mark.parametrize("device", ["cpu", pytest.param("cuda", marks=pytest.mark.cuda)])
+def test_sheets_pressed_together_do_not_cross(device):
     """With a surface thickness (issue 34 asks for both pair kinds, vertex-triangle and edge-edge, at one
     thickness in metres, with the displacement bounds), no frame has a crossing pair and every vertex stays
     at least 0.9 of the thickness off the other sheet's triangles, every edge as far off the other sheet's
@@ -132,7 +159,7 @@ def test_sheets_pressed_together_do_not_cross():
     face contacts without edge contacts hold every vertex at 0.985 of the thickness or more but leave 1 to 3
     edge-edge crossings in frames 16 to 18 and 31."""
     frames = 14  # the sheets reach the sphere at frame 4, and particle contacts alone have crossed by 11
-    sim = wc.Simulator(pressed_scene(frames), device="cpu")
+    sim = wc.Simulator(pressed_scene(frames), device=device)
     assert sim.device_model.contacts.edges.thickness == sim.plan.faces.thickness == THICKNESS
     assert sim.plan.bounds.settings.radius == 2.5 * THICKNESS
     crossings = TriangleIntersections(sim)

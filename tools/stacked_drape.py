@@ -39,6 +39,11 @@ bounds' hash overflow, and the settings it ran with.
     python tools/stacked_drape.py --sheets 3 --n 32 --frames 60 --radius 0.004 default --device cpu \\
         --json docs/results/stacked-drape-cpu.json
 
+``--scene NAME`` measures a built-in scene (or a scene file) the same way instead of the stack, once per
+``--thickness`` (its own contact radius; give ``--radius default`` for one run each):
+
+    python tools/stacked_drape.py --scene fold --frames 48 --thickness off 0.004 --radius default --device cpu
+
 Prints a table and writes the runs and the environment as one JSON object (docs/results/stacked-drape-*.json,
 read by docs/notebook/layers.md).
 """
@@ -46,6 +51,7 @@ read by docs/notebook/layers.md).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import time
@@ -199,6 +205,23 @@ def table_lines(row: dict) -> list[str]:
     return lines
 
 
+def scene_with_thickness(name: str, thickness: float | None, frames: int) -> wc.Scene:
+    """A built-in scene (or a scene file) run ``frames`` frames, with ``[collision] thickness`` set (None: as
+    it is)."""
+    scene = wc.load_scene(name)
+    collision = scene.collision if thickness is None else dataclasses.replace(scene.collision, thickness=thickness)
+    return dataclasses.replace(scene, collision=collision,
+                               simulation=dataclasses.replace(scene.simulation, frames=frames))
+
+
+def write(path: str | None, device: str, settings: dict, rows: list[dict]) -> None:
+    """The runs so far and the environment, where asked (after every run: a later one may take long or fail)."""
+    if path:
+        with open(path, "w") as out:
+            json.dump({"environment": environment(device), "settings": settings, "runs": rows}, out, indent=1)
+            out.write("\n")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--sheets", type=int, default=5)
@@ -221,6 +244,9 @@ def main() -> None:
     parser.add_argument("--bounds", nargs="+", default=["off"],
                         help="the lab's displacement bounds: off (the scene's own), on, or radius=R,gamma=G,rounds=K; "
                              "one run each")
+    parser.add_argument("--scene", default=None,
+                        help="a built-in scene (or a scene file) run instead of the stack, with --thickness and "
+                             "--frames; its own contact radius (--radius is ignored)")
     parser.add_argument("--device", default=None)
     parser.add_argument("--json", default=None, help="where to write the runs and the environment")
     args = parser.parse_args()
@@ -234,6 +260,13 @@ def main() -> None:
     for text, spec, surface in ((t, b, s) for t in args.radius for s in args.thickness for b in args.bounds):
         radius = None if text == "default" else float(text)
         thickness = None if surface == "off" else float(surface)
+        if args.scene is not None:
+            rows.append({"run": f"{args.scene}{'' if thickness is None else f' thickness {1e3 * thickness:g}mm'}",
+                         **measure(scene_with_thickness(args.scene, thickness, args.frames),
+                                   thickness or args.gap, device, BoundSettings.parse(spec))})
+            print(*table_lines(rows[-1]), sep="\n", flush=True)
+            write(args.json, device, settings, rows)
+            continue
         scene = stacked_drape_scene(args.sheets, args.n, args.gap, args.limit, args.frames, args.fps, args.size,
                                     args.sphere_radius, args.drop, radius, not args.no_self, True, args.edges,
                                     args.friction, args.substeps, thickness)
@@ -243,10 +276,7 @@ def main() -> None:
                 f"{'' if spec == 'off' else ' bounds ' + spec}")
         rows.append({"run": name, "radius": radius, **measure(scene, args.gap, device, BoundSettings.parse(spec))})
         print(*table_lines(rows[-1]), sep="\n", flush=True)
-        if args.json:  # after every run: a later one may take long or fail
-            with open(args.json, "w") as out:
-                json.dump({"environment": environment(device), "settings": settings, "runs": rows}, out, indent=1)
-                out.write("\n")
+        write(args.json, device, settings, rows)
     print(f"{len(rows)} runs on {device}" + (f"; written to {args.json}" if args.json else ""))
 
 

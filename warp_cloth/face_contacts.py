@@ -90,9 +90,11 @@ class FaceContacts:
                spatial_hash.insert_points_at_chosen_width, gather_vertex_faces,
                gather_face_vertices]  # as remake_if_asked launches them
 
-    def remake_if_asked(self, x: wp.array, lists: ListState) -> None:
-        """Both candidate lists from positions ``x``, where the particle lists' ``rebuild`` is set (after their
-        gather, before the end of the remake)."""
+    def remake_if_asked(self, x: wp.array, lists: ListState, sides_at: wp.array) -> None:
+        """Both candidate lists from positions ``x``, each pair with the side its vertex lies on at ``sides_at``
+        (where the substep started: no pair has crossed there, while the step's ``x`` may have passed a vertex
+        through a triangle, which the solve would then hold on the wrong side), where the particle lists'
+        ``rebuild`` is set (after their gather, before the end of the remake)."""
         device, args, rules = self.device, self.args, self.rules
         wp.launch(edge_collision.start_edge_cells, dim=1,
                   inputs=[lists.rebuild, 1.0 / (self.longest + self.reach)], outputs=[self.inv_cell], device=device)
@@ -103,10 +105,10 @@ class FaceContacts:
                   inputs=[x, rules.world, self.inv_cell, self.mask, BUCKET_CAPACITY, lists.epoch, lists.rebuild],
                   outputs=[self.bucket_size, self.bucket_items, lists.overflow], device=device)
         wp.launch(gather_vertex_faces, dim=self.n,
-                  inputs=[x, args, rules, lists, self.reach, self.owned_offsets, self.owned, self.inv_cell, self.mask,
-                          BUCKET_CAPACITY, self.bucket_size, self.bucket_items], device=device)
+                  inputs=[x, sides_at, args, rules, lists, self.reach, self.owned_offsets, self.owned, self.inv_cell,
+                          self.mask, BUCKET_CAPACITY, self.bucket_size, self.bucket_items], device=device)
         wp.launch(gather_face_vertices, dim=self.triangle_count,
-                  inputs=[x, args, rules, lists, self.reach, self.inv_cell, self.mask, BUCKET_CAPACITY,
+                  inputs=[x, sides_at, args, rules, lists, self.reach, self.inv_cell, self.mask, BUCKET_CAPACITY,
                           self.bucket_size, self.bucket_items], device=device)
 
     def separation_pass(self, device_model: DeviceModel, threads: int, bundle: RigidColliders | None) -> GatheringPass:

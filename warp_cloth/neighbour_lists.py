@@ -41,7 +41,7 @@ class OtherLists(Protocol):
 
     kernels: list[wp.Kernel]
 
-    def remake_if_asked(self, x: wp.array, lists: ListState) -> None: ...
+    def remake_if_asked(self, x: wp.array, lists: ListState, sides_at: wp.array) -> None: ...
 
 
 class NeighbourLists:
@@ -51,9 +51,12 @@ class NeighbourLists:
     once otherwise.
 
     A pair left out of a list was farther apart than ``SEARCH_SCALE`` contact distances when it was made,
-    so it cannot touch before some particle has moved ``rebuild_distance``."""
+    so it cannot touch before some particle has moved ``rebuild_distance``. ``start``: where the substep
+    started (the displacement bounds' record), at which the face pairs' sides are taken (None: at the
+    positions the lists are made from)."""
 
-    def __init__(self, model: DeviceModel, state: DeviceState, threads: int, faces: OtherLists | None = None) -> None:
+    def __init__(self, model: DeviceModel, state: DeviceState, threads: int, faces: OtherLists | None = None,
+                 start: wp.array | None = None) -> None:
         settings = model.contacts.settings
         n = model.particle_count
         self.every_substep = REMAKE_EVERY_SUBSTEP
@@ -84,11 +87,12 @@ class NeighbourLists:
         self.faces = faces
         if faces is not None:
             self.name += "+faces"
+        self.start = start
 
     def run(self, state: DeviceState) -> None:
         if self.every_substep:
             self.rebuild.fill_(1)
-        self._remake_if_asked(state.x)
+        self._remake_if_asked(state.x, self.start if self.start is not None else state.x)
 
     @property
     def kernels(self) -> list[wp.Kernel]:
@@ -102,7 +106,7 @@ class NeighbourLists:
         """For the printed plan: the pass and its launches."""
         return [f"{self.name}:"] + [f"    {kernel.key}" for kernel in self.kernels]
 
-    def _remake_if_asked(self, x: wp.array) -> None:
+    def _remake_if_asked(self, x: wp.array, sides_at: wp.array) -> None:
         if self.use_hash:
             wp.launch(spatial_hash.insert_points, dim=self.n,
                       inputs=[x, self.rules.world, self.grid.inv_cell, self.grid.mask, self.grid.capacity,
@@ -116,12 +120,12 @@ class NeighbourLists:
         if self.edges is not None:
             self.edges.remake_if_asked(x, self.lists)
         if self.faces is not None:
-            self.faces.remake_if_asked(x, self.lists)
+            self.faces.remake_if_asked(x, self.lists, sides_at)
 
     def remake_now(self, x: wp.array) -> None:
         """Remake every particle's list from positions ``x`` now, outside a substep."""
         self.rebuild.fill_(1)
-        self._remake_if_asked(x)
+        self._remake_if_asked(x, x)
         wp.launch(particle_collision.end_remake_once, dim=1, inputs=[self.lists], device=x.device)
 
     def closest_contacts(self, x: wp.array, worlds: int, remake: bool = True) -> np.ndarray:

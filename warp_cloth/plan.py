@@ -105,12 +105,15 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
     is limited (with particle collision, where ``solve.choices.line_contacts`` too), made once for every plan a
     simulator builds (line_solve.LineSolves); ``bounds``: the displacement bounds
     (displacement_bounds.py, made once per simulator), the substep's start recorded first, the bounds measured
-    there and the step clamped to them after the solves (before the contact velocities); ``control``: the passes that put what a script sent from Python
+    there and the step clamped to them after the solves (before the contact velocities), and in a converged
+    solve of particle collision (not the lab's line rounds with contacts) also measured before it and held
+    after each of its separating passes; ``control``: the passes that put what a script sent from Python
     (control.py's ``Control.passes``) after the colliders' motion (``"colliders"``), with the soft pins' motion
     before the step (``"soft pins"``: where their springs pull, which the step reads) and after the hard
-    pins' motion (``"pins"``); ``faces``: the face contacts (face_contacts.py, made
-    once per simulator, used only with particle collision), their lists remade with the particle lists,
-    their pass beside the edge contacts' pass, and the converged solve's check reading both kinds' pairs."""
+    pins' motion (``"pins"``); ``faces``: the face contacts (face_contacts.py, made once per simulator, used
+    only with particle collision), their lists remade with the particle lists (each pair's side taken where
+    the substep started, the bounds' record), their pass beside the edge contacts' pass, and the converged
+    solve's check reading both kinds' pairs."""
     chosen = threads_per_particle(model.particle_count, model.device) if threads is None else threads
     rigid = model.colliders(state) if model.has_colliders else None
     control = control or {}
@@ -130,7 +133,7 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
     if model.contacts is not None:
         list_threads = threads_per_particle(model.particle_count, model.device, LIST_THREADS_BY_SIZE) \
             if threads is None else threads
-        lists = NeighbourLists(model, state, list_threads, faces)
+        lists = NeighbourLists(model, state, list_threads, faces, bounds.start if bounds is not None else None)
         start = contact_start_args(model, state, rigid or model.no_colliders(), lists.rebuild_distance)
     if model.wind is not None:
         passes.append(WindForces(model))
@@ -154,7 +157,10 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
             projection = line_contact_projection(model, state, solve, chosen, rigid, edge_passes, lines, faces)
             passes.append(projection)
         elif converged:
-            projection = converged_projection(model, state, solve, chosen, rigid, edge_passes, faces)
+            if bounds is not None:
+                passes.append(bounds.measure)
+            projection = converged_projection(model, state, solve, chosen, rigid, edge_passes, faces,
+                                              [bounds.hold] if bounds is not None else [])
             passes.append(projection)
         else:
             passes.extend(edge_passes + projection_passes(model, state, solve, chosen, rigid))
@@ -188,16 +194,19 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
 
 def converged_projection(model: DeviceModel, state: DeviceState, solve: LimitSolveSettings, threads: int,
                          rigid: RigidColliders | None, edge_passes: list[Pass],
-                         faces: FaceContacts | None = None) -> ConvergedProjection:
+                         faces: FaceContacts | None = None,
+                         after_passes: list[Pass] | None = None) -> ConvergedProjection:
     """The converged solve of particle collision (with the strain limits where the scene has them: projected
     jointly for ``solve.choices.joint_passes`` passes, then sequentially; see limit_solve.SolveChoices); with
-    ``faces`` (a surface thickness's), its check reads the edge and face pairs too."""
+    ``faces`` (a surface thickness's), its check reads the edge and face pairs too; ``after_passes`` (the
+    displacement bounds' hold, or none) follow each separating pass."""
+    after = after_passes or []
     joint_first = model.limits is None or solve.choices.joint_passes > 0
-    first = projection_pair(model, state, threads, rigid, edge_passes, "joint" if joint_first else "sequential")
-    counted = lambda body: sum(p not in edge_passes for p in body)  # noqa: E731
+    first = projection_pair(model, state, threads, rigid, edge_passes, "joint" if joint_first else "sequential", after)
+    counted = lambda body: sum(p not in edge_passes and p not in after for p in body)  # noqa: E731
     if model.limits is None or not joint_first:
         return ConvergedProjection(model, state, solve, first, rigid, counted=counted(first), faces=faces)
-    later = projection_pair(model, state, threads, rigid, edge_passes, "sequential")
+    later = projection_pair(model, state, threads, rigid, edge_passes, "sequential", after)
     return ConvergedProjection(model, state, solve, first, rigid, counted=counted(first), later_body=later,
                                later_counted=counted(later), switch_at=solve.choices.joint_passes, faces=faces)
 
@@ -242,19 +251,21 @@ def line_contact_projection(model: DeviceModel, state: DeviceState, solve: Limit
 
 
 def projection_pair(model: DeviceModel, state: DeviceState, threads: int, rigid: RigidColliders | None,
-                    edge_passes: list[Pass], order: str) -> list[Pass]:
+                    edge_passes: list[Pass], order: str, after: list[Pass] | None = None) -> list[Pass]:
     """Two projection passes of particle collision (with the strain limits where the scene has them, in
     the ``order`` "joint" or "sequential"), for a converged solve to repeat: each ends with the colliders,
     the first reading the resting marks' first bit, the second the other (see ``projection_passes``);
     ``edge_passes`` (the edge contacts' pass, or none) come before each pass that separates, so that the
-    solve's check follows a projection."""
+    solve's check follows a projection, and ``after`` (in place) after it."""
+    after = after or []
     if model.limits is None:
-        return [p for bit in (1, 2) for p in edge_passes + [separation_pass(model, state, threads, rigid, bit)]]
+        return [p for bit in (1, 2)
+                for p in edge_passes + [separation_pass(model, state, threads, rigid, bit)] + after]
     if order == "joint":
         return [p for bit in (1, 2)
-                for p in edge_passes + [limit_and_separation_pass(model, state, threads, rigid, bit)]]
+                for p in edge_passes + [limit_and_separation_pass(model, state, threads, rigid, bit)] + after]
     return [p for bit in (1, 2) for p in [limit_pass(model, threads, None, None, 1)] + edge_passes
-            + [separation_pass(model, state, threads, rigid, bit)]]
+            + [separation_pass(model, state, threads, rigid, bit)] + after]
 
 
 def projection_passes(model: DeviceModel, state: DeviceState, solve: LimitSolveSettings, threads: int,
