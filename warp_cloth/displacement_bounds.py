@@ -11,7 +11,7 @@ that a step may go farther than the start's bounds allow and still never cross.
 Inside the converged solve of particle collision the bounds are held too: measured where the substep started
 before the solve (within a radius wide enough for the step's motion so far), every particle is put back
 within its bound after each separating pass, so that the solve converges to limits and contacts that hold
-within the bounds, and the clamp after it, measured again for the solve's motion, has little left to do. The
+within the bounds, and the clamp after it, to the same bounds, has little left to do. The
 clamp after the solve alone undid the limits: the fold at 4 mm landed at +15.3% / -19.6% with surfaces 0.62 of
 the thickness apart, against +10.4% / -10.4% and 0.95 with the bounds held inside (docs/notebook/layers.md,
 "Sides where the substep started, and the bounds inside the solve").
@@ -19,13 +19,14 @@ the thickness apart, against +10.4% / -10.4% and 0.95 with the bounds held insid
 The query radius is the settings' or, where the step's longest motion asks for more, motion / gamma: OGC
 bounds a vertex with nothing within the radius at gamma times the radius, which at a fixed radius caps the
 speed of a cloth falling through empty air (1.1 thicknesses a substep at 2.5 thicknesses); measured after
-the solve, the radius follows the step, and a particle with nothing near takes its whole step.
+the step (before a converged solve that holds them, else after the solves), the radius follows it, and a
+particle with nothing near takes its whole step.
 
 A scene with a surface thickness (``[collision] thickness``) has them at ``for_thickness``'s settings. The
 lab's ``lab_hooks`` set others (more rounds), or put them on a scene without one (particle contacts alone).
 The simulator makes one ``DisplacementBounds`` where either asks, and hands it to every plan it builds
-(warp_cloth/plan.py: its ``record_start`` pass first; its ``measure`` pass before the converged solve and its
-``hold`` pass inside it; its ``clamp`` pass after the solves)."""
+(warp_cloth/plan.py: its ``record_start`` pass first; its ``measure`` pass before the converged solve, its
+``hold`` pass inside it and its ``clamp_held`` after it; elsewhere its ``clamp`` pass after the solves)."""
 
 from __future__ import annotations
 
@@ -109,8 +110,8 @@ def mesh_primitives(model: Model) -> tuple[np.ndarray, np.ndarray]:
 
 
 class DisplacementBounds:
-    """The bounds' arrays and their passes (``record_start``, ``measure``, ``hold`` and ``clamp``), made once per
-    simulator. A particle that does not fit its hash bucket is counted in ``overflow`` and its pairs go
+    """The bounds' arrays and their passes (``record_start``, ``measure``, ``hold``, ``clamp`` and
+    ``clamp_held``), made once per simulator. A particle that does not fit its hash bucket is counted in ``overflow`` and its pairs go
     unmeasured (the tools report it: the guarantee needs none)."""
 
     def __init__(self, model: Model, device_model: DeviceModel, settings: BoundSettings) -> None:
@@ -150,9 +151,10 @@ class DisplacementBounds:
         self.clamped = wp.zeros(settings.rounds, dtype=int, device=device)  # particles held short, by round
         self.held_back = wp.zeros(1, dtype=float, device=device)
         self.record_start = RecordStart(self)
-        self.clamp = ClampToBounds(self)
+        self.clamp = ClampToBounds(self, measured_before=False)
         self.measure = MeasureBounds(self)
         self.hold = HoldWithinBounds(self)
+        self.clamp_held = ClampToBounds(self, measured_before=True)  # after a solve that held ``measure``'s bounds
 
     @classmethod
     def of(cls, model: Model, device_model: DeviceModel) -> DisplacementBounds | None:
@@ -253,19 +255,28 @@ class HoldWithinBounds:
 
 class ClampToBounds:
     """After the solves: the bounds measured where the substep started, within a query radius wide enough for
-    the step's longest motion, and each particle's step from the start clamped to its bound (in rounds, the
-    bounds measured again where the last clamp left the particles, for the rest of the step), then the
-    particles held short moved there, with the velocity of their clamped step."""
+    the step's longest motion (or, ``measured_before``, those ``MeasureBounds`` measured before a solve that
+    held them), and each particle's step from the start clamped to its bound (in rounds, the bounds measured
+    again where the last clamp left the particles, for the rest of the step), then the particles held short
+    moved there, with the velocity of their clamped step.
+
+    Bounds measured at the start within any radius keep the guarantee (kernels/displacement_bounds.py: a pair
+    within the radius bounds its vertices by gamma times its distance, one beyond it by gamma times the
+    radius); the radius only decides how far a particle with nothing near may go. After a solve that held
+    the bounds measured before it, only its acceleration's last extrapolation can have moved a particle past
+    them, and the same bounds clamp it."""
 
     name = "bounds:clamp"
 
-    def __init__(self, bounds: DisplacementBounds) -> None:
+    def __init__(self, bounds: DisplacementBounds, measured_before: bool) -> None:
         self.bounds = bounds
+        self.measured_before = measured_before
 
     def describe(self) -> list[str]:
         rounds = self.bounds.settings.rounds
         measure_and_clamp = DisplacementBounds.MEASURE_LAUNCHES + [displacement_bounds.clamp_to_bounds.key]
-        lines = [f"{self.name}:", "    a copy of the start"] + [f"    {launch}" for launch in measure_and_clamp]
+        first = [displacement_bounds.clamp_to_bounds.key] if self.measured_before else measure_and_clamp
+        lines = [f"{self.name}:", "    a copy of the start"] + [f"    {launch}" for launch in first]
         if rounds > 1:
             lines += [f"    then {rounds - 1} more rounds of:"] + [f"      {launch}" for launch in measure_and_clamp]
         return lines + [f"    {displacement_bounds.take_bounded_step.key}"]
@@ -275,7 +286,8 @@ class ClampToBounds:
         model = bounds.device_model
         wp.copy(bounds.position, bounds.start)
         for slot in range(bounds.settings.rounds):
-            bounds.measure_at(bounds.position, state.x)
+            if slot > 0 or not self.measured_before:
+                bounds.measure_at(bounds.position, state.x)
             wp.launch(displacement_bounds.clamp_to_bounds, dim=bounds.n,
                       inputs=[state.x, bounds.nearest, bounds.settings.gamma, model.inv_mass, bounds.position,
                               bounds.clamped, slot], device=device)

@@ -105,9 +105,9 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
     is limited (with particle collision, where ``solve.choices.line_contacts`` too), made once for every plan a
     simulator builds (line_solve.LineSolves); ``bounds``: the displacement bounds
     (displacement_bounds.py, made once per simulator), the substep's start recorded first, the bounds measured
-    there and the step clamped to them after the solves (before the contact velocities), and in a converged
-    solve of particle collision (not the lab's line rounds with contacts) also measured before it and held
-    after each of its separating passes; ``control``: the passes that put what a script sent from Python
+    there and the step clamped to them after the solves (before the contact velocities), or, in a converged
+    solve of particle collision (not the lab's line rounds with contacts), measured there before it, held
+    after each of its separating passes and the step clamped to the same bounds after it; ``control``: the passes that put what a script sent from Python
     (control.py's ``Control.passes``) after the colliders' motion (``"colliders"``), with the soft pins' motion
     before the step (``"soft pins"``: where their springs pull, which the step reads) and after the hard
     pins' motion (``"pins"``); ``faces``: the face contacts (face_contacts.py, made once per simulator, used
@@ -153,19 +153,21 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
         edge_passes = [edge_separation_pass(model, state, chosen, rigid)] if state.edges is not None else []
         if faces is not None:
             edge_passes.append(faces.separation_pass(model, chosen, rigid))
+        clamp = bounds.clamp if bounds is not None else None
         if converged and model.limits is not None and lines is not None:
             projection = line_contact_projection(model, state, solve, chosen, rigid, edge_passes, lines, faces)
             passes.append(projection)
         elif converged:
             if bounds is not None:
                 passes.append(bounds.measure)
+                clamp = bounds.clamp_held
             projection = converged_projection(model, state, solve, chosen, rigid, edge_passes, faces,
                                               [bounds.hold] if bounds is not None else [])
             passes.append(projection)
         else:
             passes.extend(edge_passes + projection_passes(model, state, solve, chosen, rigid))
-        if bounds is not None:
-            passes.append(bounds.clamp)
+        if clamp is not None:
+            passes.append(clamp)
         friction = faces.friction_pass(model, state, chosen) if faces is not None else None
         if friction is not None:
             passes.append(friction)
