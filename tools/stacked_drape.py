@@ -40,7 +40,8 @@ bounds' hash overflow, and the settings it ran with.
         --json docs/results/stacked-drape-cpu.json
 
 ``--scene NAME`` measures a built-in scene (or a scene file) the same way instead of the stack, once per
-``--thickness`` (its own contact radius; give ``--radius default`` for one run each):
+``--thickness`` (its own contact radius; give ``--radius default`` for one run each), with
+``--auto-substeps`` at the simulator's choice of step rather than the scene's:
 
     python tools/stacked_drape.py --scene fold --frames 48 --thickness off 0.004 --radius default --device cpu
 
@@ -205,13 +206,15 @@ def table_lines(row: dict) -> list[str]:
     return lines
 
 
-def scene_with_thickness(name: str, thickness: float | None, frames: int) -> wc.Scene:
+def scene_with_thickness(name: str, thickness: float | None, frames: int, auto_substeps: bool = False) -> wc.Scene:
     """A built-in scene (or a scene file) run ``frames`` frames, with ``[collision] thickness`` set (None: as
-    it is)."""
+    it is), and where ``auto_substeps`` its ``dt`` and ``substeps`` left out (the simulator's choice)."""
     scene = wc.load_scene(name)
     collision = scene.collision if thickness is None else dataclasses.replace(scene.collision, thickness=thickness)
-    return dataclasses.replace(scene, collision=collision,
-                               simulation=dataclasses.replace(scene.simulation, frames=frames))
+    simulation = dataclasses.replace(scene.simulation, frames=frames)
+    if auto_substeps:
+        simulation = dataclasses.replace(simulation, dt=None, substeps=None)
+    return dataclasses.replace(scene, collision=collision, simulation=simulation)
 
 
 def write(path: str | None, device: str, settings: dict, rows: list[dict]) -> None:
@@ -247,6 +250,8 @@ def main() -> None:
     parser.add_argument("--scene", default=None,
                         help="a built-in scene (or a scene file) run instead of the stack, with --thickness and "
                              "--frames; its own contact radius (--radius is ignored)")
+    parser.add_argument("--auto-substeps", action="store_true",
+                        help="with --scene: the scene's dt and substeps left out, the simulator choosing them")
     parser.add_argument("--device", default=None)
     parser.add_argument("--json", default=None, help="where to write the runs and the environment")
     args = parser.parse_args()
@@ -261,8 +266,9 @@ def main() -> None:
         radius = None if text == "default" else float(text)
         thickness = None if surface == "off" else float(surface)
         if args.scene is not None:
-            rows.append({"run": f"{args.scene}{'' if thickness is None else f' thickness {1e3 * thickness:g}mm'}",
-                         **measure(scene_with_thickness(args.scene, thickness, args.frames),
+            rows.append({"run": f"{args.scene}{'' if thickness is None else f' thickness {1e3 * thickness:g}mm'}"
+                                f"{' substeps auto' if args.auto_substeps else ''}",
+                         **measure(scene_with_thickness(args.scene, thickness, args.frames, args.auto_substeps),
                                    thickness or args.gap, device, BoundSettings.parse(spec))})
             print(*table_lines(rows[-1]), sep="\n", flush=True)
             write(args.json, device, settings, rows)
