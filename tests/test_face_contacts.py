@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import warp_cloth as wc
+from conftest import assert_restored_run_continues
 from test_displacement_bounds import point_triangle, segment_segment
 from warp_cloth.diagnostics import TriangleIntersections
 
@@ -172,6 +173,18 @@ def test_sheets_pressed_together_do_not_cross(device):
     assert max(counts) == 0, counts
     assert min(vertex_face) >= 0.9 * THICKNESS, vertex_face
     assert min(edge_edge) >= 0.9 * THICKNESS, edge_edge
+
+
+def test_a_run_with_a_thickness_restored_from_a_checkpoint_makes_the_same_frames(tmp_path):
+    """A checkpoint of the pressed sheets as they drape over the sphere (frame 8) goes on bit for bit in a
+    fresh simulator restored from it; the face contacts' lists (the plan's carried arrays) are among what a
+    checkpoint keeps."""
+    scene = pressed_scene(12)
+    sim = wc.Simulator(scene, device="cpu")
+    for _ in range(8):
+        sim.step()
+    assert {"faces.vertex_faces", "faces.face_vertices"} <= set(sim.carried())
+    assert_restored_run_continues(sim, wc.Simulator(scene, device="cpu"), tmp_path / "state.npz", frames=4)
 
 
 LAYERS_TOML = """[[cloth]]
