@@ -79,17 +79,22 @@ def fitted_stencils(points, counts, indices, sides, tensors, particles, rows, be
                             np.zeros(0))
     adjacency = Adjacency.of(sides, len(points))
     along_border, straight, corner = _border(points, counts, indices, particles)
-    ring, ring_2 = (_rings(points, adjacency, particles, depth) for depth in (1, 2))
+    ring = _rings(points, adjacency, particles, 1)
     u, first = _fits(points, tensors, particles, ring, along_border, straight)
-    _, wider = _fits(points, tensors, particles, ring_2, along_border, straight)
+    # the second ring, only where the first cannot tell a direction (and not at a corner)
+    short = np.flatnonzero(~corner & ~(first[0][1] & first[1][1]))
+    ring_2 = _rings(points, adjacency, particles[short], 2)
+    _, wider = _fits(points, tensors, particles[short], ring_2, along_border[short], straight[short])
     covered = _row_directions(rows, particles, u)
     area = lumped_masses(points, counts, indices, 1.0)[particles]
     parts = []
     for axis, stiff in enumerate(bending):
         (weights, told, at_rest), (weights_2, told_2, at_rest_2) = first[axis], wider[axis]
-        widen = ~told & told_2 & ~corner  # where the first ring cannot tell: every other fit as it was
-        stencil, weights = np.where(widen[:, None], ring_2, ring), np.where(widen[:, None], weights_2, weights)
-        keep = np.where(widen, at_rest_2, told & at_rest) & ~covered[:, axis]
+        widen = ~told[short] & told_2  # where the first ring cannot tell: every other fit as it was
+        widened = short[widen]
+        stencil, weights, keep = ring.copy(), weights.copy(), told & at_rest
+        stencil[widened], weights[widened], keep[widened] = ring_2[widen], weights_2[widen], at_rest_2[widen]
+        keep &= ~covered[:, axis]
         stiffness = stiff * area[keep]
         parts.append(BendStencils.of_table(stencil[keep], weights[keep], stencil[keep] >= 0, stiffness,
                                            damping * stiffness))

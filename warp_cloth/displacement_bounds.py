@@ -111,8 +111,8 @@ def mesh_primitives(model: Model) -> tuple[np.ndarray, np.ndarray]:
 
 class DisplacementBounds:
     """The bounds' arrays and their passes (``record_start``, ``measure``, ``hold``, ``clamp`` and
-    ``clamp_held``), made once per simulator. A particle that does not fit its hash bucket is counted in ``overflow`` and its pairs go
-    unmeasured (the tools report it: the guarantee needs none)."""
+    ``clamp_held``), made once per simulator. A particle that does not fit its hash bucket is counted in
+    ``overflow`` and its pairs go unmeasured (the tools report it: the guarantee needs none)."""
 
     def __init__(self, model: Model, device_model: DeviceModel, settings: BoundSettings) -> None:
         self.settings = settings

@@ -91,8 +91,8 @@ class LimitSolveSettings:
 
     @property
     def line_rounds(self) -> bool:
-        """Whether the converged solve takes rounds of line solves (with particle collision, only where
-        ``choices.line_contacts`` too)."""
+        """Whether the converged solve takes rounds of line solves (the simulator builds them for a scene with
+        particle collision only where ``choices.line_contacts`` too)."""
         return self.converged and self.choices.line_solve
 
     @classmethod

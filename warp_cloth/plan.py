@@ -107,13 +107,13 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
     (displacement_bounds.py, made once per simulator), the substep's start recorded first, the bounds measured
     there and the step clamped to them after the solves (before the contact velocities), or, in a converged
     solve of particle collision (not the lab's line rounds with contacts), measured there before it, held
-    after each of its separating passes and the step clamped to the same bounds after it; ``control``: the passes that put what a script sent from Python
-    (control.py's ``Control.passes``) after the colliders' motion (``"colliders"``), with the soft pins' motion
-    before the step (``"soft pins"``: where their springs pull, which the step reads) and after the hard
-    pins' motion (``"pins"``); ``faces``: the face contacts (face_contacts.py, made once per simulator, used
-    only with particle collision), their lists remade with the particle lists (each pair's side taken where
-    the substep started, the bounds' record), their pass beside the edge contacts' pass, and the converged
-    solve's check reading both kinds' pairs."""
+    after each of its separating passes and the step clamped to the same bounds after it; ``control``: the
+    passes that put what a script sent from Python (control.py's ``Control.passes``) after the colliders'
+    motion (``"colliders"``), with the soft pins' motion before the step (``"soft pins"``: where their springs
+    pull, which the step reads) and after the hard pins' motion (``"pins"``); ``faces``: the face contacts
+    (face_contacts.py, made once per simulator, used only with particle collision), their lists remade with
+    the particle lists (each pair's side taken where the substep started, the bounds' record), their pass
+    beside the edge contacts' pass, and the converged solve's check reading both kinds' pairs."""
     chosen = threads_per_particle(model.particle_count, model.device) if threads is None else threads
     rigid = model.colliders(state) if model.has_colliders else None
     control = control or {}

@@ -313,7 +313,8 @@ def run_batch(variants: list[Variant], out: Path, device: str | None, usd: bool)
         rows.append({"variant": variant.name, "settings": dict(variant.settings),
                      "stretch": float(worst[w, 0]), "compression": float(worst[w, 1]),
                      "kinetic_energy": float(0.5 * np.sum(masses * np.sum(v * v, axis=1))),
-                     "closest_contact": None if contacts is None or not np.isfinite(contacts[w]) else float(contacts[w]),
+                     "closest_contact": float(contacts[w]) if contacts is not None and np.isfinite(contacts[w])
+                     else None,
                      "unstable_frame": None if stopped is None else stopped.frame,
                      "batch_worlds": len(variants), "batch_seconds": seconds,
                      "usd": None if usd_path is None else str(usd_path)})
