@@ -131,21 +131,25 @@ def pair_gap(ends: wp.array(dtype=wp.vec2i), x: wp.array(dtype=wp.vec3), e: int,
 
 
 @wp.kernel
-def start_edge_cells(rebuild: wp.array(dtype=int), least_inv_width: float, inv_width: wp.array(dtype=float)):
-    """The edge hash's cells at their least width (one thread), where ``rebuild`` is set: as wide as the
-    longest an edge may get plus the reach, before ``midpoints_and_cell_width``."""
+def start_edge_cells(rebuild: wp.array(dtype=int), longest: float, thickness: float, widest: wp.array(dtype=float),
+                     inv_width: wp.array(dtype=float)):
+    """The hash's cells at their least width (one thread), where ``rebuild`` is set: as wide as the longest
+    an edge (or a triangle's side) may get plus the largest reach, the thickness plus twice the largest
+    allowance (kernels/surface_reach.py), before ``midpoints_and_cell_width`` or
+    face_collision.widen_face_cells."""
     if rebuild[0] != 0:
-        inv_width[0] = least_inv_width
+        inv_width[0] = 1.0 / (longest + thickness + 2.0 * widest[0])
 
 
 @wp.kernel
 def midpoints_and_cell_width(x: wp.array(dtype=wp.vec3), ends: wp.array(dtype=wp.vec2i),
-                             rebuild: wp.array(dtype=int), longest: float, reach: float,
-                             midpoint: wp.array(dtype=wp.vec3), inv_width: wp.array(dtype=float)):
+                             rebuild: wp.array(dtype=int), longest: float, thickness: float,
+                             widest: wp.array(dtype=float), midpoint: wp.array(dtype=wp.vec3),
+                             inv_width: wp.array(dtype=float)):
     """Where ``rebuild`` is set, each edge's midpoint, for the hash, and the hash's cells widened to the
-    longest edge longer than ``longest`` plus ``reach`` (its inverse width the least over those edges), so
-    that the 27 cells around any edge's midpoint hold every edge within reach of it: two edges' midpoints
-    lie up to half their lengths plus the reach apart."""
+    longest edge longer than ``longest`` plus the largest reach (its inverse width the least over those
+    edges), so that the 27 cells around any edge's midpoint hold every edge within reach of it: two edges'
+    midpoints lie up to half their lengths plus the reach apart."""
     if rebuild[0] == 0:
         return
     e = wp.tid()
@@ -154,7 +158,7 @@ def midpoints_and_cell_width(x: wp.array(dtype=wp.vec3), ends: wp.array(dtype=wp
     midpoint[e] = 0.5 * (p + q)
     length = wp.length(q - p)
     if length > longest:
-        wp.atomic_min(inv_width, 0, 1.0 / (length + reach))
+        wp.atomic_min(inv_width, 0, 1.0 / (length + thickness + 2.0 * widest[0]))
 
 
 @wp.func

@@ -220,11 +220,12 @@ def face_pushes(faces: FaceContacts, i: int, first: int, stride: int, x: wp.arra
 
 @wp.kernel
 def widen_face_cells(x: wp.array(dtype=wp.vec3), triangles: wp.array(dtype=wp.vec3i), rebuild: wp.array(dtype=int),
-                     longest: float, reach: float, inv_width: wp.array(dtype=float)):
+                     longest: float, thickness: float, widest: wp.array(dtype=float), inv_width: wp.array(dtype=float)):
     """Where ``rebuild`` is set, the face hash's cells widened to the longest triangle side longer than
-    ``longest`` plus ``reach`` (after edge_collision.start_edge_cells set the least width), so that the 27
-    cells around a vertex hold the first vertex of every triangle within reach of it, and those around a
-    triangle's first vertex every vertex within reach of the triangle."""
+    ``longest`` plus the largest reach (the thickness plus twice the largest allowance, ``widest[0]``), after
+    edge_collision.start_edge_cells set the least width, so that the 27 cells around a vertex hold the first
+    vertex of every triangle within reach of it, and those around a triangle's first vertex every vertex
+    within reach of the triangle."""
     if rebuild[0] == 0:
         return
     t = triangles[wp.tid()]
@@ -233,7 +234,7 @@ def widen_face_cells(x: wp.array(dtype=wp.vec3), triangles: wp.array(dtype=wp.ve
     c = x[t[2]]
     side = wp.max(wp.max(wp.length(b - a), wp.length(c - b)), wp.length(a - c))
     if side > longest:
-        wp.atomic_min(inv_width, 0, 1.0 / (side + reach))
+        wp.atomic_min(inv_width, 0, 1.0 / (side + thickness + 2.0 * widest[0]))
 
 
 @wp.func

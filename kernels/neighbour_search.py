@@ -15,6 +15,7 @@ from .gathering import BLOCK, FAST_MATH, sum_over_threads, thread_layout
 from .particle_collision import (Contacts, ListState, PairRules, add_candidate, is_candidate,
                                  sort_and_drop_repeats)
 from .primitive_distances import box_gap_sq, point_triangle_distance
+from .surface_reach import edge_allowance, triangle_allowance
 from .spatial_hash import cell_of, count_in, first_visit, neighbour_bucket, stamp_of
 
 wp.set_module_options(FAST_MATH)
@@ -187,11 +188,13 @@ insert_vertex = keeping_nearest(listed_vertex_gap)
 @wp.kernel
 def gather_edge_candidates(x: wp.array(dtype=wp.vec3), midpoint: wp.array(dtype=wp.vec3),
                            edge_world: wp.array(dtype=int), edges: EdgeContacts, rules: EdgeRules, lists: ListState,
-                           reach: float, inv_cell: wp.array(dtype=float), mask: int, capacity: int,
+                           allowance: wp.array(dtype=float), widest: wp.array(dtype=float),
+                           inv_cell: wp.array(dtype=float), mask: int, capacity: int,
                            bucket_size: wp.array(dtype=int), bucket_items: wp.array(dtype=int)):
     """Each edge's candidates from the hash of its midpoint's 27 cells (each bucket once; ``inv_cell[0]``
     the cells' inverse width this remake), where ``rebuild`` is set: edges that may touch it whose segments
-    lie within ``reach`` (``pair_gap``: each lists the other; the nearest where more than fit), in index order."""
+    lie within the thickness plus both edges' allowances (surface_reach.py; ``widest[0]`` the largest)
+    (``pair_gap``: each lists the other; the nearest where more than fit), in index order."""
     if lists.rebuild[0] == 0:
         return
     e = wp.tid()
@@ -206,6 +209,8 @@ def gather_edge_candidates(x: wp.array(dtype=wp.vec3), midpoint: wp.array(dtype=
     q = x[ends_e[1]]
     low = wp.min(p, q)
     high = wp.max(p, q)
+    own = edges.thickness + edge_allowance(allowance, ends_e)
+    reach = own + widest[0]
     box_reach_sq = (BOX_SLACK * reach) * (BOX_SLACK * reach)
     # an edge within reach has its midpoint within half of both lengths plus the reach, and no edge is longer
     # than the cells' width less the reach
@@ -223,20 +228,21 @@ def gather_edge_candidates(x: wp.array(dtype=wp.vec3), midpoint: wp.array(dtype=
                     if box_gap_sq(low, high, wp.min(p_f, q_f), wp.max(p_f, q_f)) < box_reach_sq:
                         if f != e and may_touch(rules, ends_e, ends_f):
                             gap = pair_gap(edges.ends, x, e, f)
-                            if gap < reach:
+                            if gap < own + edge_allowance(allowance, ends_f):
                                 count = insert_edge(edges.neighbors, start, count, edges.max_neighbors, f, gap,
                                                     lists.overflow, owner)
     edges.counts[e] = sort_and_drop_repeats(edges.neighbors, start, count)
 
 
 @wp.kernel
-def gather_vertex_faces(x: wp.array(dtype=wp.vec3), sides_at: wp.array(dtype=wp.vec3), faces: FaceContacts,
-                        rules: EdgeRules, lists: ListState, reach: float, owned_offsets: wp.array(dtype=int),
-                        owned: wp.array(dtype=int), inv_cell: wp.array(dtype=float), mask: int, capacity: int,
-                        bucket_size: wp.array(dtype=int), bucket_items: wp.array(dtype=int)):
-    """Each vertex's candidate triangles, where ``rebuild`` is set: those it may touch within ``reach``
-    (the nearest where more than fit), as 2 t + the side it lies on at ``sides_at``, in index order. The hash
-    holds the particles (cells ``inv_cell[0]``, wider than the reach plus any triangle's side), each triangle
+def gather_vertex_faces(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules: EdgeRules, lists: ListState,
+                        allowance: wp.array(dtype=float), widest: wp.array(dtype=float),
+                        owned_offsets: wp.array(dtype=int), owned: wp.array(dtype=int), inv_cell: wp.array(dtype=float),
+                        mask: int, capacity: int, bucket_size: wp.array(dtype=int), bucket_items: wp.array(dtype=int)):
+    """Each vertex's candidate triangles at positions ``x``, where ``rebuild`` is set: those it may touch
+    within the thickness plus the vertex's and the triangle's allowances (surface_reach.py; ``widest[0]`` the
+    largest) (the nearest where more than fit), as 2 t + the side it lies on, in index order. The hash holds
+    the particles (cells ``inv_cell[0]``, wider than the largest reach plus any triangle's side), each triangle
     found from its first vertex (``owned``)."""
     if lists.rebuild[0] == 0:
         return
@@ -248,7 +254,8 @@ def gather_vertex_faces(x: wp.array(dtype=wp.vec3), sides_at: wp.array(dtype=wp.
     start = v * faces.max_neighbors
     owner = face_list_owner(x, faces.triangles, v)
     near = BOX_SLACK / inv_cell[0]  # a triangle within reach has its first vertex within reach plus its side
-    box_reach_sq = (BOX_SLACK * reach) * (BOX_SLACK * reach)
+    own = faces.thickness + allowance[v]
+    box_reach_sq = (BOX_SLACK * (own + widest[0])) * (BOX_SLACK * (own + widest[0]))
     count = int(0)
     for k in range(27):
         bucket = neighbour_bucket(center, world, k, mask)
@@ -265,21 +272,22 @@ def gather_vertex_faces(x: wp.array(dtype=wp.vec3), sides_at: wp.array(dtype=wp.
                         if box_gap_sq(p, p, wp.min(wp.min(a, b), c), wp.max(wp.max(a, b), c)) < box_reach_sq:
                             if may_touch_face(rules, v, t):
                                 gap = point_triangle_distance(p, a, b, c)
-                                if gap < reach:
+                                if gap < own + triangle_allowance(allowance, t):
                                     count = insert_triangle(faces.vertex_faces, start, count, faces.max_neighbors,
-                                                            2 * t_index + side_of(sides_at, v, t), gap,
+                                                            2 * t_index + side_of(x, v, t), gap,
                                                             lists.overflow,
                                                             owner)
     faces.vertex_counts[v] = sort_and_drop_repeats(faces.vertex_faces, start, count)
 
 
 @wp.kernel
-def gather_face_vertices(x: wp.array(dtype=wp.vec3), sides_at: wp.array(dtype=wp.vec3), faces: FaceContacts,
-                         rules: EdgeRules, lists: ListState, reach: float, inv_cell: wp.array(dtype=float), mask: int,
-                         capacity: int, bucket_size: wp.array(dtype=int), bucket_items: wp.array(dtype=int)):
+def gather_face_vertices(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules: EdgeRules, lists: ListState,
+                         allowance: wp.array(dtype=float), widest: wp.array(dtype=float),
+                         inv_cell: wp.array(dtype=float), mask: int, capacity: int, bucket_size: wp.array(dtype=int),
+                         bucket_items: wp.array(dtype=int)):
     """Each triangle's candidate vertices, where ``rebuild`` is set: the pairs ``gather_vertex_faces`` lists,
-    seen from the triangle (the same test on the same positions), as 2 v + the side v lies on at
-    ``sides_at``, in index order; found in the 27 cells around the triangle's first vertex."""
+    seen from the triangle (the same test on the same positions), as 2 v + the side v lies on, in index
+    order; found in the 27 cells around the triangle's first vertex."""
     if lists.rebuild[0] == 0:
         return
     t_index = wp.tid()
@@ -294,7 +302,8 @@ def gather_face_vertices(x: wp.array(dtype=wp.vec3), sides_at: wp.array(dtype=wp
     owner = face_list_owner(x, faces.triangles, t_index)
     low = wp.min(wp.min(a, b), c)
     high = wp.max(wp.max(a, b), c)
-    box_reach_sq = (BOX_SLACK * reach) * (BOX_SLACK * reach)
+    own = faces.thickness + triangle_allowance(allowance, t)
+    box_reach_sq = (BOX_SLACK * (own + widest[0])) * (BOX_SLACK * (own + widest[0]))
     count = int(0)
     for k in range(27):
         bucket = neighbour_bucket(center, world, k, mask)
@@ -305,7 +314,7 @@ def gather_face_vertices(x: wp.array(dtype=wp.vec3), sides_at: wp.array(dtype=wp
                 if box_gap_sq(p, p, low, high) < box_reach_sq:
                     if may_touch_face(rules, v, t):
                         gap = point_triangle_distance(p, a, b, c)
-                        if gap < reach:
+                        if gap < own + allowance[v]:
                             count = insert_vertex(faces.face_vertices, start, count, faces.max_neighbors,
-                                                  2 * v + side_of(sides_at, v, t), gap, lists.overflow, owner)
+                                                  2 * v + side_of(x, v, t), gap, lists.overflow, owner)
     faces.face_counts[t_index] = sort_and_drop_repeats(faces.face_vertices, start, count)

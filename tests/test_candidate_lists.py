@@ -7,6 +7,7 @@ import warp as wp
 
 import warp_cloth as wc
 from warp_cloth import face_contacts, neighbour_lists, passes, state
+from warp_cloth.neighbour_lists import widest_reach
 from warp_cloth.kernels import edge_collision, primitive_distances
 
 QUADS = 8
@@ -28,7 +29,7 @@ def crossed_quads(sim: wc.Simulator, turned: bool) -> np.ndarray:
     rng = np.random.default_rng(3)
     rest = sim.model.positions.reshape(QUADS, 4, 3)
     corners = rest - rest.mean(axis=1, keepdims=True)
-    reach = sim.plan.lists.edges.reach
+    reach = sim.plan.lists.edges.thickness + 2.0 * sim.plan.lists.rebuild_distance
     x = np.empty_like(rest)
     for k in range(QUADS):
         turn = np.pi / 2 * k / QUADS if turned else 0.0
@@ -77,7 +78,7 @@ def test_a_full_edge_list_keeps_the_nearest_candidates(monkeypatch):
     wp.launch(every_pair_gap, dim=(m, m), inputs=[ends, sim.state.x, gap], device="cpu")
     quad = ends.numpy()[:, 0] // 4
     overfull = assert_nearest_kept(sim.state.edges.counts.numpy(), sim.state.edges.neighbors.numpy().reshape(m, HELD),
-                                   gap.numpy(), quad[:, None] != quad[None, :], sim.plan.lists.edges.reach)
+                                   gap.numpy(), quad[:, None] != quad[None, :], widest_reach(sim.plan.lists.edges))
     assert overfull > m // 2 and sim.plan.lists.overflow > 0
 
 
@@ -101,9 +102,9 @@ def test_full_face_lists_keep_the_nearest_pairs(monkeypatch):
     gap = gap.numpy()
     other_quad = (np.arange(n) // 4)[:, None] != sim.model.triangles[None, :, 0] // 4
     assert assert_nearest_kept(faces.args.vertex_counts.numpy(), faces.args.vertex_faces.numpy().reshape(n, HELD) >> 1,
-                               gap, other_quad, faces.reach) >= n // 4
+                               gap, other_quad, widest_reach(faces)) >= n // 4
     assert assert_nearest_kept(faces.args.face_counts.numpy(), faces.args.face_vertices.numpy().reshape(t, HELD) >> 1,
-                               gap.T, other_quad.T, faces.reach) >= t // 2
+                               gap.T, other_quad.T, widest_reach(faces)) >= t // 2
 
 def stacked_sheets(sheets: int, n: int) -> wc.Scene:
     """``sheets`` horizontal 0.5 m sheets of n x n particles, 1 cm apart, with edge contacts, over a sphere

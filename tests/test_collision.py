@@ -16,6 +16,7 @@ from warp_cloth.cloth_grid import build_grid
 from warp_cloth.cloth_mesh import rest_adjacent_pairs
 from warp_cloth.checkpoint import Checkpoint, scene_fingerprint
 from warp_cloth.model import collision_radii, long_triangle_edges, needs_adjacent_exclusion
+from warp_cloth.neighbour_lists import widest_reach
 from warp_cloth.device_model import no_colliders
 from warp_cloth.kernels import projection_passes
 from warp_cloth.kernels.gathering import launch_gathering
@@ -264,7 +265,7 @@ def test_edge_lists_hold_a_pair_within_reach_however_long_an_edge_is_stretched()
     scene = wc.Scene(name="stretched", cloths=quads, collision=wc.Collision(edges=True, self_collision=False))
     sim = wc.Simulator(scene, device="cpu", graph=False)
     edge_lists = sim.plan.lists.edges
-    width = sim.device_model.contacts.edges.longest + edge_lists.reach
+    width = sim.device_model.contacts.edges.longest + widest_reach(edge_lists)
     thickness = sim.device_model.contacts.edges.thickness
     ends = sim.device_model.contacts.edges.ends.numpy()
     x = sim.model.positions.copy()

@@ -108,6 +108,41 @@ def test_a_pair_the_step_has_crossed_is_listed_on_its_side_at_the_substeps_start
     np.testing.assert_allclose(gap, THICKNESS, rtol=1e-5)
 
 
+def test_a_pair_an_iterate_within_the_bounds_brings_near_is_listed_though_the_step_took_it_away():
+    """A vertex 12.5 mm above a pinned triangle's middle where the substep starts (beyond the thickness plus
+    twice the lists' skin, the reach of lists made where the step put the particles), which its step takes 30
+    mm above: its bound there lets the solve bring it back to 8 mm, so the lists, made where the substep
+    started and reaching as far as the bounds let each side move, hold the pair, and the pass puts an iterate
+    8 mm above the triangle a thickness above it. Lists made where the step put it left the pair out, and the
+    solve's iterates went on nearer than the thickness (the pile at 4 mm: surfaces 0.81 of it)."""
+    sim = wc.Simulator(drop_scene(1), device="cpu")
+    triangle = sim.model.triangles[0]
+    vertex = 4  # the square's first particle; its others are put far away
+    start = sim.model.positions.copy()
+    start[5:] = start[5:] + np.array([0.0, 10.0, 0.0], dtype=np.float32)
+    middle = start[triangle].mean(axis=0)
+    start[vertex] = middle + np.array([0.0, 0.0125, 0.0], dtype=np.float32)
+    stepped = start.copy()
+    stepped[vertex] = middle + np.array([0.0, 0.03, 0.0], dtype=np.float32)
+    bounds, lists = sim.plan.bounds, sim.plan.lists
+    assert THICKNESS + 2.0 * lists.rebuild_distance < 0.0125
+    bounds.start.assign(start)
+    sim.state.x.assign(stepped)
+    bounds.measure.run(sim.state)
+    bound = bounds.settings.gamma * float(bounds.nearest.numpy()[vertex])
+    assert 0.0125 - bound <= 0.008
+    lists.run(sim.state)
+    faces = sim.plan.faces.args
+    listed = faces.vertex_faces.numpy().reshape(sim.model.particle_count, -1)[vertex, :faces.vertex_counts.numpy()[vertex]]
+    assert 0 in listed >> 1  # triangle 0's code: 2 t + side
+    iterate = stepped.copy()
+    iterate[vertex] = middle + np.array([0.0, 0.008, 0.0], dtype=np.float32)
+    sim.state.x.assign(iterate)
+    sim.plan.faces.separation_pass(sim.device_model, 1, None).run(sim.state)
+    after = sim.state.x.numpy()
+    np.testing.assert_allclose(after[vertex, 1] - after[triangle, 1].mean(), THICKNESS, rtol=1e-5)
+
+
 def pressed_scene(frames: int, thickness: float | None = THICKNESS, gap: float = 0.01) -> wc.Scene:
     """Two 0.5 m sheets of 12^2 particles (4.5 cm cells, 5.4 times the 8.4 mm contact distance), ``gap``
     apart, pinned at two corners, draped over a 0.125 m sphere (the built-in drape scene's material, as

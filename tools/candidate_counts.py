@@ -75,7 +75,7 @@ def main() -> None:
     if args.json:
         with open(args.json, "w") as out:
             json.dump({"environment": environment(args.device), "settings": vars(args), "edges": lists.edges.m,
-                       "reach": lists.edges.reach, "longest": lists.edges.longest, "most": most,
+                       "reach": neighbour_lists.widest_reach(lists.edges), "longest": lists.edges.longest, "most": most,
                        "seconds": time.perf_counter() - started, "per_frame": rows}, out, indent=1)
             out.write("\n")
 

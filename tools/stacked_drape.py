@@ -74,7 +74,7 @@ def stacked_drape_scene(sheets: int = 5, n: int = 128, gap: float = 0.01, limit:
                         fps: float = 60.0, size: float = 2.0, sphere_radius: float = 0.5, drop: float = 0.05,
                         radius: float | None = None, self_collision: bool = True, between_cloths: bool = True,
                         edges: bool = False, friction: float = 0.0, substeps: int | None = None,
-                        thickness: float | None = None) -> wc.Scene:
+                        thickness: float | None = None, integrator: str = "symplectic") -> wc.Scene:
     """The stacked drape: the sphere's centre at the origin, the lowest sheet ``drop`` above its top, the
     sheets centred over it, ``gap`` apart; ``radius`` None is the project's contact rule, ``thickness`` the
     surface contacts' (None: none)."""
@@ -88,7 +88,7 @@ def stacked_drape_scene(sheets: int = 5, n: int = 128, gap: float = 0.01, limit:
                     collision=wc.Collision(self_collision=self_collision, between_cloths=between_cloths,
                                            radius=radius, edges=edges, friction=friction,
                                            thickness=thickness),
-                    simulation=wc.Simulation(fps=fps, frames=frames, substeps=substeps))
+                    simulation=wc.Simulation(fps=fps, frames=frames, substeps=substeps, integrator=integrator))
 
 
 def contact_distance(sim: wc.Simulator) -> float:
@@ -242,6 +242,8 @@ def main() -> None:
     parser.add_argument("--edges", action="store_true", help="edge contacts ([collision] edges = true)")
     parser.add_argument("--friction", type=float, default=0.0)
     parser.add_argument("--substeps", type=int, default=None, help="fixed substeps a frame (default: the simulator's)")
+    parser.add_argument("--integrator", default="symplectic", choices=("symplectic", "implicit", "explicit"),
+                        help="the stack's integrator")
     parser.add_argument("--thickness", nargs="+", default=["off"],
                         help="[collision] thickness in metres (surface contacts), or off; one run each")
     parser.add_argument("--bounds", nargs="+", default=["off"],
@@ -275,11 +277,13 @@ def main() -> None:
             continue
         scene = stacked_drape_scene(args.sheets, args.n, args.gap, args.limit, args.frames, args.fps, args.size,
                                     args.sphere_radius, args.drop, radius, not args.no_self, True, args.edges,
-                                    args.friction, args.substeps, thickness)
+                                    args.friction, args.substeps, thickness, args.integrator)
         name = (f"{args.sheets}x{args.n}^2 r={'default' if radius is None else f'{1e3 * radius:g}mm'}"
                 f"{' edges' if args.edges else ''}{' no-self' if args.no_self else ''}"
                 f"{'' if thickness is None else f' thickness {1e3 * thickness:g}mm'}"
-                f"{'' if spec == 'off' else ' bounds ' + spec}")
+                f"{'' if spec == 'off' else ' bounds ' + spec}"
+                f"{'' if args.integrator == 'symplectic' else ' ' + args.integrator}"
+                f"{'' if args.substeps is None else f' {args.substeps} substeps'}")
         rows.append({"run": name, "radius": radius, **measure(scene, args.gap, device, BoundSettings.parse(spec))})
         print(*table_lines(rows[-1]), sep="\n", flush=True)
         write(args.json, device, settings, rows)

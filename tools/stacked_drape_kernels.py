@@ -1,13 +1,16 @@
-"""Where the stacked drape's frames spend their time on the CPU, kernel by kernel (docs/notebook/layers.md).
+"""Where the stacked drape's frames spend their time, kernel by kernel (docs/notebook/layers.md).
 
 The stacked drape of tools/stacked_drape.py (its scene, a 4 mm contact radius, edge contacts), with the
 surface thickness and the lab's displacement bounds as asked, stepped without graphs (``graph=False``: a CPU
-graph replays launches that ``wp.launch`` does not see) with ``wp.launch`` wrapped in a wall clock: a CPU
-launch returns when its kernel has run, so each launch's wall time is its kernel's. Prints the frames' wall time and each
-kernel's launches and seconds, costliest first, and writes them as JSON.
+graph replays launches that ``wp.launch`` does not see). On the CPU ``wp.launch`` is wrapped in a wall clock:
+a CPU launch returns when its kernel has run, so each launch's wall time is its kernel's. On CUDA Warp's
+activity timing (``wp.timing_begin``) gives each kernel's, copy's and fill's device time, after one frame
+that loads the kernels. Prints the frames' wall time and each kernel's launches and seconds, costliest first,
+and writes them as JSON.
 
     python tools/stacked_drape_kernels.py --sheets 3 --n 24 --frames 30 --thickness 0.004 \\
         --json docs/results/stacked-drape-3x24-kernels-cpu.json
+    python tools/stacked_drape_kernels.py --sheets 5 --n 128 --frames 3 --thickness 0.004 --device cuda
 """
 
 from __future__ import annotations
@@ -49,23 +52,47 @@ def kernel_seconds(sim: wc.Simulator, frames: int) -> tuple[float, dict[str, lis
     return wall, dict(sorted(totals.items(), key=lambda item: -item[1][1]))
 
 
+def device_seconds(sim: wc.Simulator, frames: int) -> tuple[float, dict[str, list]]:
+    """As ``kernel_seconds``, on CUDA: each activity's device time, by name."""
+    sim.step()
+    totals: dict[str, list] = collections.defaultdict(lambda: [0, 0.0])
+    wp.timing_begin(cuda_filter=wp.TIMING_KERNEL | wp.TIMING_MEMCPY | wp.TIMING_MEMSET)
+    started = time.perf_counter()
+    for _ in range(frames):
+        sim.step()
+    wp.synchronize()
+    wall = time.perf_counter() - started
+    for activity in wp.timing_end():
+        entry = totals[activity.name]
+        entry[0] += 1
+        entry[1] += activity.elapsed * 1e-3
+    return wall, dict(sorted(totals.items(), key=lambda item: -item[1][1]))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--sheets", type=int, default=3)
     parser.add_argument("--n", type=int, default=24)
     parser.add_argument("--frames", type=int, default=30)
+    parser.add_argument("--size", type=float, default=2.0, help="metres, a sheet's side")
+    parser.add_argument("--sphere-radius", type=float, default=0.5)
     parser.add_argument("--radius", type=float, default=0.004)
     parser.add_argument("--thickness", type=float, default=None, help="[collision] thickness, metres (default none)")
     parser.add_argument("--bounds", default="off",
                         help="off (the scene's own), on or radius=R,... (BoundSettings.parse)")
+    parser.add_argument("--integrator", default="symplectic", choices=("symplectic", "implicit", "explicit"))
+    parser.add_argument("--substeps", type=int, default=None, help="fixed substeps a frame (default: the simulator's)")
+    parser.add_argument("--device", default="cpu")
     parser.add_argument("--json", default=None)
     args = parser.parse_args()
-    scene = stacked_drape_scene(sheets=args.sheets, n=args.n, frames=args.frames, radius=args.radius, edges=True,
-                                thickness=args.thickness)
+    scene = stacked_drape_scene(sheets=args.sheets, n=args.n, frames=args.frames, size=args.size,
+                                sphere_radius=args.sphere_radius, radius=args.radius, edges=True,
+                                thickness=args.thickness, substeps=args.substeps, integrator=args.integrator)
     with lab_hooks(BoundSettings.parse(args.bounds)):
-        sim = wc.Simulator(scene, device="cpu", graph=False)
+        sim = wc.Simulator(scene, device=args.device, graph=False)
     sim.prepare()
-    wall, kernels = kernel_seconds(sim, args.frames)
+    timing = device_seconds if sim.device.is_cuda else kernel_seconds
+    wall, kernels = timing(sim, args.frames)
     print(f"{args.frames} frames in {wall:.1f} s")
     for name, (launches, seconds) in kernels.items():
         print(f"{name:<40} {launches:>7} {seconds:>8.2f} s {100 * seconds / wall:>5.1f}%")
@@ -73,7 +100,7 @@ def main() -> None:
         with open(args.json, "w") as out:
             json.dump({"args": vars(args), "frames_seconds": wall,
                        "kernels": {name: {"launches": c, "seconds": s} for name, (c, s) in kernels.items()},
-                       "environment": environment("cpu")}, out, indent=1)
+                       "environment": environment(args.device)}, out, indent=1)
 
 
 if __name__ == "__main__":

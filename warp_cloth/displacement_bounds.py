@@ -25,8 +25,10 @@ particle with nothing near takes its whole step.
 A scene with a surface thickness (``[collision] thickness``) has them at ``for_thickness``'s settings. The
 lab's ``lab_hooks`` set others (more rounds), or put them on a scene without one (particle contacts alone).
 The simulator makes one ``DisplacementBounds`` where either asks, and hands it to every plan it builds
-(warp_cloth/plan.py: its ``record_start`` pass first; its ``measure`` pass before the converged solve, its
-``hold`` pass inside it and its ``clamp_held`` after it; elsewhere its ``clamp`` pass after the solves)."""
+(warp_cloth/plan.py: its ``record_start`` pass first; its ``measure`` pass before the candidate lists (whose
+face and edge pairs reach as far as the bounds let particles move, kernels/surface_reach.py) where a
+converged solve or a thickness follows, its ``hold`` pass inside a converged solve and its ``clamp_held``
+after the solves; elsewhere its ``clamp`` pass after the solves)."""
 
 from __future__ import annotations
 

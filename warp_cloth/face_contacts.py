@@ -4,19 +4,22 @@ from the triangles it is not a vertex of, inside the converged solve beside the 
 
 The simulator makes one ``FaceContacts`` where the scene sets a thickness, and hands it to every plan it
 builds (warp_cloth/plan.py): the particle lists' remake then remakes its candidate lists too
-(``remake_if_asked``), each vertex's triangles and each triangle's vertices within the thickness plus twice
-the lists' rebuild distance (valid as long as the particle lists are), found through a spatial hash of the
-particles whose cells are as wide as that reach plus the longest triangle side at the remake; and its pass
+(``remake_if_asked``), each vertex's triangles and each triangle's vertices, where the substep started and
+within the thickness plus both sides' allowances (kernels/surface_reach.py: how far a particle may move
+before a pair left out could touch; the displacement bounds' reach plus the particle lists' rebuild distance),
+found through a spatial hash of the particles whose cells are as wide as the largest reach plus the longest
+triangle side at the remake; the edge contacts' lists take the same positions and allowances; and its pass
 (``separation_pass``) joins the edge contacts' passes of the solve, whose check then reads its pairs; with a
 friction coefficient, its ``friction_pass`` takes sliding off both kinds' touching pairs after the solve. The
-lists are the plan's carried arrays (``carried``), so that a checkpoint or a frame made again keeps them."""
+lists, and where and with what allowances they were made, are the plan's carried arrays (``carried``), so
+that a checkpoint or a frame made again keeps them."""
 
 from __future__ import annotations
 
 import numpy as np
 import warp as wp
 
-from warp_cloth.kernels import edge_collision, face_collision, spatial_hash
+from warp_cloth.kernels import edge_collision, face_collision, spatial_hash, surface_reach
 from warp_cloth.kernels.colliders import RigidColliders
 from warp_cloth.kernels.face_collision import FaceContacts as FaceContactsArgs
 from warp_cloth.kernels.face_separation import FaceSeparationPassArgs, face_separation_pass_kernel
@@ -25,6 +28,7 @@ from warp_cloth.kernels.particle_collision import ListState
 from warp_cloth.kernels.surface_friction import SurfaceFrictionArgs, surface_friction_kernel
 
 from .device_model import DeviceModel
+from .displacement_bounds import DisplacementBounds
 from .model import Model
 from .neighbour_lists import rebuild_distance
 from .passes import CONTACT_SLACK, GatheringPass, edge_contacts_args
@@ -57,7 +61,8 @@ class FaceContacts:
         triangles = model.triangles
         self.triangle_count = len(triangles)
         self.thickness = contacts.thickness  # the edge contacts' too (contact_thickness.py)
-        self.reach = self.thickness + 2.0 * rebuild_distance(device_model)
+        self.skin = rebuild_distance(device_model)
+        self.inv_mass = device_model.inv_mass
         rest = model.positions[triangles]
         self.longest = float(np.linalg.norm(rest - np.roll(rest, 1, axis=1), axis=2).max(initial=0.0))
         self.rules = contacts.surface_rules
@@ -79,6 +84,9 @@ class FaceContacts:
         self.inv_cell = wp.zeros(1, dtype=float, device=device)
         self.bucket_size = wp.zeros(self.mask + 1, dtype=int, device=device)
         self.bucket_items = wp.zeros((self.mask + 1) * BUCKET_CAPACITY, dtype=int, device=device)
+        self.built = wp.full(n, wp.vec3(1.0e30), dtype=wp.vec3, device=device)  # lists never made: remake at once
+        self.allowance = wp.zeros(n, dtype=float, device=device)
+        self.widest = wp.zeros(1, dtype=float, device=device)
 
     @classmethod
     def of(cls, model: Model, device_model: DeviceModel) -> FaceContacts | None:
@@ -86,30 +94,50 @@ class FaceContacts:
         contacts = device_model.contacts
         return cls(model, device_model) if contacts is not None and contacts.settings.thickness is not None else None
 
+    asking = [surface_reach.ask_if_beyond_allowance]  # as ask_if_moved launches them
+    allowing = [surface_reach.start_allowances, surface_reach.allow]  # as allow launches them
     kernels = [edge_collision.start_edge_cells, face_collision.widen_face_cells,
                spatial_hash.insert_points_at_chosen_width, gather_vertex_faces,
                gather_face_vertices]  # as remake_if_asked launches them
 
-    def remake_if_asked(self, x: wp.array, lists: ListState, sides_at: wp.array) -> None:
-        """Both candidate lists from positions ``x``, each pair with the side its vertex lies on at ``sides_at``
-        (where the substep started: no pair has crossed there, while the step's ``x`` may have passed a vertex
-        through a triangle, which the solve would then hold on the wrong side), where the particle lists'
-        ``rebuild`` is set (after their gather, before the end of the remake)."""
+    def ask_if_moved(self, start: wp.array, x: wp.array, bounds: DisplacementBounds, lists: ListState) -> None:
+        """Asks for the lists' remake where a particle's move from where they were made, plus its reach this
+        substep (its bound measured at ``start``, or a pin's move to ``x``), passes its allowance."""
+        wp.launch(surface_reach.ask_if_beyond_allowance, dim=self.n,
+                  inputs=[start, x, bounds.nearest, bounds.settings.gamma, self.inv_mass, self.built, self.allowance],
+                  outputs=[lists.rebuild], device=self.device)
+
+    def allow(self, start: wp.array, x: wp.array, bounds: DisplacementBounds, lists: ListState) -> None:
+        """Where the lists are to be remade: each particle's allowance and where they are made (``start``),
+        before the remake of these lists and the edge contacts'."""
+        wp.launch(surface_reach.start_allowances, dim=1, inputs=[lists.rebuild], outputs=[self.widest],
+                  device=self.device)
+        wp.launch(surface_reach.allow, dim=self.n,
+                  inputs=[start, x, bounds.nearest, bounds.settings.gamma, self.inv_mass, self.skin, lists.rebuild],
+                  outputs=[self.built, self.allowance, self.widest], device=self.device)
+
+    def remake_if_asked(self, x: wp.array, lists: ListState) -> None:
+        """Both candidate lists from positions ``x`` (where the substep started: no pair has crossed there, so
+        each pair takes the side its vertex lies on there; the step's predicted positions may have passed a
+        vertex through a triangle, which the solve would then hold on the wrong side), where the particle
+        lists' ``rebuild`` is set (after ``allow``, before the end of the remake)."""
         device, args, rules = self.device, self.args, self.rules
         wp.launch(edge_collision.start_edge_cells, dim=1,
-                  inputs=[lists.rebuild, 1.0 / (self.longest + self.reach)], outputs=[self.inv_cell], device=device)
-        wp.launch(face_collision.widen_face_cells, dim=self.triangle_count,
-                  inputs=[x, args.triangles, lists.rebuild, self.longest, self.reach], outputs=[self.inv_cell],
+                  inputs=[lists.rebuild, self.longest, self.thickness, self.widest], outputs=[self.inv_cell],
                   device=device)
+        wp.launch(face_collision.widen_face_cells, dim=self.triangle_count,
+                  inputs=[x, args.triangles, lists.rebuild, self.longest, self.thickness, self.widest],
+                  outputs=[self.inv_cell], device=device)
         wp.launch(spatial_hash.insert_points_at_chosen_width, dim=self.n,
                   inputs=[x, rules.world, self.inv_cell, self.mask, BUCKET_CAPACITY, lists.epoch, lists.rebuild],
                   outputs=[self.bucket_size, self.bucket_items, lists.overflow], device=device)
         wp.launch(gather_vertex_faces, dim=self.n,
-                  inputs=[x, sides_at, args, rules, lists, self.reach, self.owned_offsets, self.owned, self.inv_cell,
-                          self.mask, BUCKET_CAPACITY, self.bucket_size, self.bucket_items], device=device)
+                  inputs=[x, args, rules, lists, self.allowance, self.widest, self.owned_offsets, self.owned,
+                          self.inv_cell, self.mask, BUCKET_CAPACITY, self.bucket_size, self.bucket_items],
+                  device=device)
         wp.launch(gather_face_vertices, dim=self.triangle_count,
-                  inputs=[x, sides_at, args, rules, lists, self.reach, self.inv_cell, self.mask, BUCKET_CAPACITY,
-                          self.bucket_size, self.bucket_items], device=device)
+                  inputs=[x, args, rules, lists, self.allowance, self.widest, self.inv_cell, self.mask,
+                          BUCKET_CAPACITY, self.bucket_size, self.bucket_items], device=device)
 
     def separation_pass(self, device_model: DeviceModel, threads: int, bundle: RigidColliders | None) -> GatheringPass:
         """One Jacobi pass moving every listed pair closer than the thickness apart, then the colliders in
@@ -136,7 +164,9 @@ class FaceContacts:
                              new_positions=False, new_velocities=True)
 
     def carried(self) -> dict[str, wp.array]:
-        """The lists a substep reads before it remakes them, by name (for the plan's carried arrays)."""
+        """The lists a substep reads before it remakes them, and where and with what allowances they were made,
+        by name (for the plan's carried arrays)."""
         args = self.args
         return {"faces.vertex_faces": args.vertex_faces, "faces.vertex_counts": args.vertex_counts,
-                "faces.face_vertices": args.face_vertices, "faces.face_counts": args.face_counts}
+                "faces.face_vertices": args.face_vertices, "faces.face_counts": args.face_counts,
+                "faces.built": self.built, "faces.allowance": self.allowance}

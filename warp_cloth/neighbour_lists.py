@@ -1,6 +1,7 @@
 """Particle collision's candidate lists, and edge contacts' where the scene has them (and the face
 contacts' where the scene sets a thickness): remade inside a substep where a particle has moved far enough since
-they were made, or on demand outside one; and the closest contact they show."""
+they were made (or, with a thickness, where one may move past its allowance this substep: face_contacts.py),
+or on demand outside one; and the closest contact they show."""
 
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ from warp_cloth.kernels.neighbour_search import (HashGrid, gather_edge_candidate
                                                  launch_gather_neighbors)
 
 from .device_model import DeviceModel
+from .displacement_bounds import DisplacementBounds
 from .passes import contacts_args, edge_contacts_args
 from .state import (BUCKET_CAPACITY, EDGE_BUCKET_CAPACITY, DeviceState, edge_hash_table_size, hash_table_size,
                     uses_hash)
@@ -36,12 +38,28 @@ def rebuild_distance(model: DeviceModel) -> float:
     return 0.5 * (contacts.rules.search_scale - 1.0) * contacts.settings.separation * contacts.min_radius
 
 
-class OtherLists(Protocol):
-    """Candidate lists remade with the particle lists (the face contacts, face_contacts.py)."""
+def widest_reach(lists: SurfaceLists | EdgeLists) -> float:
+    """The largest reach of a pair in the lists' last remake, metres: the thickness plus twice the largest
+    allowance (waits for the device)."""
+    return lists.thickness + 2.0 * float(lists.widest.numpy()[0])
 
+
+class SurfaceLists(Protocol):
+    """Candidate lists remade with the particle lists where the substep started, within allowances
+    (the face contacts, face_contacts.py)."""
+
+    asking: list[wp.Kernel]
+    allowing: list[wp.Kernel]
     kernels: list[wp.Kernel]
+    thickness: float
+    allowance: wp.array
+    widest: wp.array
 
-    def remake_if_asked(self, x: wp.array, lists: ListState, sides_at: wp.array) -> None: ...
+    def ask_if_moved(self, start: wp.array, x: wp.array, bounds: DisplacementBounds, lists: ListState) -> None: ...
+
+    def allow(self, start: wp.array, x: wp.array, bounds: DisplacementBounds, lists: ListState) -> None: ...
+
+    def remake_if_asked(self, x: wp.array, lists: ListState) -> None: ...
 
 
 class NeighbourLists:
@@ -51,12 +69,13 @@ class NeighbourLists:
     once otherwise.
 
     A pair left out of a list was farther apart than ``SEARCH_SCALE`` contact distances when it was made,
-    so it cannot touch before some particle has moved ``rebuild_distance``. ``start``: where the substep
-    started (the displacement bounds' record), at which the face pairs' sides are taken (None: at the
-    positions the lists are made from)."""
+    so it cannot touch before some particle has moved ``rebuild_distance``. With ``faces`` (a thickness's,
+    which brings ``bounds``), the face and edge lists are made where the substep started (the bounds' record),
+    after the bounds were measured there, and a particle that may move past its allowance this substep asks
+    for the remake too (kernels/surface_reach.py)."""
 
-    def __init__(self, model: DeviceModel, state: DeviceState, threads: int, faces: OtherLists | None = None,
-                 start: wp.array | None = None) -> None:
+    def __init__(self, model: DeviceModel, state: DeviceState, threads: int, faces: SurfaceLists | None = None,
+                 bounds: DisplacementBounds | None = None) -> None:
         settings = model.contacts.settings
         n = model.particle_count
         self.every_substep = REMAKE_EVERY_SUBSTEP
@@ -81,32 +100,38 @@ class NeighbourLists:
         self.appended = wp.zeros(n if several else 0, dtype=int, device=model.device)
         if self.use_hash:
             load_gathering(gather_neighbors_kernel(self.threads), self.threads, model.device)
-        self.edges = EdgeLists(model, state, self.rebuild_distance) if state.edges is not None else None
+        self.edges = EdgeLists(model, state, self.rebuild_distance, faces) if state.edges is not None else None
         if self.edges is not None:
             self.name += "+edges"
         self.faces = faces
         if faces is not None:
             self.name += "+faces"
-        self.start = start
+        self.bounds = bounds
 
     def run(self, state: DeviceState) -> None:
         if self.every_substep:
             self.rebuild.fill_(1)
-        self._remake_if_asked(state.x, self.start if self.start is not None else state.x)
+        self._remake_if_asked(state.x, self.bounds.start if self.faces is not None else state.x)
 
     @property
     def kernels(self) -> list[wp.Kernel]:
         """What a substep launches, in order (each returns at once where no list is to be remade)."""
         particles = [spatial_hash.insert_points, gather_neighbors_kernel(self.threads)] if self.use_hash \
             else [particle_collision.gather_neighbors_brute_force]
-        return particles + (self.edges.kernels if self.edges is not None else []) + \
-            (self.faces.kernels if self.faces is not None else [])
+        faces = self.faces
+        return (faces.asking if faces is not None else []) + particles + \
+            (faces.allowing if faces is not None else []) + (self.edges.kernels if self.edges is not None else []) + \
+            (faces.kernels if faces is not None else [])
 
     def describe(self) -> list[str]:
         """For the printed plan: the pass and its launches."""
         return [f"{self.name}:"] + [f"    {kernel.key}" for kernel in self.kernels]
 
-    def _remake_if_asked(self, x: wp.array, sides_at: wp.array) -> None:
+    def _remake_if_asked(self, x: wp.array, surface_x: wp.array) -> None:
+        """The lists where asked: the particles' from ``x``, the surfaces' from ``surface_x``."""
+        faces = self.faces
+        if faces is not None:
+            faces.ask_if_moved(surface_x, x, self.bounds, self.lists)
         if self.use_hash:
             wp.launch(spatial_hash.insert_points, dim=self.n,
                       inputs=[x, self.rules.world, self.grid.inv_cell, self.grid.mask, self.grid.capacity,
@@ -117,10 +142,12 @@ class NeighbourLists:
         else:
             wp.launch(particle_collision.gather_neighbors_brute_force, dim=self.n,
                       inputs=[x, self.contacts, self.rules, self.lists], device=x.device)
+        if faces is not None:
+            faces.allow(surface_x, x, self.bounds, self.lists)
         if self.edges is not None:
-            self.edges.remake_if_asked(x, self.lists)
-        if self.faces is not None:
-            self.faces.remake_if_asked(x, self.lists, sides_at)
+            self.edges.remake_if_asked(surface_x, self.lists)
+        if faces is not None:
+            faces.remake_if_asked(surface_x, self.lists)
 
     def remake_now(self, x: wp.array) -> None:
         """Remake every particle's list from positions ``x`` now, outside a substep."""
@@ -175,18 +202,24 @@ class EdgeLists:
     spatial hash of the edges' midpoints, whose cells are as wide as the longest edge at the remake plus the
     reach (never narrower than the longest an edge may get, ``longest``, plus the reach: the cells of a
     remake without over-long edges), so that the 27 around an edge's midpoint hold every edge within reach.
-    An edge's list holds the edges within the pass's thickness plus twice ``rebuild_distance``: until a
-    particle has moved that far and the lists are remade, no edge left out can come within it."""
+    An edge's list holds the edges within the pass's thickness plus both edges' allowances: ``rebuild_distance``
+    each (until a particle has moved that far and the lists are remade, no edge left out can come within it),
+    or with ``faces`` (a thickness's) the face contacts' allowances (kernels/surface_reach.py)."""
 
-    def __init__(self, model: DeviceModel, state: DeviceState, rebuild_distance: float) -> None:
+    def __init__(self, model: DeviceModel, state: DeviceState, rebuild_distance: float,
+                 faces: SurfaceLists | None = None) -> None:
         constants = model.contacts.edges
         self.edges = edge_contacts_args(model, state)
-        self.reach = constants.thickness + 2.0 * rebuild_distance
+        self.thickness = constants.thickness
+        if faces is not None:
+            self.allowance, self.widest = faces.allowance, faces.widest
+        else:
+            self.allowance = wp.full(model.particle_count, rebuild_distance, dtype=float, device=model.device)
+            self.widest = wp.full(1, rebuild_distance, dtype=float, device=model.device)
         self.rules = constants.rules
         self.state = state.edges
         self.m = constants.ends.shape[0]
         self.longest = constants.longest
-        self.least_inv_cell = 1.0 / (constants.longest + self.reach)
         self.mask = edge_hash_table_size(self.m) - 1
         self.world = constants.world
 
@@ -195,15 +228,17 @@ class EdgeLists:
 
     def remake_if_asked(self, x: wp.array, lists: ListState) -> None:
         edges, state, device = self.edges, self.state, x.device
-        wp.launch(edge_collision.start_edge_cells, dim=1, inputs=[lists.rebuild, self.least_inv_cell],
-                  outputs=[state.inv_cell], device=device)
+        wp.launch(edge_collision.start_edge_cells, dim=1,
+                  inputs=[lists.rebuild, self.longest, self.thickness, self.widest], outputs=[state.inv_cell],
+                  device=device)
         wp.launch(edge_collision.midpoints_and_cell_width, dim=self.m,
-                  inputs=[x, edges.ends, lists.rebuild, self.longest, self.reach],
+                  inputs=[x, edges.ends, lists.rebuild, self.longest, self.thickness, self.widest],
                   outputs=[state.midpoint, state.inv_cell], device=device)
         wp.launch(spatial_hash.insert_points_at_chosen_width, dim=self.m,
                   inputs=[state.midpoint, self.world, state.inv_cell, self.mask, EDGE_BUCKET_CAPACITY, lists.epoch,
                           lists.rebuild],
                   outputs=[state.bucket_size, state.bucket_items, lists.overflow], device=device)
         wp.launch(gather_edge_candidates, dim=self.m,
-                  inputs=[x, state.midpoint, self.world, edges, self.rules, lists, self.reach, state.inv_cell,
+                  inputs=[x, state.midpoint, self.world, edges, self.rules, lists, self.allowance, self.widest,
+                          state.inv_cell,
                           self.mask, EDGE_BUCKET_CAPACITY, state.bucket_size, state.bucket_items], device=device)

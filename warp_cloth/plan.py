@@ -106,13 +106,15 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
     simulator builds (line_solve.LineSolves); ``bounds``: the displacement bounds
     (displacement_bounds.py, made once per simulator), the substep's start recorded first, the bounds measured
     there and the step clamped to them after the solves (before the contact velocities), or, in a converged
-    solve of particle collision (not the lab's line rounds with contacts), measured there before it, held
-    after each of its separating passes and the step clamped to the same bounds after it; ``control``: the
+    solve of particle collision (not the lab's line rounds with contacts), measured there before the lists,
+    held after each of its separating passes and the step clamped to the same bounds after it (measured
+    before the lists wherever ``faces`` is given); ``control``: the
     passes that put what a script sent from Python (control.py's ``Control.passes``) after the colliders'
     motion (``"colliders"``), with the soft pins' motion before the step (``"soft pins"``: where their springs
     pull, which the step reads) and after the hard pins' motion (``"pins"``); ``faces``: the face contacts
-    (face_contacts.py, made once per simulator, used only with particle collision), their lists remade with
-    the particle lists (each pair's side taken where the substep started, the bounds' record), their pass
+    (face_contacts.py, made once per simulator, used only with particle collision, always with ``bounds``),
+    their lists and the edge contacts' remade with the particle lists where the substep started (the bounds'
+    record) within the allowances the bounds give (kernels/surface_reach.py), their pass
     beside the edge contacts' pass, and the converged solve's check reading both kinds' pairs."""
     chosen = threads_per_particle(model.particle_count, model.device) if threads is None else threads
     rigid = model.colliders(state) if model.has_colliders else None
@@ -133,7 +135,7 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
     if model.contacts is not None:
         list_threads = threads_per_particle(model.particle_count, model.device, LIST_THREADS_BY_SIZE) \
             if threads is None else threads
-        lists = NeighbourLists(model, state, list_threads, faces, bounds.start if bounds is not None else None)
+        lists = NeighbourLists(model, state, list_threads, faces, bounds)
         start = contact_start_args(model, state, rigid or model.no_colliders(), lists.rebuild_distance)
     if model.wind is not None:
         passes.append(WindForces(model))
@@ -149,20 +151,21 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
     if start is not None:
         if not start_in_step:
             passes.append(ContactStart(start))
+        line_rounds = converged and model.limits is not None and lines is not None
+        held = bounds is not None and converged and not line_rounds
+        if bounds is not None and (held or faces is not None):
+            passes.append(bounds.measure)
         passes.append(lists)
         edge_passes = [edge_separation_pass(model, state, chosen, rigid)] if state.edges is not None else []
         if faces is not None:
             edge_passes.append(faces.separation_pass(model, chosen, rigid))
-        clamp = bounds.clamp if bounds is not None else None
-        if converged and model.limits is not None and lines is not None:
+        clamp = None if bounds is None else bounds.clamp_held if held or faces is not None else bounds.clamp
+        if line_rounds:
             projection = line_contact_projection(model, state, solve, chosen, rigid, edge_passes, lines, faces)
             passes.append(projection)
         elif converged:
-            if bounds is not None:
-                passes.append(bounds.measure)
-                clamp = bounds.clamp_held
             projection = converged_projection(model, state, solve, chosen, rigid, edge_passes, faces,
-                                              [bounds.hold] if bounds is not None else [])
+                                              [bounds.hold] if held else [])
             passes.append(projection)
         else:
             passes.extend(edge_passes + projection_passes(model, state, solve, chosen, rigid))
