@@ -82,6 +82,25 @@ def test_a_pair_conserves_momentum_and_a_crossed_pair_goes_back():
         np.testing.assert_allclose(gap, THICKNESS, rtol=1e-5)
 
 
+def stepped_over_a_triangle(start_height: float, stepped_height: float):
+    """``drop_scene``'s simulator in a substep: the square's first particle ``start_height`` above the floor's
+    first triangle's middle where the substep started (the bounds' record) and ``stepped_height`` above it
+    after the step (the state), the square's others far away. Returns the simulator, the triangle, the
+    particle, the stepped positions and the triangle's middle."""
+    sim = wc.Simulator(drop_scene(1), device="cpu")
+    triangle = sim.model.triangles[0]
+    vertex = 4
+    start = sim.model.positions.copy()
+    start[5:] = start[5:] + np.array([0.0, 10.0, 0.0], dtype=np.float32)
+    middle = start[triangle].mean(axis=0)
+    start[vertex] = middle + np.array([0.0, start_height, 0.0], dtype=np.float32)
+    stepped = start.copy()
+    stepped[vertex] = middle + np.array([0.0, stepped_height, 0.0], dtype=np.float32)
+    sim.plan.bounds.start.assign(start)
+    sim.state.x.assign(stepped)
+    return sim, triangle, vertex, stepped, middle
+
+
 def test_a_pair_the_step_has_crossed_is_listed_on_its_side_at_the_substeps_start():
     """A vertex 1 mm above a triangle's middle where the substep starts, which its step (a fast fall: the fold
     at 4 mm lands at 11 mm a substep) takes 3 mm below it before the lists are made: the pair is listed with the
@@ -89,18 +108,7 @@ def test_a_pair_the_step_has_crossed_is_listed_on_its_side_at_the_substeps_start
     put it, the pass held it a thickness below, where the displacement bounds, which never let a pair cross,
     pressed the two together substep after substep until they stopped moving (the fold at 4 mm: surfaces
     0.009 of the thickness apart from frame 21 on)."""
-    sim = wc.Simulator(drop_scene(1), device="cpu")
-    triangle = sim.model.triangles[0]
-    vertex = 4  # the square's first particle; its others are put far away
-    start = sim.model.positions.copy()
-    start[5:] = start[5:] + np.array([0.0, 10.0, 0.0], dtype=np.float32)
-    middle = start[triangle].mean(axis=0)
-    start[vertex] = middle + np.array([0.0, 0.001, 0.0], dtype=np.float32)
-    stepped = start.copy()
-    stepped[vertex] = middle - np.array([0.0, 0.003, 0.0], dtype=np.float32)
-    sim.plan.bounds.start.assign(start)
-    sim.state.x.assign(stepped)
-    sim.plan.lists.rebuild.fill_(1)
+    sim, triangle, vertex, _, _ = stepped_over_a_triangle(0.001, -0.003)
     sim.plan.lists.run(sim.state)
     sim.plan.faces.separation_pass(sim.device_model, 1, None).run(sim.state)
     after = sim.state.x.numpy()
@@ -115,19 +123,9 @@ def test_a_pair_an_iterate_within_the_bounds_brings_near_is_listed_though_the_st
     started and reaching as far as the bounds let each side move, hold the pair, and the pass puts an iterate
     8 mm above the triangle a thickness above it. Lists made where the step put it left the pair out, and the
     solve's iterates went on nearer than the thickness (the pile at 4 mm: surfaces 0.81 of it)."""
-    sim = wc.Simulator(drop_scene(1), device="cpu")
-    triangle = sim.model.triangles[0]
-    vertex = 4  # the square's first particle; its others are put far away
-    start = sim.model.positions.copy()
-    start[5:] = start[5:] + np.array([0.0, 10.0, 0.0], dtype=np.float32)
-    middle = start[triangle].mean(axis=0)
-    start[vertex] = middle + np.array([0.0, 0.0125, 0.0], dtype=np.float32)
-    stepped = start.copy()
-    stepped[vertex] = middle + np.array([0.0, 0.03, 0.0], dtype=np.float32)
+    sim, triangle, vertex, stepped, middle = stepped_over_a_triangle(0.0125, 0.03)
     bounds, lists = sim.plan.bounds, sim.plan.lists
     assert THICKNESS + 2.0 * lists.rebuild_distance < 0.0125
-    bounds.start.assign(start)
-    sim.state.x.assign(stepped)
     bounds.measure.run(sim.state)
     bound = bounds.settings.gamma * float(bounds.nearest.numpy()[vertex])
     assert 0.0125 - bound <= 0.008
