@@ -175,6 +175,28 @@ def apart_direction(d: wp.vec3, gap: float, p1: wp.vec3, q1: wp.vec3, p2: wp.vec
 
 
 @wp.func
+def box_gap_sq(lo_a: wp.vec3, hi_a: wp.vec3, lo_b: wp.vec3, hi_b: wp.vec3) -> float:
+    """The squared distance between two axis-aligned boxes, a lower bound of their contents' (a cheap test
+    that rejects most neighbours of a layer, which lie side by side in it)."""
+    gap = wp.max(wp.max(lo_b - hi_a, lo_a - hi_b), wp.vec3(0.0))
+    return wp.dot(gap, gap)
+
+
+@wp.func
+def boxes_apart(edges: EdgeContacts, e: int, f: int, x: wp.array(dtype=wp.vec3)) -> bool:
+    """Whether edges e and f's boxes lie a thickness apart or more, so the edges do too: a listed pair's
+    exact test skipped (a fine cloth's lists hold many pairs of its own plane a few cells apart)."""
+    ends_e = edges.ends[e]
+    ends_f = edges.ends[f]
+    p_e = x[ends_e[0]]
+    q_e = x[ends_e[1]]
+    p_f = x[ends_f[0]]
+    q_f = x[ends_f[1]]
+    return box_gap_sq(wp.min(p_e, q_e), wp.max(p_e, q_e), wp.min(p_f, q_f), wp.max(p_f, q_f)) >= \
+        edges.thickness * edges.thickness
+
+
+@wp.func
 def pair_closest(edges: EdgeContacts, e: int, f: int, x: wp.array(dtype=wp.vec3)):
     """Edges e and f's closest points, worked out in one order (the lower-numbered edge first): their
     parameters along the two, the vector from the second's point to the first's, and the four ends' positions
@@ -198,6 +220,8 @@ def edge_push(edges: EdgeContacts, i: int, e: int, f: int, x: wp.array(dtype=wp.
     The pair is worked out in one order, the lower-numbered edge first, whichever of its edges' particles
     asks: in float32 two edges' closest points seen from each side differ by rounding, and where the edges
     (nearly) meet, so would the directions each side pushes its edge."""
+    if boxes_apart(edges, e, f, x):
+        return wp.vec3(0.0), 0
     second = wp.max(e, f)
     ends_1 = edges.ends[wp.min(e, f)]
     ends_2 = edges.ends[second]
@@ -243,9 +267,10 @@ def deepest_edge_overlap(edges: EdgeContacts, i: int, x: wp.array(dtype=wp.vec3)
     for k in range(edges.incident_offsets[i], edges.incident_offsets[i + 1]):
         e = edges.incident[k]
         for c in range(edges.counts[e]):
-            unused_st, d, unused_p1, unused_q1, unused_p2, unused_q2 = pair_closest(
-                edges, e, edges.neighbors[e * edges.max_neighbors + c], x)
-            worst = wp.max(worst, (edges.thickness - wp.length(d)) / edges.thickness)
+            f = edges.neighbors[e * edges.max_neighbors + c]
+            if not boxes_apart(edges, e, f, x):
+                unused_st, d, unused_p1, unused_q1, unused_p2, unused_q2 = pair_closest(edges, e, f, x)
+                worst = wp.max(worst, (edges.thickness - wp.length(d)) / edges.thickness)
     return worst
 
 

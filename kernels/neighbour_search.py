@@ -8,13 +8,13 @@ import functools
 import warp as wp
 
 from .candidate_lists import keeping_nearest
-from .edge_collision import EdgeContacts, EdgeRules, may_touch, pair_gap
+from .edge_collision import EdgeContacts, EdgeRules, box_gap_sq, may_touch, pair_gap
 from .face_collision import FaceContacts, side_of
 from .face_collision import may_touch as may_touch_face
 from .gathering import BLOCK, FAST_MATH, sum_over_threads, thread_layout
 from .particle_collision import (Contacts, ListState, PairRules, add_candidate, is_candidate,
                                  sort_and_drop_repeats)
-from .primitive_distances import box_gap_sq, point_triangle_distance
+from .primitive_distances import point_triangle_distance
 from .surface_reach import edge_allowance, triangle_allowance
 from .spatial_hash import cell_of, count_in, first_visit, neighbour_bucket, stamp_of
 

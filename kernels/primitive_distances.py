@@ -23,7 +23,7 @@ numbered one's thread.
 
 import warp as wp
 
-from .edge_collision import EdgeRules, closest_points, may_touch
+from .edge_collision import EdgeRules, box_gap_sq, closest_points, may_touch
 from .face_collision import may_touch as may_touch_face
 from .spatial_hash import cell_of, count_in, neighbour_bucket, stamp_of
 
@@ -86,14 +86,6 @@ def segment_distance(p0: wp.vec3, p1: wp.vec3, q0: wp.vec3, q1: wp.vec3) -> floa
     """The distance between the segments p0-p1 and q0-q1, between their closest points (edge_collision's)."""
     st = closest_points(p0, p1, q0, q1)
     return wp.length(p0 + st[0] * (p1 - p0) - (q0 + st[1] * (q1 - q0)))
-
-
-@wp.func
-def box_gap_sq(lo_a: wp.vec3, hi_a: wp.vec3, lo_b: wp.vec3, hi_b: wp.vec3) -> float:
-    """The squared distance between two axis-aligned boxes, a lower bound of their contents' (a cheap test
-    that rejects most neighbours of a layer, which lie side by side in it)."""
-    gap = wp.max(wp.max(lo_b - hi_a, lo_a - hi_b), wp.vec3(0.0))
-    return wp.dot(gap, gap)
 
 
 @wp.kernel
