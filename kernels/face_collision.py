@@ -114,12 +114,6 @@ def side_bit(p: wp.vec3, a: wp.vec3, b: wp.vec3, c: wp.vec3) -> int:
 
 
 @wp.func
-def side_of(x: wp.array(dtype=wp.vec3), v: int, t: wp.vec3i) -> int:
-    """``side_bit`` of vertex v and triangle t at positions ``x``."""
-    return side_bit(x[v], x[t[0]], x[t[1]], x[t[2]])
-
-
-@wp.func
 def pair_gap(faces: FaceContacts, vertex: int, code: int, x: wp.array(dtype=wp.vec3)):
     """How far ``vertex`` lies from the triangle ``code`` holds (2 t + side bit) along the direction it is to
     be moved in (below zero once it has crossed to the other side where it projects inside the triangle),

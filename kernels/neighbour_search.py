@@ -9,7 +9,7 @@ import warp as wp
 
 from .candidate_lists import keeping_nearest
 from .edge_collision import EdgeContacts, EdgeRules, box_gap_sq, may_touch, pair_gap
-from .face_collision import FaceContacts, side_of
+from .face_collision import FaceContacts, side_bit
 from .face_collision import may_touch as may_touch_face
 from .gathering import BLOCK, FAST_MATH, sum_over_threads, thread_layout
 from .particle_collision import (Contacts, ListState, PairRules, add_candidate, is_candidate,
@@ -255,7 +255,8 @@ def gather_vertex_faces(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules: 
     owner = face_list_owner(x, faces.triangles, v)
     near = BOX_SLACK / inv_cell[0]  # a triangle within reach has its first vertex within reach plus its side
     own = faces.thickness + allowance[v]
-    box_reach_sq = (BOX_SLACK * (own + widest[0])) * (BOX_SLACK * (own + widest[0]))
+    box_reach = BOX_SLACK * (own + widest[0])
+    box_reach_sq = box_reach * box_reach
     count = int(0)
     for k in range(27):
         bucket = neighbour_bucket(center, world, k, mask)
@@ -274,7 +275,7 @@ def gather_vertex_faces(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules: 
                                 gap = point_triangle_distance(p, a, b, c)
                                 if gap < own + triangle_allowance(allowance, t):
                                     count = insert_triangle(faces.vertex_faces, start, count, faces.max_neighbors,
-                                                            2 * t_index + side_of(x, v, t), gap,
+                                                            2 * t_index + side_bit(p, a, b, c), gap,
                                                             lists.overflow,
                                                             owner)
     faces.vertex_counts[v] = sort_and_drop_repeats(faces.vertex_faces, start, count)
@@ -303,7 +304,8 @@ def gather_face_vertices(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules:
     low = wp.min(wp.min(a, b), c)
     high = wp.max(wp.max(a, b), c)
     own = faces.thickness + triangle_allowance(allowance, t)
-    box_reach_sq = (BOX_SLACK * (own + widest[0])) * (BOX_SLACK * (own + widest[0]))
+    box_reach = BOX_SLACK * (own + widest[0])
+    box_reach_sq = box_reach * box_reach
     count = int(0)
     for k in range(27):
         bucket = neighbour_bucket(center, world, k, mask)
@@ -316,5 +318,5 @@ def gather_face_vertices(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules:
                         gap = point_triangle_distance(p, a, b, c)
                         if gap < own + allowance[v]:
                             count = insert_vertex(faces.face_vertices, start, count, faces.max_neighbors,
-                                                  2 * v + side_of(x, v, t), gap, lists.overflow, owner)
+                                                  2 * v + side_bit(p, a, b, c), gap, lists.overflow, owner)
     faces.face_counts[t_index] = sort_and_drop_repeats(faces.face_vertices, start, count)

@@ -153,13 +153,14 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
             passes.append(ContactStart(start))
         line_rounds = converged and model.limits is not None and lines is not None
         held = bounds is not None and converged and not line_rounds
-        if bounds is not None and (held or faces is not None):
+        measured_before = bounds is not None and (held or faces is not None)
+        if measured_before:
             passes.append(bounds.measure)
         passes.append(lists)
         edge_passes = [edge_separation_pass(model, state, chosen, rigid)] if state.edges is not None else []
         if faces is not None:
             edge_passes.append(faces.separation_pass(model, chosen, rigid))
-        clamp = None if bounds is None else bounds.clamp_held if held or faces is not None else bounds.clamp
+        clamp = bounds.clamp_held if measured_before else bounds.clamp if bounds is not None else None
         if line_rounds:
             projection = line_contact_projection(model, state, solve, chosen, rigid, edge_passes, lines, faces)
             passes.append(projection)
