@@ -7,8 +7,11 @@ docs/benchmarks.md's section on 64^2 frames.
     python tools/frame_profile.py OUT.json
     python tools/frame_profile.py OUT.json --worlds 1024   # the self cloth at 32^2 as 1024 worlds of a batch
     python tools/frame_profile.py OUT.json --worlds 1024 --solved   # the same, the limit solved (its Chebyshev radius estimated)
+    python tools/frame_profile.py OUT.json --preset cotton --case hang --resolution 128 --run symplectic:auto --frames 4
+        # one of tools/material_step.py's preset cloths, timed over --frames frames after as many
 """
 
+import argparse
 import collections
 import dataclasses
 import json
@@ -22,18 +25,20 @@ from warp_cloth.batch import Batch
 from warp_cloth.lab.bench import matrix_scene
 from warp_cloth.simulator import Simulator
 
+from material_step import preset_scene
+
 FRAMES, REPEATS = 200, 5
 
 
-def ms_per_frame(advance) -> float:
-    """Median over repeats of the wall time per frame of ``advance(FRAMES)``."""
+def ms_per_frame(advance, frames: int = FRAMES) -> float:
+    """Median over repeats of the wall time per frame of ``advance(frames)``."""
     times = []
     for _ in range(REPEATS):
         wp.synchronize()
         started = time.perf_counter()
-        advance(FRAMES)
+        advance(frames)
         wp.synchronize()
-        times.append((time.perf_counter() - started) / FRAMES * 1e3)
+        times.append((time.perf_counter() - started) / frames * 1e3)
     return statistics.median(times)
 
 
@@ -104,39 +109,55 @@ def node_costs() -> dict:
     return costs
 
 
-def profile(sim: Simulator) -> dict:
-    sim.run(20)  # past the start: the swing has begun and the neighbour lists are in use
-    return {"step_ms": ms_per_frame(lambda frames: [sim.step() for _ in range(frames)]),
-            "run_ms": ms_per_frame(sim.run),
-            "replay_ms": ms_per_frame(lambda frames: replay(sim, frames)),
+def profile(sim: Simulator, frames: int = FRAMES) -> dict:
+    sim.run(max(20, frames))  # past the start: the swing has begun and the neighbour lists are in use
+    return {"step_ms": ms_per_frame(lambda count: [sim.step() for _ in range(count)], frames),
+            "run_ms": ms_per_frame(sim.run, frames),
+            "replay_ms": ms_per_frame(lambda count: replay(sim, count), frames),
             "kernels": kernel_times(sim),
             "threads_per_particle": sim.plan.threads, "passes": sim.plan.pass_names}
 
 
-def main(out_path: str, worlds: int | None, solved: bool) -> None:
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("out", help="JSON")
+    parser.add_argument("--worlds", type=int, help="the self cloth at 32^2 as this many worlds of a batch")
+    parser.add_argument("--solved", action="store_true", help="with --worlds: the limit solved")
+    parser.add_argument("--preset", help="a preset cloth of tools/material_step.py instead of the matrix's")
+    parser.add_argument("--case", choices=["hang", "sphere"], default="hang")
+    parser.add_argument("--resolution", type=int, default=128)
+    parser.add_argument("--run", default="symplectic:auto", help="INTEGRATOR:SUBSTEPS")
+    parser.add_argument("--frames", type=int, default=FRAMES, help="frames a timing")
+    args = parser.parse_args()
     wp.config.log_level = wp.LOG_ERROR
     results = {"device": wp.get_device("cuda").name}
     world = matrix_scene("self", 32, "symplectic")
-    if solved:
+    if args.solved:
         world = dataclasses.replace(world, simulation=dataclasses.replace(
             world.simulation, limit_solve="converged"))
-    cases = {f"self 32 x {worlds} worlds{', limit solved' if solved else ''}": lambda: Batch(
-        [world] * worlds, device="cuda").simulator} if worlds else {
-        f"{variant} {n}": lambda variant=variant, n=n: Simulator(matrix_scene(variant, n, "symplectic"), device="cuda")
-        for n in (64, 256) for variant in ("springs", "hanging", "sphere", "self")}
+    if args.worlds:
+        cases = {f"self 32 x {args.worlds} worlds{', limit solved' if args.solved else ''}": lambda: Batch(
+            [world] * args.worlds, device="cuda").simulator}
+    elif args.preset:
+        integrator, substeps = args.run.split(":")
+        scene = preset_scene(args.preset, args.case, args.resolution, 10_000, integrator, substeps)
+        cases = {f"{scene.name} {args.run}": lambda: Simulator(scene, device="cuda")}
+    else:
+        cases = {f"{variant} {n}": lambda variant=variant, n=n: Simulator(matrix_scene(variant, n, "symplectic"),
+                                                                          device="cuda")
+                 for n in (64, 256) for variant in ("springs", "hanging", "sphere", "self")}
     for name, make in cases.items():
-        results[name] = row = profile(make())
+        results[name] = row = profile(make(), args.frames)
         print(name, {k: round(v, 3) for k, v in row.items() if k.endswith("_ms")}, flush=True)
-    if worlds:
-        top = sorted(row["kernels"].items(), key=lambda kv: -kv[1]["total_ms"])[:12]
-        print("\n".join(f"  {v['total_ms']:8.3f} ms {v['count']:4d}x {k}" for k, v in top), flush=True)
+    if args.worlds or args.preset:
+        top = sorted(row["kernels"].items(), key=lambda kv: -kv[1]["total_ms"])[:15]
+        print("\n".join(f"  {v['total_ms']:8.3f} ms {v['count']:6d}x {k}" for k, v in top), flush=True)
     else:
         results["node_us"] = node_costs()
         print("us per graph node", results["node_us"], flush=True)
-    with open(out_path, "w") as out:
+    with open(args.out, "w") as out:
         json.dump(results, out, indent=1)
 
 
 if __name__ == "__main__":
-    main(sys.argv[1], int(sys.argv[3]) if len(sys.argv) > 3 and sys.argv[2] == "--worlds" else None,
-         "--solved" in sys.argv[4:])
+    main()

@@ -19,8 +19,7 @@ from .device_model import DeviceModel
 from .scene import ImplicitSolver
 from .state import DeviceState
 
-PARTIALS = 16384  # one world: first level of every dot product's reduction
-PARTIALS_2 = 128  # one world: second level, summed by one thread
+PARTIALS = 16384  # one world: first level of every dot product's reduction, then totalled by one block
 
 
 @dataclass(frozen=True)
@@ -84,8 +83,8 @@ class BackwardEuler:
         self.inverse = wp.zeros(n, dtype=wp.mat33, device=device)
         if worlds == 1:
             self.partial = wp.zeros(min(n, PARTIALS), dtype=float, device=device)
-            self.partial_2 = wp.zeros(min(n, PARTIALS_2), dtype=float, device=device)
-            self.lanes = self.partial_2.shape[0]
+            self.partial_2 = wp.zeros(1, dtype=float, device=device)
+            self.lanes = 1
         else:
             self.lanes = world_lanes(model.world_start.numpy())
             self.partial = self.partial_2 = wp.zeros(worlds * self.lanes, dtype=float, device=device)
@@ -127,15 +126,15 @@ class BackwardEuler:
 
     def _dot(self, a: wp.array, b: wp.array, active: wp.array) -> None:
         """Leaves each world's a . b (where ``active``) in ``partial_2``, as the ``lanes`` partial sums a world
-        that the next scalar kernel totals."""
+        that the next scalar kernel totals (one world: the total itself)."""
         if self.worlds > 1:
             self._launch(cg.world_dot_partials, self.partial.shape[0],
                          inputs=[a, b, self.world_start, self.lanes, active], outputs=[self.partial])
             return
         self._launch(cg.dot_partials, self.partial.shape[0], inputs=[a, b, self.partial.shape[0], active],
                      outputs=[self.partial])
-        self._launch(cg.sum_partials, self.partial_2.shape[0],
-                     inputs=[self.partial, self.partial_2.shape[0], active], outputs=[self.partial_2])
+        wp.launch_tiled(cg.total_partials, dim=[1], inputs=[self.partial, active], outputs=[self.partial_2],
+                        block_dim=cg.SUM_BLOCK, device=self.device)
 
     def _solve(self, y: wp.array, v: wp.array, clock: wp.array) -> None:
         """dv from A dv = r (r holds the right-hand side), with pinned particles' dv prescribed."""
