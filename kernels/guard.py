@@ -9,11 +9,13 @@ NOT_FINITE = wp.constant(2)
 
 @wp.kernel
 def check_state(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), world: wp.array(dtype=int), max_speed: float,
-                substep: int, status: wp.array2d(dtype=int)):
+                done: wp.array(dtype=int), offset: int, status: wp.array2d(dtype=int)):
     """status[substep, w] becomes the worst finding of that substep in world w (NOT_FINITE over TOO_FAST
-    over 0). A substep past the end of ``status`` is flagged in its last row, never written out of bounds."""
+    over 0), the substep being ``done[0] + offset`` (the frame's substeps before the round it is in, and its
+    place there). A substep past the end of ``status`` is flagged in its last row, never written out of
+    bounds."""
     i = wp.tid()
-    substep = wp.min(substep, status.shape[0] - 1)
+    substep = wp.min(done[0] + offset, status.shape[0] - 1)
     w = world[i]
     p = x[i]
     u = v[i]

@@ -183,8 +183,9 @@ def test_guard_never_writes_past_its_flags():
     x = wp.array([[0.0, 0.0, 0.0]], dtype=wp.vec3, device="cpu")
     v = wp.array([[float("nan"), 0.0, 0.0]], dtype=wp.vec3, device="cpu")
     world = wp.zeros(1, dtype=int, device="cpu")
-    for substep in (2, 3, 7):  # the last, and two past the end
-        wp.launch(guard.check_state, dim=1, inputs=[x, v, world, 1.0, substep], outputs=[status], device="cpu")
+    done = wp.array([1], dtype=int, device="cpu")  # the substeps before a round, to which its place is added
+    for offset in (1, 2, 6):  # the last, and two past the end
+        wp.launch(guard.check_state, dim=1, inputs=[x, v, world, 1.0, done, offset], outputs=[status], device="cpu")
     assert flags.numpy().ravel().tolist() == [0, 0, guard.NOT_FINITE, 0]
 
 

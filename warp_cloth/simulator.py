@@ -43,6 +43,7 @@ from .stability import (AUTOMATIC_MAX_SUBSTEPS, MAX_PASSES_PER_FRAME, UnstableSt
                         beyond_bound_message, resolve_step)
 from .start_projection import StartReport
 from .state import DeviceState
+from .substep_rounds import SubstepRounds
 from .surface_start import refuse_surfaces_closer_than_thickness
 from .warp_init import init_warp
 
@@ -287,9 +288,11 @@ class Simulator:
         self._stats_unread: SolveStats | None = None  # of frames kept, read by the substeps' choice
         # An animated mesh collider's BVH refit is a host call on the CPU, which a CPU graph does not record
         # (a CUDA graph records the refit's kernels): there, launch pass by pass.
-        self.use_graph = graph and not (self.device.is_cpu and self.device_model.collider_kinds[Meshes].motion)
+        meshes_move = self.device_model.collider_kinds[Meshes].motion
+        self.use_graph = graph and not (self.device.is_cpu and meshes_move)
         self._graphs: dict[tuple[int, int], tuple[wp.Graph, int]] = {}
         self._launches_recorded = False  # without graphs: prepare() has recorded a frame (its modules are loaded)
+        self._rounds = SubstepRounds(self.device, loops=not meshes_move)
         self._guard_flags()
         if self.device.is_cuda:
             self._frame_done = [wp.Event(self.device), wp.Event(self.device)]
@@ -533,10 +536,12 @@ class Simulator:
     def _take_control(self) -> None:
         """Before the control's first send: its passes in the plan, the clock (which the plan may not have
         advanced until now) set to the current frame. A mesh's refit is a host call on the CPU, which a CPU
-        graph does not record: there, with mesh colliders, frames launch pass by pass from now on."""
+        graph does not record: there, with mesh colliders, frames launch pass by pass from now on; on a GPU
+        they no longer loop (warp_cloth/substep_rounds.py)."""
         self._control.started = True
-        if self.device.is_cpu and self._control.moves_meshes:
-            self.use_graph = False
+        if self._control.moves_meshes:
+            self.use_graph = self.use_graph and not self.device.is_cpu
+            self._rounds.loops = False
         self._build_plan_again()
         self.state.clock.fill_(self.substep_count)
 
@@ -573,7 +578,7 @@ class Simulator:
         if key not in self._graphs:
             before = self.state.parity
             with wp.ScopedCapture(device=self.device) as capture:
-                self._frame_substeps(slot)
+                self._frame_substeps(slot, captured=True)
             self._graphs[key] = (capture.graph, self.state.parity)
             self.state.parity = before
         return self._graphs[key]
@@ -762,15 +767,20 @@ class Simulator:
         return RunSummary(written, self.substeps_run - start_substeps, self.model.particle_count, wall,
                           stopped_by is not None, stopped_by, prepare_seconds, chosen, missing, stalled)
 
-    def _frame_substeps(self, slot: int) -> None:
+    def _frame_substeps(self, slot: int, captured: bool = False) -> None:
+        """A frame's substeps with the guard's checks into ``slot``'s flags (``captured``: in a graph's capture,
+        where they loop on the device, warp_cloth/substep_rounds.py)."""
         status = self._guard_status[slot]
         status.zero_()
-        for k in range(self.substeps_per_frame):
-            self.plan.run_substep(self.state)
+
+        def check(done: wp.array, offset: int) -> None:
             wp.launch(guard.check_state, dim=self.model.particle_count,
                       inputs=[self.state.x, self.state.v, self.device_model.particle_world,
-                              self.scene.simulation.max_speed, k],
+                              self.scene.simulation.max_speed, done, offset],
                       outputs=[status], device=self.device)
+
+        self._rounds.launch(self.substeps_per_frame, captured, self.state, lambda: self.plan.run_substep(self.state),
+                            check)
         if self.device.is_cuda:
             wp.copy(self._guard_host[slot], status)
 
