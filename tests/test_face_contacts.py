@@ -195,7 +195,7 @@ def test_sheets_pressed_together_do_not_cross(device):
     frames = 14  # the sheets reach the sphere at frame 4, and particle contacts alone have crossed by 11
     sim = wc.Simulator(pressed_scene(frames), device=device)
     assert sim.device_model.contacts.edges.thickness == sim.plan.faces.thickness == THICKNESS
-    assert sim.plan.bounds.settings.radius == 2.5 * THICKNESS
+    assert sim.plan.bounds.settings.radius == 1.25 * THICKNESS
     crossings = TriangleIntersections(sim)
     counts, vertex_face, edge_edge = [], [], []
     for _ in range(frames):
