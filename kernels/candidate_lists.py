@@ -1,14 +1,17 @@
-"""Candidate lists of a fixed length (the particles', the contact edges', the face pairs'): an entry is
-appended while its list has room; a full list counts it in ``overflow`` and keeps the nearer of it and its
-farthest entry, so that what a list leaves out is farther than all it holds and a pair in contact is not left
-out for farther candidates found first (in the pile with the particle lists' reach at 3 contact distances,
-lists filled in the order found left out touching pairs, which no pass then separated and every solve ran to
-its cap). Each kind of list says how far an entry lies from the list's owner (``gap_of``)."""
+"""Candidate lists of a fixed length (the particles', the contact edges', the face pairs'): an entry is appended
+while its list has room; a full list keeps the nearer of it and its farthest entry, counting the other dropped
+in ``overflow`` (spatial_hash.count_dropped), so that what a list leaves out is farther than all it holds and
+a pair in contact is not left out for farther candidates found first (in the pile with the particle lists'
+reach at 3 contact distances, lists filled in the order found left out touching pairs, which no pass then
+separated and every solve ran to its cap). Each kind of list says how far an entry lies from the list's owner
+(``gap_of``)."""
 
 import functools
 from typing import Any
 
 import warp as wp
+
+from .spatial_hash import count_dropped
 
 wp.set_module_options({"fast_math": True})  # as the gathering kernels (see gathering.py)
 
@@ -27,7 +30,6 @@ def keeping_nearest(gap_of: wp.Function) -> wp.Function:
         if count < most:
             listed[start + count] = entry
             return count + 1
-        wp.atomic_add(overflow, 0, 1)
         farthest = int(-1)
         farthest_gap = gap
         for k in range(count):
@@ -37,6 +39,7 @@ def keeping_nearest(gap_of: wp.Function) -> wp.Function:
             held_gap = gap_of(owner, held)
             if held_gap > farthest_gap:
                 farthest, farthest_gap = k, held_gap
+        count_dropped(overflow)  # the farthest entry, or the candidate itself
         if farthest >= 0:
             listed[start + farthest] = entry
         return count

@@ -98,6 +98,19 @@ def claim_slot(bucket_size: wp.array(dtype=int), bucket: int, stamp: int, capaci
     return -1  # not reached; the generated C++ function still needs a return after its loop
 
 
+# A count of dropped candidates stops here, so that a long run's count never wraps past int32's range (the
+# stacked drape at 128^2 wrapped it, and its summary read a negative count).
+DROPPED_MOST = wp.constant(1 << 30)
+
+
+@wp.func
+def count_dropped(dropped: wp.array(dtype=int)):
+    """One more candidate dropped (a full bucket or list), the count staying at ``DROPPED_MOST`` once there
+    (within a few of it: threads may read it below at once)."""
+    if dropped[0] < DROPPED_MOST:
+        wp.atomic_add(dropped, 0, 1)
+
+
 @wp.func
 def insert_point(i: int, p: wp.vec3, world: int, inv_width: float, mask: int, capacity: int, stamp: int,
                  bucket_size: wp.array(dtype=int), bucket_items: wp.array(dtype=int), overflow: wp.array(dtype=int)):
@@ -106,7 +119,7 @@ def insert_point(i: int, p: wp.vec3, world: int, inv_width: float, mask: int, ca
     if slot >= 0:
         bucket_items[bucket * capacity + slot] = i
     else:
-        wp.atomic_add(overflow, 0, 1)
+        count_dropped(overflow)
 
 
 @wp.kernel

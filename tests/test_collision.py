@@ -513,3 +513,19 @@ def test_the_run_summary_says_when_contact_candidates_were_dropped():
     assert sim.plan.lists.overflow == 0 and _lists_full(sim) == ""
     sim.plan.lists.lists.overflow.assign(np.array([7], dtype=np.int32))
     assert _lists_full(sim) == "; contact lists full: 7 candidates dropped, their contacts unchecked"
+    sim.plan.lists.lists.overflow.assign(np.array([spatial_hash.DROPPED_MOST], dtype=np.int32))
+    assert _lists_full(sim) == ("; contact lists full: at least 1073741824 candidates dropped, "
+                                "their contacts unchecked")
+
+
+def test_the_count_of_dropped_candidates_stops_short_of_wrapping():
+    """A full bucket counts each point it turns away, up to DROPPED_MOST and no further: the stacked drape's
+    lists at 128^2 wrapped an int32 count over a run."""
+    dropped = wp.array([spatial_hash.DROPPED_MOST - 2], dtype=int, device="cpu")
+    bucket_size, items = wp.zeros(64, dtype=int, device="cpu"), wp.zeros(64 * 4, dtype=int, device="cpu")
+    points = wp.array([(0.5, 0.5, 0.5)] * 9, dtype=wp.vec3, device="cpu")  # one cell, room for four
+    wp.launch(spatial_hash.insert_points, dim=9,
+              inputs=[points, wp.zeros(9, dtype=int, device="cpu"), 1.0, 63, 4, wp.array([1], dtype=int, device="cpu"),
+                      wp.array([1], dtype=int, device="cpu")],
+              outputs=[bucket_size, items, dropped], device="cpu")
+    assert int(dropped.numpy()[0]) == spatial_hash.DROPPED_MOST

@@ -261,8 +261,12 @@ def _limit_solve(sim) -> str:
 def _lists_full(sim) -> str:
     """Contact candidates that did not fit their lists or hash buckets over the run, for the summary line
     ('' where none): their pairs went unchecked, so contacts may have been missed."""
+    from warp_cloth.kernels.spatial_hash import DROPPED_MOST
+
     dropped = sim.plan.lists.overflow if sim.plan.lists is not None else 0
-    return f"; contact lists full: {counted(dropped, 'candidate')} dropped, their contacts unchecked" if dropped else ""
+    at_least = "at least " if dropped >= DROPPED_MOST else ""
+    return f"; contact lists full: {at_least}{counted(dropped, 'candidate')} dropped, their contacts unchecked" \
+        if dropped else ""
 
 
 def _cmd_plan(args: argparse.Namespace) -> int:

@@ -187,7 +187,8 @@ class NeighbourLists:
 
     @property
     def overflow(self) -> int:
-        """Candidates that did not fit in a list or a hash bucket so far (waits for the device)."""
+        """Candidates dropped so far, from a full list (which keeps the nearest) or a full hash bucket, at most
+        ``spatial_hash.DROPPED_MOST`` (the count stops there; waits for the device)."""
         return int(self.lists.overflow.numpy()[0])
 
     def candidates(self) -> list[np.ndarray]:
