@@ -264,11 +264,13 @@ def main() -> None:
     settings["cell"] = args.size / (args.n - 1)
     rows = []
     print(HEADER, "-" * len(HEADER), sep="\n")
-    for text, spec, surface in ((t, b, s) for t in args.radius for s in args.thickness for b in args.bounds):
+    radii = ["default"] if args.scene is not None else args.radius  # a scene keeps its own: one run, not one a radius
+    for text, spec, surface in ((t, b, s) for t in radii for s in args.thickness for b in args.bounds):
         radius = None if text == "default" else float(text)
         thickness = None if surface == "off" else float(surface)
         if args.scene is not None:
             rows.append({"run": f"{args.scene}{'' if thickness is None else f' thickness {1e3 * thickness:g}mm'}"
+                                f"{'' if spec == 'off' else ' bounds ' + spec}"
                                 f"{' substeps auto' if args.auto_substeps else ''}",
                          **measure(scene_with_thickness(args.scene, thickness, args.frames, args.auto_substeps),
                                    thickness or args.gap, device, BoundSettings.parse(spec))})

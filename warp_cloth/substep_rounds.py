@@ -1,11 +1,12 @@
 """A frame's substeps as the simulator launches them, each followed by the blow-up guard's check
-(kernels/guard.py). Captured in a graph, a frame of at least ``LOOPED_FROM`` substeps loops on the device
-over rounds of ``ROUND`` substeps, captured once, and captures the rest after the loop: a frame's graph then
-holds fewer than ``2 * ROUND`` substeps at any count. A graph of every substep cost its capture and upload in
-proportion to the count: a cotton cloth of 128^2 at its stable 955 substeps a frame took 2.2 s to capture
-on an H200 (each of a run's four graphs: two buffer parities by two guard slots), 0.05 s looped. A round costs the loop's condition, a few microseconds (docs/notebook/benchmarks.md):
-a frame of fewer substeps, whose graph is quick to capture, does not loop. Nor does a scene whose mesh colliders
-move (the scene's or the control's): their BVH refit allocates memory, which a loop's body may not.
+(kernels/guard.py). Captured in a graph, a frame of at least ``LOOPED_FROM`` substeps loops on the device over
+rounds of ``ROUND`` substeps, captured once, and captures the rest after the loop: a frame's graph then holds
+fewer than ``2 * ROUND`` substeps at any count. A graph of every substep cost its capture and upload in
+proportion to the count: a cotton cloth of 128^2 at its stable 955 substeps a frame took 2.2 s to capture on
+an H200 (each of a run's four graphs: two buffer parities by two guard slots), 0.05 s looped. A round costs
+the loop's condition, a few microseconds (docs/notebook/benchmarks.md): a frame of fewer substeps, whose graph
+is quick to capture, does not loop. Nor does a scene whose mesh colliders move (the scene's or the control's):
+their BVH refit allocates memory, which a loop's body may not.
 
 ``ROUND`` is even: a substep swaps the same buffers each time, so two leave them where they were, and the
 loop's body may replay from where it ends."""
@@ -38,8 +39,8 @@ class SubstepRounds:
                check: Callable[[wp.array, int], None]) -> None:
         """``substeps`` calls of ``substep``, each followed by ``check(done, offset)`` (the substep's index is
         ``done[0] + offset``), looped on the device in rounds where ``captured`` (in a graph's capture), the
-        scene ``loops`` and there are ``LOOPED_FROM`` substeps; the substeps left after the rounds, or all of them, one after
-        another."""
+        scene ``loops`` and there are ``LOOPED_FROM`` substeps; the substeps left after the rounds, or all of
+        them, one after another."""
         rounds = substeps // ROUND if captured and self.loops and substeps >= LOOPED_FROM else 0
         done = self.none_done
         if rounds:
