@@ -18,7 +18,8 @@ Per run, over every frame written (frame 0 included):
   and as a fraction of the gap;
 - the converged limit solve's passes a substep (mean, most, the cap) and the frames whose solve ended at
   its cap outside its tolerance;
-- wall time of the frames (kernels loaded before the clock starts), substeps a frame;
+- wall time of the frames (kernels loaded before the clock starts), substeps a frame; per frame also its
+  seconds, its limit solve's mean passes and its CG's most iterations (where the step is implicit);
 - the closest surfaces: the least distance of a vertex-triangle or edge-edge pair that is a contact (sharing
   no vertex; warp_cloth/surface_pairs.py), at most the gap (kernels/primitive_distances.py), over every frame (of triangles that cross, no such pair need
   touch: an edge through a face's middle).
@@ -114,7 +115,8 @@ def measure(scene: wc.Scene, gap: float, device: str, bounds: BoundSettings | No
     distance = contact_distance(sim)
     contacts = sim.device_model.contacts
     thickness = contacts.thickness if contacts is not None else contact_thickness.RULE * distance
-    per_frame = {"crossings": [], "closest_contact": [], "substeps": [], "limit_passes": [], "limit_residual": [],
+    per_frame = {"crossings": [], "closest_contact": [], "seconds": [], "substeps": [], "limit_passes": [],
+                 "limit_mean_passes": [], "limit_residual": [], "cg_iterations": [],
                  "closest_surfaces": [], "held_short_first": [], "held_short_last": [], "held_back_m": []}
     stepping, outcome = 0.0, "completed"
 
@@ -134,10 +136,13 @@ def measure(scene: wc.Scene, gap: float, device: str, bounds: BoundSettings | No
         except wc.UnstableSimulation as unstable:
             outcome = f"unstable at frame {frame}: {unstable}"
             break
-        stepping += time.perf_counter() - started
+        per_frame["seconds"].append(time.perf_counter() - started)
+        stepping += per_frame["seconds"][-1]
         stats = sim.solver_stats()
         per_frame["substeps"].append(sim.frame_substeps)
         per_frame["limit_passes"].append(stats.limit_passes)
+        per_frame["limit_mean_passes"].append(stats.limit_mean_passes)
+        per_frame["cg_iterations"].append(stats.cg_iterations)
         per_frame["limit_residual"].append(stats.limit_residual)
         if sim.plan.bounds is not None:
             held_short, held_back, _ = sim.plan.bounds.read_stats()
