@@ -12,6 +12,7 @@ import warp_cloth as wc
 from conftest import assert_restored_run_continues
 from test_displacement_bounds import point_triangle, segment_segment
 from warp_cloth.diagnostics import TriangleIntersections
+from warp_cloth.displacement_bounds import BoundSettings, DisplacementBounds
 
 DRAPE_MATERIAL = {"density": 0.2, "structural": wc.SpringKind(50.0, 0.05), "shear": wc.SpringKind(50.0, 0.05),
                   "bend": wc.SpringKind(20.0, 0.02, "compression", "compression")}  # scenes/drape.toml's
@@ -126,10 +127,11 @@ def test_a_pair_an_iterate_within_the_bounds_brings_near_is_listed_though_the_st
     sim, triangle, vertex, stepped, middle = stepped_over_a_triangle(0.0125, 0.03)
     bounds, lists = sim.plan.bounds, sim.plan.lists
     assert THICKNESS + 2.0 * lists.rebuild_distance < 0.0125
-    bounds.measure.run(sim.state)
+    bounds.choose.run(sim.state)
+    lists.run(sim.state)
+    pass_named(sim, "bounds:from-lists").run(sim.state)
     bound = bounds.settings.gamma * float(bounds.nearest.numpy()[vertex])
     assert 0.0125 - bound <= 0.008
-    lists.run(sim.state)
     faces = sim.plan.faces.args
     listed = faces.vertex_faces.numpy().reshape(sim.model.particle_count, -1)[vertex, :faces.vertex_counts.numpy()[vertex]]
     assert 0 in listed >> 1  # triangle 0's code: 2 t + side
@@ -139,6 +141,10 @@ def test_a_pair_an_iterate_within_the_bounds_brings_near_is_listed_though_the_st
     sim.plan.faces.separation_pass(sim.device_model, 1, None).run(sim.state)
     after = sim.state.x.numpy()
     np.testing.assert_allclose(after[vertex, 1] - after[triangle, 1].mean(), THICKNESS, rtol=1e-5)
+
+
+def pass_named(sim: wc.Simulator, name: str):
+    return next(p for p in sim.plan.passes if p.name == name)
 
 
 def pressed_scene(frames: int, thickness: float | None = THICKNESS, gap: float = 0.01) -> wc.Scene:
@@ -206,6 +212,27 @@ def test_sheets_pressed_together_do_not_cross(device):
     assert max(counts) == 0, counts
     assert min(vertex_face) >= 0.9 * THICKNESS, vertex_face
     assert min(edge_edge) >= 0.9 * THICKNESS, edge_edge
+
+
+def test_the_bounds_read_off_the_lists_are_a_searchs_where_they_matter():
+    """The substep's bounds come from the surface contacts' lists (BoundsFromLists), not a search of their own:
+    as the pressed sheets drape over the sphere, each vertex's nearest distance from the lists equals that of
+    the search over every pair (the bounds' own hash, within the vertex's query radius, where the substep
+    started) wherever the search finds a pair within the thickness plus twice the least particle's largest bound,
+    nearer pairs than any the lists leave out, and is no nearer anywhere."""
+    sim = wc.Simulator(pressed_scene(12), device="cpu")
+    bounds = sim.plan.bounds
+    for _ in range(12):
+        sim.step()
+    listed, radii = bounds.nearest.numpy(), bounds.radii.numpy()
+    query = float(bounds.query.numpy()[0])
+    search = DisplacementBounds(sim.model, sim.device_model, BoundSettings(radius=query, gamma=bounds.settings.gamma))
+    search.measure_at(bounds.start)
+    found = np.minimum(radii, search.nearest.numpy())  # within each particle's radius
+    matters = found < THICKNESS + 2.0 * bounds.settings.gamma * radii.min()  # a pair left out: beyond both reaches
+    assert matters.sum() > 100  # the sheets lie pressed together over the sphere
+    np.testing.assert_allclose(listed[matters], found[matters], rtol=1e-5)
+    assert np.all(listed >= found * (1.0 - 1e-5))
 
 
 def test_a_run_with_a_thickness_restored_from_a_checkpoint_makes_the_same_frames(tmp_path):

@@ -6,7 +6,7 @@ The simulator makes one ``FaceContacts`` where the scene sets a thickness, and h
 builds (warp_cloth/plan.py): the particle lists' remake then remakes its candidate lists too
 (``remake_if_asked``), each vertex's triangles and each triangle's vertices, where the substep started and
 within the thickness plus both sides' allowances (kernels/surface_reach.py: how far a particle may move
-before a pair left out could touch; the displacement bounds' reach plus the particle lists' rebuild distance),
+before a pair left out could touch: the displacement bounds' reach; the bounds are then read off the lists),
 found through a spatial hash of the particles whose cells are as wide as the largest reach plus the longest
 triangle side at the remake; the edge contacts' lists take the same positions and allowances; and its pass
 (``separation_pass``) joins the edge contacts' passes of the solve, whose check then reads its pairs; with a
@@ -30,7 +30,6 @@ from warp_cloth.kernels.surface_friction import SurfaceFrictionArgs, surface_fri
 from .device_model import DeviceModel
 from .displacement_bounds import DisplacementBounds
 from .model import Model
-from .neighbour_lists import rebuild_distance
 from .passes import CONTACT_SLACK, GatheringPass, edge_contacts_args
 from .state import DeviceState, hash_table_size
 
@@ -61,7 +60,6 @@ class FaceContacts:
         triangles = model.triangles
         self.triangle_count = len(triangles)
         self.thickness = contacts.thickness  # the edge contacts' too (contact_thickness.py)
-        self.skin = rebuild_distance(device_model)
         self.inv_mass = device_model.inv_mass
         rest = model.positions[triangles]
         self.longest = float(np.linalg.norm(rest - np.roll(rest, 1, axis=1), axis=2).max(initial=0.0))
@@ -102,9 +100,10 @@ class FaceContacts:
 
     def ask_if_moved(self, start: wp.array, x: wp.array, bounds: DisplacementBounds, lists: ListState) -> None:
         """Asks for the lists' remake where a particle's move from where they were made, plus its reach this
-        substep (its bound measured at ``start``, or a pin's move to ``x``), passes its allowance."""
+        substep (its largest bound, gamma times its query radius, or a pin's move to ``x``), passes its
+        allowance."""
         wp.launch(surface_reach.ask_if_beyond_allowance, dim=self.n,
-                  inputs=[start, x, bounds.nearest, bounds.settings.gamma, self.inv_mass, self.built, self.allowance],
+                  inputs=[start, x, bounds.radii, bounds.settings.gamma, self.inv_mass, self.built, self.allowance],
                   outputs=[lists.rebuild], device=self.device)
 
     def allow(self, start: wp.array, x: wp.array, bounds: DisplacementBounds, lists: ListState) -> None:
@@ -113,7 +112,7 @@ class FaceContacts:
         wp.launch(surface_reach.start_allowances, dim=1, inputs=[lists.rebuild], outputs=[self.widest],
                   device=self.device)
         wp.launch(surface_reach.allow, dim=self.n,
-                  inputs=[start, x, bounds.nearest, bounds.settings.gamma, self.inv_mass, self.skin, lists.rebuild],
+                  inputs=[start, x, bounds.radii, bounds.settings.gamma, self.inv_mass, lists.rebuild],
                   outputs=[self.built, self.allowance, self.widest], device=self.device)
 
     def remake_if_asked(self, x: wp.array, lists: ListState) -> None:

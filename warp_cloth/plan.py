@@ -13,7 +13,7 @@ import warp as wp
 from warp_cloth.kernels.colliders import RigidColliders
 
 from .device_model import DeviceModel
-from .displacement_bounds import DisplacementBounds
+from .displacement_bounds import BoundsFromLists, DisplacementBounds
 from .face_contacts import FaceContacts
 from .implicit import SolveStats
 from .integrators import Integrator
@@ -21,8 +21,8 @@ from .limit_solve import ConvergedProjection, LimitSolveSettings
 from .line_solve import HoldAndCollide, LineSolves
 from .neighbour_lists import LIST_THREADS_BY_SIZE, NeighbourLists
 from .passes import (AdvanceClock, CloseSeams, Collide, ContactStart, DrivePins, FollowKeys, FollowTargets, Pass, WindForces,
-                     contact_start_args, contact_velocities, edge_separation_pass, limit_and_separation_pass,
-                     limit_pass, separation_pass)
+                     contact_start_args, contact_velocities, edge_contacts_args, edge_separation_pass,
+                     limit_and_separation_pass, limit_pass, separation_pass)
 from .start_projection import StartProjection
 from .state import DeviceState
 from .wording import counted
@@ -107,14 +107,15 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
     (displacement_bounds.py, made once per simulator), the substep's start recorded first, the bounds measured
     there and the step clamped to them after the solves (before the contact velocities), or, in a converged
     solve of particle collision (not the lab's line rounds with contacts), measured there before the lists,
-    held after each of its separating passes and the step clamped to the same bounds after it (measured
-    before the lists wherever ``faces`` is given); ``control``: the
+    held after each of its separating passes and the step clamped to the same bounds after it (wherever
+    ``faces`` is given, their query radius chosen before the lists and the bounds read off the lists after
+    them); ``control``: the
     passes that put what a script sent from Python (control.py's ``Control.passes``) after the colliders'
     motion (``"colliders"``), with the soft pins' motion before the step (``"soft pins"``: where their springs
     pull, which the step reads) and after the hard pins' motion (``"pins"``); ``faces``: the face contacts
     (face_contacts.py, made once per simulator, used only with particle collision, always with ``bounds``),
     their lists and the edge contacts' remade with the particle lists where the substep started (the bounds'
-    record) within the allowances the bounds give (kernels/surface_reach.py), their pass
+    record) within the allowances the bounds' query radius gives (kernels/surface_reach.py), their pass
     beside the edge contacts' pass, and the converged solve's check reading both kinds' pairs."""
     chosen = threads_per_particle(model.particle_count, model.device) if threads is None else threads
     rigid = model.colliders(state) if model.has_colliders else None
@@ -154,9 +155,10 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
         line_rounds = converged and model.limits is not None and lines is not None
         held = bounds is not None and converged and not line_rounds
         measured_before = bounds is not None and (held or faces is not None)
-        if measured_before:
-            passes.append(bounds.measure)
-        passes.append(lists)
+        if faces is not None:
+            passes += [bounds.choose, lists, BoundsFromLists(bounds, faces.args, edge_contacts_args(model, state))]
+        else:
+            passes += [bounds.measure, lists] if measured_before else [lists]
         edge_passes = [edge_separation_pass(model, state, chosen, rigid)] if state.edges is not None else []
         if faces is not None:
             edge_passes.append(faces.separation_pass(model, chosen, rigid))
