@@ -16,7 +16,7 @@ world's: its total, ``lanes`` 1).
 import warp as wp
 
 CG_RZ = wp.constant(0)  # r . z of the current residual
-CG_RZ0 = wp.constant(1)  # r . z at the start: the reference for the relative tolerance
+CG_RZ0 = wp.constant(1)  # b . P b of the right-hand side: the reference for the relative tolerance
 CG_ALPHA = wp.constant(2)
 CG_BETA = wp.constant(3)
 CG_TOLERANCE_SQ = wp.constant(4)  # squared relative tolerance on sqrt(r . z)
@@ -80,19 +80,30 @@ def world_total(partial: wp.array(dtype=float), w: int, lanes: int) -> float:
 
 
 @wp.kernel
+def reference(partial: wp.array(dtype=float), lanes: int, scalars: wp.array2d(dtype=float)):
+    """After b . P b of each world's right-hand side (the preconditioned size of what a solve from zero would
+    start with): the reference of the relative tolerance, so that a solve from a first guess stops where one
+    from zero would."""
+    w = wp.tid()
+    scalars[w, CG_RZ0] = world_total(partial, w, lanes)
+
+
+@wp.kernel
 def start(partial: wp.array(dtype=float), lanes: int, tolerance: float, max_iterations: int,
           enabled: wp.array2d(dtype=int), scalars: wp.array2d(dtype=float), active: wp.array(dtype=int),
           iterating: wp.array(dtype=int), iterations: wp.array(dtype=int)):
-    """After r . z of each world's first residual: arm its solve unless it has nothing to solve or is not
-    ``enabled`` (its Newton loop has converged). ``iterating`` must be 0 before."""
+    """After r . z of each world's first residual (``reference`` before): arm its solve unless its first
+    guess is within the tolerance already or it is not ``enabled`` (its Newton loop has converged). A world
+    whose right-hand side is zero takes its first residual as the reference. ``iterating`` must be 0 before."""
     w = wp.tid()
     rz = world_total(partial, w, lanes)
     scalars[w, CG_RZ] = rz
-    scalars[w, CG_RZ0] = rz
+    if scalars[w, CG_RZ0] <= 0.0:
+        scalars[w, CG_RZ0] = rz
     scalars[w, CG_TOLERANCE_SQ] = tolerance * tolerance
     iterations[w] = 0
     active[w] = 0
-    if enabled[w, 0] != 0 and rz > 0.0 and max_iterations > 0:
+    if enabled[w, 0] != 0 and rz > tolerance * tolerance * scalars[w, CG_RZ0] and max_iterations > 0:
         active[w] = 1
         iterating[0] = 1
 
@@ -174,7 +185,7 @@ def subtract(a: wp.array(dtype=wp.vec3), b: wp.array(dtype=wp.vec3), out: wp.arr
 def record_solve(scalars: wp.array2d(dtype=float), iterations: wp.array(dtype=int), enabled: wp.array2d(dtype=int),
                  stats: wp.array(dtype=float)):
     """After a solve, over the worlds that solved: stats[0] and stats[1] keep the most iterations and the
-    largest r.z / r0.z0 so far."""
+    largest r.z / b.Pb (relative to the right-hand side's) so far."""
     w = wp.tid()
     if enabled[w, 0] == 0:
         return

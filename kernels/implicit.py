@@ -36,6 +36,15 @@ def finish_step(x0: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), dv: wp.
 
 
 @wp.kernel
+def warm_start(inv_mass: wp.array(dtype=float), dv: wp.array(dtype=wp.vec3)):
+    """The last substep's dv as this one's first guess, for the free particles (a pinned particle's is 0, or
+    prescribed after)."""
+    i = wp.tid()
+    if inv_mass[i] == 0.0:
+        dv[i] = wp.vec3(0.0)
+
+
+@wp.kernel
 def start_newton(newton: wp.array2d(dtype=int)):
     w = wp.tid()
     newton[w, 0] = 1

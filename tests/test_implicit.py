@@ -148,3 +148,34 @@ def test_explicit_integrators_with_a_fixed_limit_solve_report_no_solver_stats():
     assert wc.Simulator(scene, device="cpu").solver_stats() is None
     assert math.isfinite(wc.ImplicitSolver().cg_tolerance)
 
+
+
+def test_a_step_started_from_the_last_solution_meets_the_same_tolerance_in_fewer_iterations():
+    """The implicit step's solve starts from the last substep's dv (carried with the state), and its
+    tolerance is relative to the right-hand side, so it stops where a solve from zero would: on a hanging
+    cotton square the same substep, from the same state, taken from the last dv and from zero, both meet
+    the tolerance, land within a micrometre of each other, and the first takes fewer iterations."""
+    cloth = wc.Cloth(resolution=(23, 23), size=(2.0, 2.0), orientation="vertical", origin=(-1.0, 0.0, 0.0),
+                     material=wc.Material(preset="cotton"), limit=wc.Limit(stretch=0.1, compression=0.1),
+                     pins=(wc.Pin(corners=("top-left", "top-right")),))
+    scene = wc.Scene(cloths=(cloth,), simulation=wc.Simulation(fps=24, substeps=10, integrator="implicit"))
+    sim = wc.Simulator(scene, device="cpu")
+    for _ in range(6):
+        sim.step()
+    assert "implicit.dv" in sim.carried()
+    before = {name: array.numpy().copy() for name, array in sim.carried().items()}
+    sim.solver_stats()
+    runs = {}
+    for start in ("last", "zero"):
+        carried = sim.carried()  # the buffers of the current parity
+        for name, array in carried.items():
+            array.assign(before[name])
+        if start == "zero":
+            carried["implicit.dv"].zero_()
+        sim.substep()
+        runs[start] = (sim.solver_stats(), sim.positions())
+    (warm, warm_x), (cold, cold_x) = runs["last"], runs["zero"]
+    tolerance = scene.implicit.cg_tolerance
+    assert warm.cg_relative_residual <= tolerance and cold.cg_relative_residual <= tolerance
+    assert warm.cg_iterations < cold.cg_iterations
+    assert np.abs(warm_x - cold_x).max() < 1e-6

@@ -28,7 +28,7 @@ class SolveStats:
     explicit integrators) and of a converged limit solve (None with ``limit_solve = "fixed"``)."""
 
     cg_iterations: int | None = None
-    cg_relative_residual: float | None = None  # sqrt(r.z / r0.z0) of the preconditioned residual
+    cg_relative_residual: float | None = None  # sqrt(r.z / b.Pb): the preconditioned residual, of the rhs's
     newton_iterations: int | None = None
     newton_residual: float | None = None  # RMS over free particles of |M (v - v0) - h f| / m, in m/s
     limit_passes: int | None = None  # the most projection passes a substep
@@ -103,7 +103,7 @@ class BackwardEuler:
         launch(implicit.start_newton, self.worlds, outputs=[self.newton])
         # Baraff & Witkin's step, linearised at the start of the step.
         launch(implicit.newton_rhs, self.n, inputs=[x0, v0, v0, self.system, 1], outputs=[self.r])
-        self._solve(x0, v0, state.clock)
+        self._solve(x0, v0, state.clock, warm=self.settings.newton_iterations == 1)
         finish = [self.h, self.world, self.newton]
         launch(implicit.finish_step, self.n, inputs=[x0, v0, self.dv, *finish], outputs=[x1, v1])
         # Further Newton steps on M (v - v0) = h f(x0 + h v, v), at y = x0 + h v = x1, until the residual
@@ -112,7 +112,7 @@ class BackwardEuler:
             self._newton_residual(x1, v1, v0)
             launch(implicit.continue_newton, self.worlds, inputs=[self.partial_2, self.lanes, self.free_particles,
                                                                   self.settings.newton_tolerance], outputs=[self.newton])
-            self._solve(x1, v1, state.clock)
+            self._solve(x1, v1, state.clock, warm=False)
             launch(implicit.finish_step, self.n, inputs=[x0, v1, self.dv, *finish], outputs=[x1, v1])
         if self.settings.newton_iterations > 1:
             self._newton_residual(x1, v1, v0)
@@ -136,18 +136,27 @@ class BackwardEuler:
         wp.launch_tiled(cg.total_partials, dim=[1], inputs=[self.partial, active], outputs=[self.partial_2],
                         block_dim=cg.SUM_BLOCK, device=self.device)
 
-    def _solve(self, y: wp.array, v: wp.array, clock: wp.array) -> None:
-        """dv from A dv = r (r holds the right-hand side), with pinned particles' dv prescribed."""
+    def _solve(self, y: wp.array, v: wp.array, clock: wp.array, warm: bool) -> None:
+        """dv from A dv = r (r holds the right-hand side), with pinned particles' dv prescribed; from the last
+        solve's dv where ``warm`` (a step's, not a Newton correction's), else from zero. The tolerance is
+        relative to the right-hand side's size, so a solve from a first guess stops where one from zero
+        would."""
         launch = self._launch
         s = self.settings
-        self.dv.zero_()
+        launch(implicit.block_jacobi_inverse, self.n, inputs=[y, self.system], outputs=[self.inverse])
+        launch(cg.precondition, self.n, inputs=[self.inverse, self.r, self.world, self.always], outputs=[self.z])
+        self._dot(self.r, self.z, self.always)
+        launch(cg.reference, self.worlds, inputs=[self.partial_2, self.lanes], outputs=[self.scalars])
+        if warm:
+            launch(implicit.warm_start, self.n, inputs=[self.inv_mass], outputs=[self.dv])
+        else:
+            self.dv.zero_()
         if self.pins is not None:
             p = self.pins
             launch(motion.pinned_velocity_change, p.index.shape[0],
                    inputs=[p.index, p.amplitude, p.frequency, p.phase, clock, self.h, v], outputs=[self.dv])
         launch(implicit.system_times, self.n, inputs=[y, self.dv, self.always, self.system], outputs=[self.ap])
         launch(cg.subtract, self.n, inputs=[self.r, self.ap], outputs=[self.r])
-        launch(implicit.block_jacobi_inverse, self.n, inputs=[y, self.system], outputs=[self.inverse])
         launch(cg.precondition, self.n, inputs=[self.inverse, self.r, self.world, self.always], outputs=[self.z])
         wp.copy(self.p, self.z)
         self._dot(self.r, self.z, self.always)
@@ -178,6 +187,10 @@ class BackwardEuler:
         self._launch(implicit.newton_rhs, self.n, inputs=[y, v, v0, self.system, 0], outputs=[self.r])
         self._launch(implicit.per_unit_mass, self.n, inputs=[self.r, self.inv_mass], outputs=[self.z])
         self._dot(self.z, self.z, self.always)
+
+    def carried(self) -> dict[str, wp.array]:
+        """The last step's dv, the next step's first guess (where a step is one solve), by name."""
+        return {"implicit.dv": self.dv} if self.settings.newton_iterations == 1 else {}
 
     def read_stats(self) -> SolveStats:
         values = self.stats.numpy().copy()

@@ -46,6 +46,8 @@ class SolvingPass(Pass, Protocol):
 
     def read_stats(self) -> SolveStats: ...
 
+    def carried(self) -> dict[str, wp.array]: ...
+
 
 @dataclass(frozen=True)
 class Plan:
@@ -61,9 +63,11 @@ class Plan:
 
     def carried(self) -> dict[str, wp.array]:
         """The plan's arrays that a substep reads before writing them (the converged solve's estimated
-        spectral radius, which it carries from solve to solve; the face contacts' lists), by name."""
+        spectral radius, which it carries from solve to solve; the implicit step's last dv, its next first
+        guess; the face contacts' lists), by name."""
         projection = self.projection
         arrays = {"projection.omega": projection.omega} if projection is not None and projection.accelerated else {}
+        arrays |= self.solve.carried() if self.solve is not None else {}
         return arrays | (self.faces.carried() if self.faces is not None else {})
 
     def run_substep(self, state: DeviceState) -> None:

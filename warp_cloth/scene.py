@@ -785,8 +785,9 @@ class ImplicitSolver:
     """Settings of the ``implicit`` integrator (backward Euler). One Newton step is Baraff & Witkin's
     linearised step; more steps solve the nonlinear backward Euler equations until the residual (RMS over
     free particles of |M (v - v0) - h f| / m, in m/s) is below ``newton_tolerance``. Each step is solved
-    by conjugate gradient to ``cg_tolerance`` (relative, in the preconditioned norm) or
-    ``cg_max_iterations``, in a conditional loop on the device (inside the captured graph)."""
+    by conjugate gradient to ``cg_tolerance`` (relative to the right-hand side, in the preconditioned norm)
+    or ``cg_max_iterations``, in a conditional loop on the device (inside the captured graph); a single step
+    starts from the last substep's solution."""
 
     newton_iterations: int = 1
     newton_tolerance: float = 1e-4
