@@ -6,11 +6,10 @@ entry is the least of its own distance to the triangles, that of each of its tri
 that of each of its edges to the edges. kernels/displacement_bounds.py turns it into the vertex's bound;
 warp_cloth/displacement_bounds.py launches both.
 
-r is chosen on the device for each particle (``radii``): the settings' radius, widened where a step is
-measured so that gamma r covers the particle's own motion if it is free (``radius_for_motion``); ``query[0]``
-is the largest, for which the hash is made. Nothing within r of a particle then bounds it at gamma r, at least
-its own step: a particle with nothing near takes its whole step, and a pair found nearer than r bounds its
-vertices as before.
+r is chosen on the device (``query[0]``): the settings' radius, widened where a step is measured so that
+gamma r covers the longest motion of a free particle (``widen_to_motion``). Nothing within r of a particle
+then bounds it at gamma r, at least its own step: a particle with nothing near takes its whole step, and a
+pair found nearer than r bounds its vertices as before.
 
 The pairs are found through a spatial hash of the particles (spatial_hash.py) whose cells are r plus the
 longest edge wide (``next_table``): a triangle within r of a vertex has every vertex within r + L of it (L
@@ -28,7 +27,7 @@ from .edge_collision import EdgeRules, box_gap_sq, closest_points, may_touch
 from .face_collision import may_touch as may_touch_face
 from .spatial_hash import cell_of, count_in, neighbour_bucket, stamp_of
 
-# The radius a particle's step asks for, over its motion / gamma: so that gamma times it, rounded, is not
+# The radius a step's longest motion asks for, over motion / gamma: so that gamma times it, rounded, is not
 # below the motion and a particle with nothing near is never held short by a rounding.
 MOTION_SLACK = wp.constant(1.001)
 
@@ -97,24 +96,19 @@ def longest_edge(x: wp.array(dtype=wp.vec3), ends: wp.array(dtype=wp.vec2i), lon
 
 
 @wp.kernel
-def radius_for_motion(x: wp.array(dtype=wp.vec3), target: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float),
-                      gamma: float, least: float, radii: wp.array(dtype=float), query: wp.array(dtype=float)):
-    """Each particle's query radius: ``least``, or, for a free particle whose step from ``x`` to ``target``
-    gamma times ``least`` does not cover, the step over gamma (with ``MOTION_SLACK``), so that a particle with
-    nothing near takes its whole step; ``query[0]`` raised to the largest (``least`` before)."""
+def widen_to_motion(x: wp.array(dtype=wp.vec3), target: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float),
+                    gamma: float, radius: wp.array(dtype=float)):
+    """Raises ``radius[0]`` so that gamma times it covers the longest step a free particle takes from ``x`` to
+    ``target`` (with ``MOTION_SLACK``): a particle no pair is near within it then takes its whole step."""
     i = wp.tid()
-    r = least
     if inv_mass[i] > 0.0:
-        r = wp.max(r, MOTION_SLACK * wp.length(target[i] - x[i]) / gamma)
-    radii[i] = r
-    wp.atomic_max(query, 0, r)
+        wp.atomic_max(radius, 0, MOTION_SLACK * wp.length(target[i] - x[i]) / gamma)
 
 
 @wp.kernel
-def fill_with_radius(radii: wp.array(dtype=float), nearest: wp.array(dtype=float)):
-    """Every particle's ``nearest`` at its query radius, before the pairs lower it."""
-    i = wp.tid()
-    nearest[i] = radii[i]
+def fill_with_radius(radius: wp.array(dtype=float), nearest: wp.array(dtype=float)):
+    """Every particle's ``nearest`` at the query radius, before the pairs lower it."""
+    nearest[wp.tid()] = radius[0]
 
 
 @wp.kernel

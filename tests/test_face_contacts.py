@@ -217,19 +217,19 @@ def test_sheets_pressed_together_do_not_cross(device):
 def test_the_bounds_read_off_the_lists_are_a_searchs_where_they_matter():
     """The substep's bounds come from the surface contacts' lists (BoundsFromLists), not a search of their own:
     as the pressed sheets drape over the sphere, each vertex's nearest distance from the lists equals that of
-    the search over every pair (the bounds' own hash, within the vertex's query radius, where the substep
-    started) wherever the search finds a pair within the thickness plus twice the least particle's largest bound,
-    nearer pairs than any the lists leave out, and is no nearer anywhere."""
+    the search over every pair (the bounds' own hash, at the same query radius, where the substep started)
+    wherever the search finds a pair within the thickness plus twice the largest bound, nearer pairs than any
+    the lists leave out, and is no nearer anywhere."""
     sim = wc.Simulator(pressed_scene(12), device="cpu")
     bounds = sim.plan.bounds
     for _ in range(12):
         sim.step()
-    listed, radii = bounds.nearest.numpy(), bounds.radii.numpy()
+    listed = bounds.nearest.numpy()
     query = float(bounds.query.numpy()[0])
     search = DisplacementBounds(sim.model, sim.device_model, BoundSettings(radius=query, gamma=bounds.settings.gamma))
     search.measure_at(bounds.start)
-    found = np.minimum(radii, search.nearest.numpy())  # within each particle's radius
-    matters = found < THICKNESS + 2.0 * bounds.settings.gamma * radii.min()  # a pair left out: beyond both reaches
+    found = search.nearest.numpy()
+    matters = found < THICKNESS + 2.0 * bounds.settings.gamma * query  # a pair left out: beyond both reaches
     assert matters.sum() > 100  # the sheets lie pressed together over the sphere
     np.testing.assert_allclose(listed[matters], found[matters], rtol=1e-5)
     assert np.all(listed >= found * (1.0 - 1e-5))

@@ -1,7 +1,7 @@
 """Displacement bounds (issue 34): a step that never creates a crossing, as in Offset Geometric Contact
 (Chen et al. 2025). A substep records where it starts; after the integrator and the solves every vertex's
 bound is measured there (the nearest vertex-triangle and edge-edge pairs that are contacts, surface_pairs.py,
-within the particle's query radius), each
+within the query radius), each
 particle's displacement from the start is clamped to its bound and its velocity made the clamped displacement
 over the substep, before the contact velocities where the scene has them (kernels/displacement_bounds.py,
 whose docstring proves that no pair of triangles apart at the start then crosses). With ``rounds`` above 1,
@@ -16,12 +16,14 @@ clamp after the solve alone undid the limits: the fold at 4 mm landed at +15.3% 
 the thickness apart, against +10.4% / -10.4% and 0.95 with the bounds held inside (docs/notebook/layers.md,
 "Sides where the substep started, and the bounds inside the solve").
 
-Each particle's query radius is the settings' or, where its own step asks for more, its motion / gamma: OGC
+The query radius is the settings' or, where the step's longest motion asks for more, motion / gamma: OGC
 bounds a vertex with nothing within the radius at gamma times the radius, which at a fixed radius caps the
 speed of a cloth falling through empty air (0.56 thicknesses a substep at 1.25 thicknesses); measured after
 the step (before a converged solve that holds them, else after the solves), the radius follows it, and a
-particle with nothing near takes its whole step. One radius for all, the fastest particle's, made every
-particle's reach in the lists as wide.
+particle with nothing near takes its whole step. One radius for all gives every particle room for the solve's
+corrections beyond its own step: each particle's own radius held the slow ones short of their limits'
+corrections (seed_default at 4 mm and its 17 substeps: +16.0% in 18 frames against +10.5%,
+docs/notebook/layers.md).
 
 A scene with a surface thickness (``[collision] thickness``) has them at ``for_thickness``'s settings, and
 reads them off the surface contacts' lists, which hold every pair they need (kernels/listed_distances.py),
@@ -57,7 +59,7 @@ from .state import DeviceState, hash_table_size
 
 @dataclass(frozen=True)
 class BoundSettings:
-    """``radius``: the least query radius r in metres (a particle's motion / gamma widens its own); ``gamma``:
+    """``radius``: the least query radius r in metres (a step's longest motion / gamma widens it); ``gamma``:
     below 1/2; ``rounds``:
     clamps a substep, each after bounds measured where the last left the particles (1: the start's alone)."""
     radius: float = 0.01
@@ -86,7 +88,7 @@ class BoundSettings:
 
 # The query radius, in thicknesses: above 1, so that pairs held at the thickness are measured at their
 # distance (a bound of gamma times it); the least radius: a step that moves a particle farther than gamma
-# times it widens its radius (``radius_for_motion``), so no particle is held short for want of one. 2.5 measured
+# times it widens it (``widen_to_motion``), so no particle is held short for want of radius. 2.5 measured
 # the same quality at 1.3 to 1.45 times the time on a stack of fine cells (3 x 32^2 at 0.5 m, 4 mm, CPU):
 # its reach filled the edge lists with the sheets' own neighbouring edges (docs/notebook/layers.md).
 RADIUS_THICKNESSES = 1.25
@@ -153,8 +155,7 @@ class DisplacementBounds:
         grid.bucket_items = wp.zeros(table * BUCKET_CAPACITY, dtype=int, device=device)
         self.insert_always = wp.ones(1, dtype=int, device=device)  # the hash's request to fill: every table
         self.longest = wp.zeros(1, dtype=float, device=device)
-        self.radii = wp.zeros(n, dtype=float, device=device)  # each particle's query radius, the last chosen
-        self.query = wp.zeros(1, dtype=float, device=device)  # their largest, which the hash's cells take
+        self.query = wp.zeros(1, dtype=float, device=device)  # the query radius last chosen
         self.nearest = wp.zeros(n, dtype=float, device=device)
         self.start = wp.zeros(n, dtype=wp.vec3, device=device)
         self.position = wp.zeros(n, dtype=wp.vec3, device=device)
@@ -177,16 +178,14 @@ class DisplacementBounds:
         return None if settings is None else cls(model, device_model, settings)
 
     def choose_query(self, x: wp.array, target: wp.array | None = None) -> None:
-        """Each particle's query radius (``radii``) and their largest (``query``): the settings' radius, or,
-        with the positions the step would take the particles from ``x`` to (``target``), wider where gamma
-        times it would hold a free particle short of its own step."""
+        """The query radius (``query``): the settings' radius, or, with the positions the step would take the
+        particles from ``x`` to (``target``), wider where gamma times it would hold a free particle short of
+        its step."""
         self.query.fill_(self.settings.radius)
-        if target is None:
-            self.radii.fill_(self.settings.radius)
-        else:
-            wp.launch(primitive_distances.radius_for_motion, dim=self.n,
-                      inputs=[x, target, self.device_model.inv_mass, self.settings.gamma, self.settings.radius],
-                      outputs=[self.radii, self.query], device=self.device)
+        if target is not None:
+            wp.launch(primitive_distances.widen_to_motion, dim=self.n,
+                      inputs=[x, target, self.device_model.inv_mass, self.settings.gamma], outputs=[self.query],
+                      device=self.device)
 
     def measure_at(self, x: wp.array, target: wp.array | None = None) -> None:
         """Each particle's nearest pair distance at positions ``x``, into ``nearest``, within the query radius
@@ -201,14 +200,14 @@ class DisplacementBounds:
                   inputs=[x, self.mesh.rules.world, grid.inv_cell, grid.mask, grid.capacity, grid.epoch,
                           self.insert_always],
                   outputs=[grid.bucket_size, grid.bucket_items, self.overflow], device=device)
-        wp.launch(primitive_distances.fill_with_radius, dim=self.n, inputs=[self.radii], outputs=[self.nearest],
+        wp.launch(primitive_distances.fill_with_radius, dim=self.n, inputs=[self.query], outputs=[self.nearest],
                   device=device)
         wp.launch(primitive_distances.nearest_to_triangles, dim=self.n,
                   inputs=[x, self.mesh, grid, self.query, self.longest], outputs=[self.nearest], device=device)
         wp.launch(primitive_distances.nearest_between_edges, dim=self.edge_count,
                   inputs=[x, self.mesh, grid, self.query, self.longest], outputs=[self.nearest], device=device)
 
-    MEASURE_LAUNCHES = ["the query radius filled with the settings'", "radius_for_motion", "a zeroed longest edge",
+    MEASURE_LAUNCHES = ["the query radius filled with the settings'", "widen_to_motion", "a zeroed longest edge",
                         "longest_edge", "next_table", "insert_points_at_chosen_width", "fill_with_radius",
                         "nearest_to_triangles", "nearest_between_edges"]
 
@@ -238,8 +237,8 @@ class RecordStart:
 
 
 class MeasureBounds:
-    """Before the solves: the bounds measured where the substep started, within query radii wide enough for
-    each particle's step's motion so far, for ``HoldWithinBounds`` in the solve."""
+    """Before the solves: the bounds measured where the substep started, within a query radius wide enough
+    for the step's motion so far, for ``HoldWithinBounds`` in the solve."""
 
     name = "bounds:measure"
 
@@ -254,8 +253,8 @@ class MeasureBounds:
 
 
 class ChooseQuery:
-    """Before the surface contacts' lists (with a thickness): each particle's query radius, wide enough for its
-    step's motion so far from where the substep started; gamma times it is the particle's reach in the lists
+    """Before the surface contacts' lists (with a thickness): the query radius, wide enough for the step's
+    motion so far from where the substep started; gamma times it is every free particle's reach in the lists
     (kernels/surface_reach.py), from which ``BoundsFromLists`` reads the bounds."""
 
     name = "bounds:query"
@@ -289,7 +288,7 @@ class BoundsFromLists:
     def run(self, state: DeviceState) -> None:
         bounds, device = self.bounds, state.device
         start, nearest = bounds.start, bounds.nearest
-        wp.launch(primitive_distances.fill_with_radius, dim=bounds.n, inputs=[bounds.radii], outputs=[nearest],
+        wp.launch(primitive_distances.fill_with_radius, dim=bounds.n, inputs=[bounds.query], outputs=[nearest],
                   device=device)
         wp.launch(listed_distances.nearest_listed_triangles, dim=bounds.n, inputs=[start, self.faces],
                   outputs=[nearest], device=device)

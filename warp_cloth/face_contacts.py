@@ -100,10 +100,10 @@ class FaceContacts:
 
     def ask_if_moved(self, start: wp.array, x: wp.array, bounds: DisplacementBounds, lists: ListState) -> None:
         """Asks for the lists' remake where a particle's move from where they were made, plus its reach this
-        substep (its largest bound, gamma times its query radius, or a pin's move to ``x``), passes its
+        substep (the bounds' largest, gamma times their query radius, or a pin's move to ``x``), passes its
         allowance."""
         wp.launch(surface_reach.ask_if_beyond_allowance, dim=self.n,
-                  inputs=[start, x, bounds.radii, bounds.settings.gamma, self.inv_mass, self.built, self.allowance],
+                  inputs=[start, x, bounds.query, bounds.settings.gamma, self.inv_mass, self.built, self.allowance],
                   outputs=[lists.rebuild], device=self.device)
 
     def allow(self, start: wp.array, x: wp.array, bounds: DisplacementBounds, lists: ListState) -> None:
@@ -112,7 +112,7 @@ class FaceContacts:
         wp.launch(surface_reach.start_allowances, dim=1, inputs=[lists.rebuild], outputs=[self.widest],
                   device=self.device)
         wp.launch(surface_reach.allow, dim=self.n,
-                  inputs=[start, x, bounds.radii, bounds.settings.gamma, self.inv_mass, lists.rebuild],
+                  inputs=[start, x, bounds.query, bounds.settings.gamma, self.inv_mass, lists.rebuild],
                   outputs=[self.built, self.allowance, self.widest], device=self.device)
 
     def remake_if_asked(self, x: wp.array, lists: ListState) -> None:
