@@ -5,34 +5,30 @@ edge's edges, as the lists hold them, at the positions ``x`` (where the substep 
 Where the lists are made and kept so that every pair left out lies farther apart than the thickness plus
 twice the largest bound of the substep (surface_reach.py), a pair left out cannot come near enough in the
 substep to need a lower bound, and a full list keeps the nearest pairs (candidate_lists.py), so a vertex's
-least distance over its lists is its least over every pair that matters. Each list lowers ``nearest``
-(filled with the query radius before) at its owner's vertices only; a pair is in both its sides' lists, or
-the side that left it out holds nearer ones."""
+least distance over its lists is its least over every pair that matters. Each vertex's own list sets its
+``nearest`` (at most the query radius), then each triangle's and each edge's list lowers it at their
+vertices; a pair is in both its sides' lists, or the side that left it out holds nearer ones."""
 
 import warp as wp
 
 from .edge_collision import EdgeContacts
 from .face_collision import FaceContacts
-from .primitive_distances import point_triangle_distance, segment_distance
-
-
-@wp.func
-def lower_below(nearest: wp.array(dtype=float), i: int, d: float):
-    if d < nearest[i]:
-        wp.atomic_min(nearest, i, d)
+from .primitive_distances import lower_nearest, point_triangle_distance, segment_distance
 
 
 @wp.kernel
-def nearest_listed_triangles(x: wp.array(dtype=wp.vec3), faces: FaceContacts, nearest: wp.array(dtype=float)):
-    """Each vertex's least distance to the triangles its list holds (entries 2 t + side)."""
+def nearest_listed_triangles(x: wp.array(dtype=wp.vec3), faces: FaceContacts, query: wp.array(dtype=float),
+                             nearest: wp.array(dtype=float)):
+    """Each vertex's least distance to the triangles its list holds (entries 2 t + side), at most the query
+    radius (``query[0]``): the first of the three, which sets ``nearest``."""
     v = wp.tid()
     p = x[v]
     start = v * faces.max_neighbors
-    d = float(1.0e30)
+    d = query[0]
     for k in range(faces.vertex_counts[v]):
         t = faces.triangles[faces.vertex_faces[start + k] >> 1]
         d = wp.min(d, point_triangle_distance(p, x[t[0]], x[t[1]], x[t[2]]))
-    lower_below(nearest, v, d)
+    nearest[v] = d
 
 
 @wp.kernel
@@ -48,9 +44,9 @@ def nearest_listed_vertices(x: wp.array(dtype=wp.vec3), faces: FaceContacts, nea
     d = float(1.0e30)
     for k in range(faces.face_counts[i]):
         d = wp.min(d, point_triangle_distance(x[faces.face_vertices[start + k] >> 1], a, b, c))
-    lower_below(nearest, t[0], d)
-    lower_below(nearest, t[1], d)
-    lower_below(nearest, t[2], d)
+    lower_nearest(nearest, t[0], d)
+    lower_nearest(nearest, t[1], d)
+    lower_nearest(nearest, t[2], d)
 
 
 @wp.kernel
@@ -65,5 +61,5 @@ def nearest_listed_edges(x: wp.array(dtype=wp.vec3), edges: EdgeContacts, neares
     for k in range(edges.counts[e]):
         other = edges.ends[edges.neighbors[start + k]]
         d = wp.min(d, segment_distance(p, q, x[other[0]], x[other[1]]))
-    lower_below(nearest, ends[0], d)
-    lower_below(nearest, ends[1], d)
+    lower_nearest(nearest, ends[0], d)
+    lower_nearest(nearest, ends[1], d)

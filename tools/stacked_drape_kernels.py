@@ -2,8 +2,9 @@
 
 The stacked drape of tools/stacked_drape.py (its scene, a 4 mm contact radius, edge contacts), with the
 surface thickness and the lab's displacement bounds as asked, stepped without graphs (``use_graph`` off: a
-CPU graph replays launches that ``wp.launch`` does not see), after ``--skip`` frames stepped with them. On the CPU ``wp.launch`` is wrapped in a wall clock:
-a CPU launch returns when its kernel has run, so each launch's wall time is its kernel's. On CUDA Warp's
+CPU graph replays launches that ``wp.launch`` does not see), after ``--skip`` frames stepped with them. On
+the CPU ``wp.launch`` is wrapped in a wall clock: a CPU launch returns when its kernel has run, so each
+launch's wall time is its kernel's. On CUDA Warp's
 activity timing (``wp.timing_begin``) gives each kernel's, copy's and fill's device time, after one frame
 that loads the kernels. Prints the frames' wall time and each kernel's launches and seconds, costliest first,
 and writes them as JSON.

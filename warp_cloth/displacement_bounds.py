@@ -283,14 +283,12 @@ class BoundsFromLists:
         self.bounds, self.faces, self.edges = bounds, faces, edges
 
     def describe(self) -> list[str]:
-        return [f"{self.name}:", "    fill_with_radius"] + [f"    {kernel.key}" for kernel in self.kernels]
+        return [f"{self.name}:"] + [f"    {kernel.key}" for kernel in self.kernels]
 
     def run(self, state: DeviceState) -> None:
         bounds, device = self.bounds, state.device
         start, nearest = bounds.start, bounds.nearest
-        wp.launch(primitive_distances.fill_with_radius, dim=bounds.n, inputs=[bounds.query], outputs=[nearest],
-                  device=device)
-        wp.launch(listed_distances.nearest_listed_triangles, dim=bounds.n, inputs=[start, self.faces],
+        wp.launch(listed_distances.nearest_listed_triangles, dim=bounds.n, inputs=[start, self.faces, bounds.query],
                   outputs=[nearest], device=device)
         wp.launch(listed_distances.nearest_listed_vertices, dim=self.faces.triangles.shape[0],
                   inputs=[start, self.faces], outputs=[nearest], device=device)
