@@ -99,6 +99,13 @@ def sewn_near(rules: EdgeRules, a: wp.vec2i, b: wp.vec2i) -> bool:
 
 @wp.func
 def may_touch(rules: EdgeRules, a: wp.vec2i, b: wp.vec2i) -> bool:
+    return may_touch_but_at_rest(rules, a, b) and apart_at_rest(rules, a, b)
+
+
+@wp.func
+def may_touch_but_at_rest(rules: EdgeRules, a: wp.vec2i, b: wp.vec2i) -> bool:
+    """``may_touch`` but for the rest rule (``apart_at_rest``), which costs a distance: the lists' gathers
+    test it last, on the pairs within reach."""
     if shares_particle(a, b):
         return False
     if rules.sewn_offsets.shape[0] > 0:
@@ -110,14 +117,19 @@ def may_touch(rules: EdgeRules, a: wp.vec2i, b: wp.vec2i) -> bool:
         return False
     if rules.cloth_id[i] != rules.cloth_id[j]:
         return rules.between_cloths != 0
-    if rules.self_collision == 0:
-        return False
-    if rules.rest.shape[0] > 0:
-        rest = rules.rest
-        st = closest_points(rest[a[0]], rest[a[1]], rest[b[0]], rest[b[1]])
-        apart = wp.length(wp.lerp(rest[a[0]], rest[a[1]], st[0]) - wp.lerp(rest[b[0]], rest[b[1]], st[1]))
-        return apart >= rules.rest_apart[rules.cloth_id[i]]
-    return True
+    return rules.self_collision != 0
+
+
+@wp.func
+def apart_at_rest(rules: EdgeRules, a: wp.vec2i, b: wp.vec2i) -> bool:
+    """Whether edges a and b are no pair of one cloth nearer at rest than its ``rest_apart``."""
+    i = a[0]
+    if rules.rest.shape[0] == 0 or rules.cloth_id[i] != rules.cloth_id[b[0]]:
+        return True
+    rest = rules.rest
+    st = closest_points(rest[a[0]], rest[a[1]], rest[b[0]], rest[b[1]])
+    apart = wp.length(wp.lerp(rest[a[0]], rest[a[1]], st[0]) - wp.lerp(rest[b[0]], rest[b[1]], st[1]))
+    return apart >= rules.rest_apart[rules.cloth_id[i]]
 
 
 @wp.func

@@ -81,6 +81,13 @@ def closest_weights(p: wp.vec3, a: wp.vec3, b: wp.vec3, c: wp.vec3) -> wp.vec3:
 def may_touch(rules: EdgeRules, v: int, t: wp.vec3i) -> bool:
     """Whether vertex v and triangle t may touch: as edge_collision's pairs, v not one of t's vertices nor
     sewn to one, nor (with a rest rule) of t's cloth and nearer it at rest than the cloth's ``rest_apart``."""
+    return may_touch_but_at_rest(rules, v, t) and apart_at_rest(rules, v, t)
+
+
+@wp.func
+def may_touch_but_at_rest(rules: EdgeRules, v: int, t: wp.vec3i) -> bool:
+    """``may_touch`` but for the rest rule (``apart_at_rest``), which costs a distance: the lists' gathers
+    test it last, on the pairs within reach."""
     if v == t[0] or v == t[1] or v == t[2]:
         return False
     if rules.sewn_offsets.shape[0] > 0:
@@ -92,17 +99,21 @@ def may_touch(rules: EdgeRules, v: int, t: wp.vec3i) -> bool:
         return False
     if rules.cloth_id[v] != rules.cloth_id[t[0]]:
         return rules.between_cloths != 0
-    if rules.self_collision == 0:
-        return False
-    if rules.rest.shape[0] > 0:
-        rest = rules.rest
-        a = rest[t[0]]
-        b = rest[t[1]]
-        c = rest[t[2]]
-        weights = closest_weights(rest[v], a, b, c)
-        apart = wp.length(rest[v] - (weights[0] * a + weights[1] * b + weights[2] * c))
-        return apart >= rules.rest_apart[rules.cloth_id[v]]
-    return True
+    return rules.self_collision != 0
+
+
+@wp.func
+def apart_at_rest(rules: EdgeRules, v: int, t: wp.vec3i) -> bool:
+    """Whether vertex v and triangle t are no pair of one cloth nearer at rest than its ``rest_apart``."""
+    if rules.rest.shape[0] == 0 or rules.cloth_id[v] != rules.cloth_id[t[0]]:
+        return True
+    rest = rules.rest
+    a = rest[t[0]]
+    b = rest[t[1]]
+    c = rest[t[2]]
+    weights = closest_weights(rest[v], a, b, c)
+    apart = wp.length(rest[v] - (weights[0] * a + weights[1] * b + weights[2] * c))
+    return apart >= rules.rest_apart[rules.cloth_id[v]]
 
 
 @wp.func

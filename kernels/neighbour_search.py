@@ -8,9 +8,10 @@ import functools
 import warp as wp
 
 from .candidate_lists import keeping_nearest
-from .edge_collision import EdgeContacts, EdgeRules, box_gap_sq, may_touch, pair_gap
+from .edge_collision import EdgeContacts, EdgeRules, apart_at_rest, box_gap_sq, may_touch_but_at_rest, pair_gap
 from .face_collision import FaceContacts, side_bit
-from .face_collision import may_touch as may_touch_face
+from .face_collision import apart_at_rest as apart_at_rest_face
+from .face_collision import may_touch_but_at_rest as may_touch_face_but_at_rest
 from .gathering import BLOCK, FAST_MATH, sum_over_threads, thread_layout
 from .particle_collision import (Contacts, ListState, PairRules, add_candidate, is_candidate,
                                  sort_and_drop_repeats)
@@ -226,9 +227,10 @@ def gather_edge_candidates(x: wp.array(dtype=wp.vec3), midpoint: wp.array(dtype=
                     p_f = x[ends_f[0]]
                     q_f = x[ends_f[1]]
                     if box_gap_sq(low, high, wp.min(p_f, q_f), wp.max(p_f, q_f)) < box_reach_sq:
-                        if f != e and may_touch(rules, ends_e, ends_f):
+                        if f != e and may_touch_but_at_rest(rules, ends_e, ends_f):
                             gap = pair_gap(edges.ends, x, e, f)
-                            if gap < own + edge_allowance(allowance, ends_f):
+                            within = gap < own + edge_allowance(allowance, ends_f)
+                            if within and apart_at_rest(rules, ends_e, ends_f):
                                 count = insert_edge(edges.neighbors, start, count, edges.max_neighbors, f, gap,
                                                     lists.overflow, owner)
     edges.counts[e] = sort_and_drop_repeats(edges.neighbors, start, count)
@@ -271,9 +273,10 @@ def gather_vertex_faces(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules: 
                         b = x[t[1]]
                         c = x[t[2]]
                         if box_gap_sq(p, p, wp.min(wp.min(a, b), c), wp.max(wp.max(a, b), c)) < box_reach_sq:
-                            if may_touch_face(rules, v, t):
+                            if may_touch_face_but_at_rest(rules, v, t):
                                 gap = point_triangle_distance(p, a, b, c)
-                                if gap < own + triangle_allowance(allowance, t):
+                                within = gap < own + triangle_allowance(allowance, t)
+                                if within and apart_at_rest_face(rules, v, t):
                                     count = insert_triangle(faces.vertex_faces, start, count, faces.max_neighbors,
                                                             2 * t_index + side_bit(p, a, b, c), gap,
                                                             lists.overflow,
@@ -314,9 +317,9 @@ def gather_face_vertices(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules:
                 v = bucket_items[bucket * capacity + s]
                 p = x[v]
                 if box_gap_sq(p, p, low, high) < box_reach_sq:
-                    if may_touch_face(rules, v, t):
+                    if may_touch_face_but_at_rest(rules, v, t):
                         gap = point_triangle_distance(p, a, b, c)
-                        if gap < own + allowance[v]:
+                        if gap < own + allowance[v] and apart_at_rest_face(rules, v, t):
                             count = insert_vertex(faces.face_vertices, start, count, faces.max_neighbors,
                                                   2 * v + side_bit(p, a, b, c), gap, lists.overflow, owner)
     faces.face_counts[t_index] = sort_and_drop_repeats(faces.face_vertices, start, count)
