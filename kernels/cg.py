@@ -6,11 +6,11 @@ Scalars live in small arrays, a row a world (``CG_*`` name its columns), so that
 host. The kernels of an iteration do nothing for a world whose solve has converged; ``iterating[0]`` is the
 loop's condition, 1 while any world's goes on, so a fixed number of iterations can be captured too and the
 surplus ones cost only their launch.
-Dot products are reduced in a fixed order, with no atomics, so the result is the same on every run: one
-world's by interleaved partial sums that one block then totals (a second level of 128 serial sums cost a
-third of an H200's conjugate gradient on the stacked drape, docs/notebook/layers.md), a batch's by
-``lanes`` partial sums a world. Each scalar kernel totals its world's ``lanes`` partials in one thread (one
-world's: its total, ``lanes`` 1).
+Dot products are reduced in a fixed order, with no atomics, so the result is the same on every run: each
+world's as ``lanes`` interleaved partial sums (written by the kernel that makes the vectors where it can),
+which the scalar kernel after totals, a block a world (a second level of 128 serial sums cost a third of an
+H200's conjugate gradient on the stacked drape, docs/notebook/layers.md). An iteration is six launches:
+A p, p . A p, alpha, the step with the preconditioner and r . z, beta, the next direction.
 """
 
 import warp as wp
@@ -21,37 +21,6 @@ CG_ALPHA = wp.constant(2)
 CG_BETA = wp.constant(3)
 CG_TOLERANCE_SQ = wp.constant(4)  # squared relative tolerance on sqrt(r . z)
 CG_SLOTS = 5
-
-
-@wp.kernel
-def dot_partials(a: wp.array(dtype=wp.vec3), b: wp.array(dtype=wp.vec3), stride: int, active: wp.array(dtype=int),
-                 partial: wp.array(dtype=float)):
-    """One world's a . b as ``stride`` interleaved partial sums."""
-    if active[0] == 0:
-        return
-    t = wp.tid()
-    total = float(0.0)
-    k = t
-    while k < a.shape[0]:
-        total += wp.dot(a[k], b[k])
-        k += stride
-    partial[t] = total
-
-
-SUM_TILE = 4096  # partial sums a block loads at a time: 16 a thread (1,024: twice the time on an H200)
-SUM_BLOCK = 256  # its threads: Warp's default block size, the one a graph capture has the module loaded for
-
-
-@wp.kernel
-def total_partials(values: wp.array(dtype=float), active: wp.array(dtype=int), total: wp.array(dtype=float)):
-    """By one block (``wp.launch_tiled``, dim 1): the sum of ``values`` into ``total[0]``, a tile at a time,
-    each summed by the block's tree."""
-    if active[0] == 0:
-        return
-    s = wp.tile_zeros(shape=1, dtype=float)
-    for offset in range(0, values.shape[0], SUM_TILE):
-        s += wp.tile_sum(wp.tile_load(values, shape=SUM_TILE, offset=offset))
-    wp.tile_store(total, s)
 
 
 @wp.kernel
@@ -72,11 +41,71 @@ def world_dot_partials(a: wp.array(dtype=wp.vec3), b: wp.array(dtype=wp.vec3), w
 
 
 @wp.func
-def world_total(partial: wp.array(dtype=float), w: int, lanes: int) -> float:
-    s = float(0.0)
-    for k in range(lanes):
-        s += partial[w * lanes + k]
-    return s
+def precondition_at(inverse: wp.array(dtype=wp.mat33), r: wp.array(dtype=wp.vec3), k: int,
+                    z: wp.array(dtype=wp.vec3)) -> float:
+    """z = P r at particle k; its part of r . z."""
+    rk = r[k]
+    zk = inverse[k] * rk
+    z[k] = zk
+    return wp.dot(rk, zk)
+
+
+@wp.kernel
+def precondition_and_dot(inverse: wp.array(dtype=wp.mat33), r: wp.array(dtype=wp.vec3),
+                         world_start: wp.array(dtype=int), lanes: int, active: wp.array(dtype=int),
+                         z: wp.array(dtype=wp.vec3), partial: wp.array(dtype=float)):
+    """z = P r (the block-Jacobi ``inverse``), and each world's r . z as ``lanes`` partial sums (as
+    ``world_dot_partials``)."""
+    t = wp.tid()
+    w = t / lanes
+    if active[w] == 0:
+        return
+    total = float(0.0)
+    k = world_start[w] + t - w * lanes
+    end = world_start[w + 1]
+    while k < end:
+        total += precondition_at(inverse, r, k, z)
+        k += lanes
+    partial[t] = total
+
+
+@wp.kernel
+def advance_and_precondition(p: wp.array(dtype=wp.vec3), ap: wp.array(dtype=wp.vec3),
+                             inverse: wp.array(dtype=wp.mat33), world_start: wp.array(dtype=int), lanes: int,
+                             scalars: wp.array2d(dtype=float), active: wp.array(dtype=int), x: wp.array(dtype=wp.vec3),
+                             r: wp.array(dtype=wp.vec3), z: wp.array(dtype=wp.vec3), partial: wp.array(dtype=float)):
+    """x += alpha p, r -= alpha A p, z = P r, and each world's new r . z as ``lanes`` partial sums."""
+    t = wp.tid()
+    w = t / lanes
+    if active[w] == 0:
+        return
+    alpha = scalars[w, CG_ALPHA]
+    total = float(0.0)
+    k = world_start[w] + t - w * lanes
+    end = world_start[w + 1]
+    while k < end:
+        x[k] = x[k] + alpha * p[k]
+        r[k] = r[k] - alpha * ap[k]
+        total += precondition_at(inverse, r, k, z)
+        k += lanes
+    partial[t] = total
+
+
+SUM_BLOCK = 256  # threads of a world's total: Warp's default block size, the one a graph capture has the module
+# loaded for
+
+
+@wp.func
+def world_total(partial: wp.array(dtype=float), w: int, lanes: int, lane: int) -> float:
+    """World w's ``lanes`` partial sums added up by its block (``wp.launch_tiled``, a block a world; every
+    thread of the block must call it, and every thread gets the total): each thread's share, then the block's
+    tree."""
+    share = float(0.0)
+    k = lane
+    while k < lanes:
+        share += partial[w * lanes + k]
+        k += wp.block_dim()
+    return wp.tile_sum(wp.tile(share))[0]
 
 
 @wp.kernel
@@ -84,8 +113,10 @@ def reference(partial: wp.array(dtype=float), lanes: int, scalars: wp.array2d(dt
     """After b . P b of each world's right-hand side (the preconditioned size of what a solve from zero would
     start with): the reference of the relative tolerance, so that a solve from a first guess stops where one
     from zero would."""
-    w = wp.tid()
-    scalars[w, CG_RZ0] = world_total(partial, w, lanes)
+    w, lane = wp.tid()
+    total = world_total(partial, w, lanes, lane)
+    if lane == 0:
+        scalars[w, CG_RZ0] = total
 
 
 @wp.kernel
@@ -95,8 +126,10 @@ def start(partial: wp.array(dtype=float), lanes: int, tolerance: float, max_iter
     """After r . z of each world's first residual (``reference`` before): arm its solve unless its first
     guess is within the tolerance already or it is not ``enabled`` (its Newton loop has converged). A world
     whose right-hand side is zero takes its first residual as the reference. ``iterating`` must be 0 before."""
-    w = wp.tid()
-    rz = world_total(partial, w, lanes)
+    w, lane = wp.tid()
+    rz = world_total(partial, w, lanes, lane)
+    if lane != 0:
+        return
     scalars[w, CG_RZ] = rz
     if scalars[w, CG_RZ0] <= 0.0:
         scalars[w, CG_RZ0] = rz
@@ -111,48 +144,32 @@ def start(partial: wp.array(dtype=float), lanes: int, tolerance: float, max_iter
 @wp.kernel
 def step_length(partial: wp.array(dtype=float), lanes: int, active: wp.array(dtype=int),
                 scalars: wp.array2d(dtype=float), iterating: wp.array(dtype=int)):
-    w = wp.tid()
-    if w == 0:
+    """After p . A p of each world (a block a world): alpha."""
+    w, lane = wp.tid()
+    if w == 0 and lane == 0:
         iterating[0] = 0  # raised again by next_direction_scale for each world that goes on
-    if active[w] == 0:
+    if active[w] == 0:  # the same for the whole block
         return
-    p_ap = world_total(partial, w, lanes)
+    p_ap = world_total(partial, w, lanes, lane)
+    if lane != 0:
+        return
     scalars[w, CG_ALPHA] = 0.0
     if p_ap > 0.0:
         scalars[w, CG_ALPHA] = scalars[w, CG_RZ] / p_ap
 
 
 @wp.kernel
-def advance(p: wp.array(dtype=wp.vec3), ap: wp.array(dtype=wp.vec3), world: wp.array(dtype=int),
-            scalars: wp.array2d(dtype=float), active: wp.array(dtype=int), x: wp.array(dtype=wp.vec3),
-            r: wp.array(dtype=wp.vec3)):
-    i = wp.tid()
-    w = world[i]
-    if active[w] == 0:
-        return
-    alpha = scalars[w, CG_ALPHA]
-    x[i] = x[i] + alpha * p[i]
-    r[i] = r[i] - alpha * ap[i]
-
-
-@wp.kernel
-def precondition(inverse: wp.array(dtype=wp.mat33), r: wp.array(dtype=wp.vec3), world: wp.array(dtype=int),
-                 active: wp.array(dtype=int), z: wp.array(dtype=wp.vec3)):
-    i = wp.tid()
-    if active[world[i]] == 0:
-        return
-    z[i] = inverse[i] * r[i]
-
-
-@wp.kernel
 def next_direction_scale(partial: wp.array(dtype=float), lanes: int, max_iterations: int,
                          scalars: wp.array2d(dtype=float), active: wp.array(dtype=int),
                          iterating: wp.array(dtype=int), iterations: wp.array(dtype=int)):
-    """After r . z of each world's new residual: beta, the iteration count, and whether it goes on."""
-    w = wp.tid()
-    if active[w] == 0:
+    """After r . z of each world's new residual (a block a world): beta, the iteration count, and whether it
+    goes on."""
+    w, lane = wp.tid()
+    if active[w] == 0:  # the same for the whole block
         return
-    rz = world_total(partial, w, lanes)
+    rz = world_total(partial, w, lanes, lane)
+    if lane != 0:
+        return
     beta = float(0.0)
     if scalars[w, CG_RZ] > 0.0:
         beta = rz / scalars[w, CG_RZ]

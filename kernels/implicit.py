@@ -18,6 +18,7 @@ in ``stats`` = [CG iterations, r.z / r0.z0 at the end of a solve, Newton steps, 
 import warp as wp
 
 from .bending import Bending, add_bending_diagonal, add_bending_times, bending_forces, bending_stiffness_times
+from .cg import world_total
 from .forces import ExternalForces, external_acceleration, external_damping, external_stiffness
 from .springs import Springs, add_system_diagonal, add_system_times, spring_forces, stiffness_times_motion
 
@@ -57,22 +58,18 @@ def per_unit_mass(r: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float), o
     out[i] = r[i] * inv_mass[i]
 
 
-@wp.func
-def rms(partial: wp.array(dtype=float), w: int, lanes: int, count: float) -> float:
-    total = float(0.0)
-    for k in range(lanes):
-        total += partial[w * lanes + k]
-    return wp.sqrt(total / count)
-
-
 @wp.kernel
 def continue_newton(partial: wp.array(dtype=float), lanes: int, free_particles: wp.array(dtype=float),
                     tolerance: float, newton: wp.array2d(dtype=int)):
-    """Before another Newton step: a world stops if its residual (per unit mass, RMS) is below the tolerance."""
-    w = wp.tid()
-    if newton[w, 0] == 0:
+    """Before another Newton step (a block a world, cg.world_total): a world stops if its residual (per unit
+    mass, RMS, from its partial sums of the squares) is below the tolerance."""
+    w, lane = wp.tid()
+    if newton[w, 0] == 0:  # the same for the whole block
         return
-    if rms(partial, w, lanes, free_particles[w]) <= tolerance:
+    rms = wp.sqrt(world_total(partial, w, lanes, lane) / free_particles[w])
+    if lane != 0:
+        return
+    if rms <= tolerance:
         newton[w, 0] = 0
     else:
         newton[w, 1] = newton[w, 1] + 1
@@ -81,9 +78,12 @@ def continue_newton(partial: wp.array(dtype=float), lanes: int, free_particles: 
 @wp.kernel
 def record_newton(partial: wp.array(dtype=float), lanes: int, free_particles: wp.array(dtype=float),
                   newton: wp.array2d(dtype=int), stats: wp.array(dtype=float)):
-    w = wp.tid()
-    wp.atomic_max(stats, 2, float(newton[w, 1]))
-    wp.atomic_max(stats, 3, rms(partial, w, lanes, free_particles[w]))
+    """A block a world (cg.world_total): the worst Newton steps and residual (RMS per unit mass) so far."""
+    w, lane = wp.tid()
+    rms = wp.sqrt(world_total(partial, w, lanes, lane) / free_particles[w])
+    if lane == 0:
+        wp.atomic_max(stats, 2, float(newton[w, 1]))
+        wp.atomic_max(stats, 3, rms)
 
 
 # --- the system: the springs' Jacobians with the external forces' part ----------------------------------

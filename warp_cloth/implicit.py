@@ -19,7 +19,7 @@ from .device_model import DeviceModel
 from .scene import ImplicitSolver
 from .state import DeviceState
 
-PARTIALS = 16384  # one world: first level of every dot product's reduction, then totalled by one block
+PARTIALS = 16384  # one world: partial sums of every dot product, then totalled by one block
 
 
 @dataclass(frozen=True)
@@ -54,9 +54,12 @@ class SolveStats:
 
 
 def world_lanes(world_start: np.ndarray) -> int:
-    """Partial sums a world of a batch's dot products: about 32 particles a lane in its largest world, as a
-    power of two from 32 to 1024."""
-    largest = int(np.diff(world_start).max())
+    """Partial sums a world's dot products: one world's ``PARTIALS`` (at most a particle each); a batch's about
+    32 particles a lane in its largest world, as a power of two from 32 to 1024."""
+    sizes = np.diff(world_start)
+    if len(sizes) == 1:
+        return int(max(1, min(PARTIALS, sizes[0])))
+    largest = int(sizes.max())
     return int(min(1024, max(32, 1 << max(0, math.ceil(math.log2(max(1, largest) / 32))))))
 
 
@@ -81,13 +84,8 @@ class BackwardEuler:
         vec = lambda: wp.zeros(n, dtype=wp.vec3, device=device)  # noqa: E731
         self.dv, self.r, self.z, self.p, self.ap = vec(), vec(), vec(), vec(), vec()
         self.inverse = wp.zeros(n, dtype=wp.mat33, device=device)
-        if worlds == 1:
-            self.partial = wp.zeros(min(n, PARTIALS), dtype=float, device=device)
-            self.partial_2 = wp.zeros(1, dtype=float, device=device)
-            self.lanes = 1
-        else:
-            self.lanes = world_lanes(model.world_start.numpy())
-            self.partial = self.partial_2 = wp.zeros(worlds * self.lanes, dtype=float, device=device)
+        self.lanes = world_lanes(model.world_start.numpy())
+        self.partial = wp.zeros(worlds * self.lanes, dtype=float, device=device)
         self.scalars = wp.zeros((worlds, cg.CG_SLOTS), dtype=float, device=device)
         self.cg_active = wp.zeros(worlds, dtype=int, device=device)
         self.cg_iterating = wp.zeros(1, dtype=int, device=device)  # the device loop's condition
@@ -110,31 +108,30 @@ class BackwardEuler:
         # is below the tolerance.
         for _ in range(self.settings.newton_iterations - 1):
             self._newton_residual(x1, v1, v0)
-            launch(implicit.continue_newton, self.worlds, inputs=[self.partial_2, self.lanes, self.free_particles,
-                                                                  self.settings.newton_tolerance], outputs=[self.newton])
+            self._total(implicit.continue_newton, inputs=[self.partial, self.lanes, self.free_particles,
+                                                           self.settings.newton_tolerance], outputs=[self.newton])
             self._solve(x1, v1, state.clock, warm=False)
             launch(implicit.finish_step, self.n, inputs=[x0, v1, self.dv, *finish], outputs=[x1, v1])
         if self.settings.newton_iterations > 1:
             self._newton_residual(x1, v1, v0)
-            launch(implicit.record_newton, self.worlds, inputs=[self.partial_2, self.lanes, self.free_particles,
-                                                                self.newton], outputs=[self.stats])
+            self._total(implicit.record_newton, inputs=[self.partial, self.lanes, self.free_particles, self.newton],
+                        outputs=[self.stats])
         state.swap_positions()
         state.swap_velocities()
 
     def _launch(self, kernel, dim: int, inputs=(), outputs=()) -> None:
         wp.launch(kernel, dim=dim, inputs=inputs, outputs=outputs, device=self.device)
 
+    def _total(self, kernel, inputs=(), outputs=()) -> None:
+        """A kernel that totals each world's partial sums, launched a block a world (cg.world_total)."""
+        wp.launch_tiled(kernel, dim=[self.worlds], inputs=inputs, outputs=outputs, block_dim=cg.SUM_BLOCK,
+                        device=self.device)
+
     def _dot(self, a: wp.array, b: wp.array, active: wp.array) -> None:
-        """Leaves each world's a . b (where ``active``) in ``partial_2``, as the ``lanes`` partial sums a world
-        that the next scalar kernel totals (one world: the total itself)."""
-        if self.worlds > 1:
-            self._launch(cg.world_dot_partials, self.partial.shape[0],
-                         inputs=[a, b, self.world_start, self.lanes, active], outputs=[self.partial])
-            return
-        self._launch(cg.dot_partials, self.partial.shape[0], inputs=[a, b, self.partial.shape[0], active],
-                     outputs=[self.partial])
-        wp.launch_tiled(cg.total_partials, dim=[1], inputs=[self.partial, active], outputs=[self.partial_2],
-                        block_dim=cg.SUM_BLOCK, device=self.device)
+        """Leaves each world's a . b (where ``active``) in ``partial``, as the ``lanes`` partial sums a world
+        that the next totalling kernel adds up."""
+        self._launch(cg.world_dot_partials, self.partial.shape[0],
+                     inputs=[a, b, self.world_start, self.lanes, active], outputs=[self.partial])
 
     def _solve(self, y: wp.array, v: wp.array, clock: wp.array, warm: bool) -> None:
         """dv from A dv = r (r holds the right-hand side), with pinned particles' dv prescribed; from the last
@@ -143,10 +140,12 @@ class BackwardEuler:
         would."""
         launch = self._launch
         s = self.settings
+        total = self._total
+        lanes, partials = self.lanes, self.partial.shape[0]
         launch(implicit.block_jacobi_inverse, self.n, inputs=[y, self.system], outputs=[self.inverse])
-        launch(cg.precondition, self.n, inputs=[self.inverse, self.r, self.world, self.always], outputs=[self.z])
-        self._dot(self.r, self.z, self.always)
-        launch(cg.reference, self.worlds, inputs=[self.partial_2, self.lanes], outputs=[self.scalars])
+        launch(cg.precondition_and_dot, partials, inputs=[self.inverse, self.r, self.world_start, lanes, self.always],
+               outputs=[self.z, self.partial])
+        total(cg.reference, inputs=[self.partial, lanes], outputs=[self.scalars])
         if warm:
             launch(implicit.warm_start, self.n, inputs=[self.inv_mass], outputs=[self.dv])
         else:
@@ -157,30 +156,29 @@ class BackwardEuler:
                    inputs=[p.index, p.amplitude, p.frequency, p.phase, clock, self.h, v], outputs=[self.dv])
         launch(implicit.system_times, self.n, inputs=[y, self.dv, self.always, self.system], outputs=[self.ap])
         launch(cg.subtract, self.n, inputs=[self.r, self.ap], outputs=[self.r])
-        launch(cg.precondition, self.n, inputs=[self.inverse, self.r, self.world, self.always], outputs=[self.z])
+        launch(cg.precondition_and_dot, partials, inputs=[self.inverse, self.r, self.world_start, lanes, self.always],
+               outputs=[self.z, self.partial])
         wp.copy(self.p, self.z)
-        self._dot(self.r, self.z, self.always)
         self.cg_iterating.zero_()
-        launch(cg.start, self.worlds, inputs=[self.partial_2, self.lanes, s.cg_tolerance, s.cg_max_iterations,
-                                              self.newton],
-               outputs=[self.scalars, self.cg_active, self.cg_iterating, self.cg_iterations])
+        total(cg.start, inputs=[self.partial, lanes, s.cg_tolerance, s.cg_max_iterations, self.newton],
+              outputs=[self.scalars, self.cg_active, self.cg_iterating, self.cg_iterations])
 
-        active, world, lanes, worlds = self.cg_active, self.world, self.lanes, self.worlds
+        active, world = self.cg_active, self.world
 
         def iteration() -> None:
             launch(implicit.system_times, self.n, inputs=[y, self.p, active, self.system], outputs=[self.ap])
             self._dot(self.p, self.ap, active)
-            launch(cg.step_length, worlds, inputs=[self.partial_2, lanes, active],
-                   outputs=[self.scalars, self.cg_iterating])
-            launch(cg.advance, self.n, inputs=[self.p, self.ap, world, self.scalars, active], outputs=[self.dv, self.r])
-            launch(cg.precondition, self.n, inputs=[self.inverse, self.r, world, active], outputs=[self.z])
-            self._dot(self.r, self.z, active)
-            launch(cg.next_direction_scale, worlds, inputs=[self.partial_2, lanes, s.cg_max_iterations],
-                   outputs=[self.scalars, active, self.cg_iterating, self.cg_iterations])
+            total(cg.step_length, inputs=[self.partial, lanes, active], outputs=[self.scalars, self.cg_iterating])
+            launch(cg.advance_and_precondition, partials,
+                   inputs=[self.p, self.ap, self.inverse, self.world_start, lanes, self.scalars, active],
+                   outputs=[self.dv, self.r, self.z, self.partial])
+            total(cg.next_direction_scale, inputs=[self.partial, lanes, s.cg_max_iterations],
+                  outputs=[self.scalars, active, self.cg_iterating, self.cg_iterations])
             launch(cg.update_direction, self.n, inputs=[self.z, world, self.scalars, active], outputs=[self.p])
 
         wp.capture_while(self.cg_iterating, iteration)
-        launch(cg.record_solve, worlds, inputs=[self.scalars, self.cg_iterations, self.newton], outputs=[self.stats])
+        launch(cg.record_solve, self.worlds, inputs=[self.scalars, self.cg_iterations, self.newton],
+               outputs=[self.stats])
 
     def _newton_residual(self, y: wp.array, v: wp.array, v0: wp.array) -> None:
         """r = h f(y, v) - M (v - v0), and (in the partial sums) the square of its size per unit mass."""
