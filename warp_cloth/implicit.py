@@ -54,12 +54,13 @@ class SolveStats:
 
 
 def world_lanes(world_start: np.ndarray) -> int:
-    """Partial sums a world's dot products: one world's up to ``PARTIALS``, a multiple of ``cg.SUM_TILE`` (its
-    block totals them a tile at a time); a batch's about 32 particles a lane in its largest world, as a power
-    of two from 32 to 1024."""
+    """Partial sums a world's dot products: one world's a particle each below ``cg.SUM_TILE`` particles, else
+    up to ``PARTIALS``, a multiple of the tile (its block totals them a tile at a time); a batch's about 32
+    particles a lane in its largest world, as a power of two from 32 to 1024."""
     sizes = np.diff(world_start)
     if len(sizes) == 1:
-        return int(min(PARTIALS, cg.SUM_TILE * math.ceil(max(1, sizes[0]) / cg.SUM_TILE)))
+        n = max(1, int(sizes[0]))
+        return n if n < cg.SUM_TILE else min(PARTIALS, cg.SUM_TILE * (n // cg.SUM_TILE))
     largest = int(sizes.max())
     return int(min(1024, max(32, 1 << max(0, math.ceil(math.log2(max(1, largest) / 32))))))
 
