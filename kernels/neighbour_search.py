@@ -7,7 +7,7 @@ import functools
 
 import warp as wp
 
-from .candidate_lists import keeping_nearest
+from .candidate_lists import insert_keeping_gaps
 from .edge_collision import EdgeContacts, EdgeRules, apart_at_rest, box_gap_sq, may_touch_but_at_rest, pair_gap
 from .face_collision import FaceContacts, side_bit
 from .face_collision import apart_at_rest as apart_at_rest_face
@@ -128,74 +128,18 @@ def launch_gather_neighbors(threads: int, x: wp.array, inputs: list) -> None:
         wp.launch_tiled(kernel, dim=[blocks], inputs=[x, *inputs], block_dim=BLOCK, device=x.device)
 
 
-@wp.struct
-class EdgeListOwner:
-    x: wp.array(dtype=wp.vec3)
-    ends: wp.array(dtype=wp.vec2i)
-    e: int
-
-
-@wp.func
-def edge_list_owner(x: wp.array(dtype=wp.vec3), ends: wp.array(dtype=wp.vec2i), e: int) -> EdgeListOwner:
-    owner = EdgeListOwner()
-    owner.x = x
-    owner.ends = ends
-    owner.e = e
-    return owner
-
-
-@wp.func
-def listed_edge_gap(owner: EdgeListOwner, f: int) -> float:
-    return pair_gap(owner.ends, owner.x, owner.e, f)
-
-
-@wp.struct
-class FaceListOwner:
-    """A vertex's list (entries 2 t + side) or a triangle's (entries 2 v + side): ``index`` the vertex or
-    the triangle."""
-    x: wp.array(dtype=wp.vec3)
-    triangles: wp.array(dtype=wp.vec3i)
-    index: int
-
-
-@wp.func
-def face_list_owner(x: wp.array(dtype=wp.vec3), triangles: wp.array(dtype=wp.vec3i), index: int) -> FaceListOwner:
-    owner = FaceListOwner()
-    owner.x = x
-    owner.triangles = triangles
-    owner.index = index
-    return owner
-
-
-@wp.func
-def listed_triangle_gap(vertex: FaceListOwner, code: int) -> float:
-    t = vertex.triangles[code >> 1]
-    x = vertex.x
-    return point_triangle_distance(x[vertex.index], x[t[0]], x[t[1]], x[t[2]])
-
-
-@wp.func
-def listed_vertex_gap(triangle: FaceListOwner, code: int) -> float:
-    t = triangle.triangles[triangle.index]
-    x = triangle.x
-    return point_triangle_distance(x[code >> 1], x[t[0]], x[t[1]], x[t[2]])
-
-
-insert_edge = keeping_nearest(listed_edge_gap)
-insert_triangle = keeping_nearest(listed_triangle_gap)
-insert_vertex = keeping_nearest(listed_vertex_gap)
-
-
 @wp.kernel
 def gather_edge_candidates(x: wp.array(dtype=wp.vec3), midpoint: wp.array(dtype=wp.vec3),
                            edge_world: wp.array(dtype=int), edges: EdgeContacts, rules: EdgeRules, lists: ListState,
                            allowance: wp.array(dtype=float), widest: wp.array(dtype=float),
                            inv_cell: wp.array(dtype=float), mask: int, capacity: int,
-                           bucket_size: wp.array(dtype=int), bucket_items: wp.array(dtype=int)):
+                           bucket_size: wp.array(dtype=int), bucket_items: wp.array(dtype=int),
+                           gaps: wp.array(dtype=float)):
     """Each edge's candidates from the hash of its midpoint's 27 cells (each bucket once; ``inv_cell[0]``
     the cells' inverse width this remake), where ``rebuild`` is set: edges that may touch it whose segments
     lie within the thickness plus both edges' allowances (surface_reach.py; ``widest[0]`` the largest)
-    (``pair_gap``: each lists the other; the nearest where more than fit), in index order."""
+    (``pair_gap``: each lists the other; the nearest where more than fit, their gaps kept in ``gaps`` meanwhile,
+laid out as the lists), in index order."""
     if lists.rebuild[0] == 0:
         return
     e = wp.tid()
@@ -205,7 +149,6 @@ def gather_edge_candidates(x: wp.array(dtype=wp.vec3), midpoint: wp.array(dtype=
     world = edge_world[e]
     stamp = stamp_of(lists.epoch[0])
     start = e * edges.max_neighbors
-    owner = edge_list_owner(x, edges.ends, e)
     p = x[ends_e[0]]
     q = x[ends_e[1]]
     low = wp.min(p, q)
@@ -231,8 +174,8 @@ def gather_edge_candidates(x: wp.array(dtype=wp.vec3), midpoint: wp.array(dtype=
                             gap = pair_gap(edges.ends, x, e, f)
                             within = gap < own + edge_allowance(allowance, ends_f)
                             if within and apart_at_rest(rules, ends_e, ends_f):
-                                count = insert_edge(edges.neighbors, start, count, edges.max_neighbors, f, gap,
-                                                    lists.overflow, owner)
+                                count = insert_keeping_gaps(edges.neighbors, start, count, edges.max_neighbors, f,
+                                                            gap, lists.overflow, gaps)
     edges.counts[e] = sort_and_drop_repeats(edges.neighbors, start, count)
 
 
@@ -240,10 +183,12 @@ def gather_edge_candidates(x: wp.array(dtype=wp.vec3), midpoint: wp.array(dtype=
 def gather_vertex_faces(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules: EdgeRules, lists: ListState,
                         allowance: wp.array(dtype=float), widest: wp.array(dtype=float),
                         owned_offsets: wp.array(dtype=int), owned: wp.array(dtype=int), inv_cell: wp.array(dtype=float),
-                        mask: int, capacity: int, bucket_size: wp.array(dtype=int), bucket_items: wp.array(dtype=int)):
+                        mask: int, capacity: int, bucket_size: wp.array(dtype=int), bucket_items: wp.array(dtype=int),
+                        gaps: wp.array(dtype=float)):
     """Each vertex's candidate triangles at positions ``x``, where ``rebuild`` is set: those it may touch
     within the thickness plus the vertex's and the triangle's allowances (surface_reach.py; ``widest[0]`` the
-    largest) (the nearest where more than fit), as 2 t + the side it lies on, in index order. The hash holds
+    largest) (the nearest where more than fit, their gaps kept in ``gaps`` meanwhile), as 2 t + the side it
+    lies on, in index order. The hash holds
     the particles (cells ``inv_cell[0]``, wider than the largest reach plus any triangle's side), each triangle
     found from its first vertex (``owned``)."""
     if lists.rebuild[0] == 0:
@@ -254,7 +199,6 @@ def gather_vertex_faces(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules: 
     world = rules.world[v]
     stamp = stamp_of(lists.epoch[0])
     start = v * faces.max_neighbors
-    owner = face_list_owner(x, faces.triangles, v)
     near = BOX_SLACK / inv_cell[0]  # a triangle within reach has its first vertex within reach plus its side
     own = faces.thickness + allowance[v]
     box_reach = BOX_SLACK * (own + widest[0])
@@ -277,10 +221,9 @@ def gather_vertex_faces(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules: 
                                 gap = point_triangle_distance(p, a, b, c)
                                 within = gap < own + triangle_allowance(allowance, t)
                                 if within and apart_at_rest_face(rules, v, t):
-                                    count = insert_triangle(faces.vertex_faces, start, count, faces.max_neighbors,
-                                                            2 * t_index + side_bit(p, a, b, c), gap,
-                                                            lists.overflow,
-                                                            owner)
+                                    count = insert_keeping_gaps(faces.vertex_faces, start, count, faces.max_neighbors,
+                                                                2 * t_index + side_bit(p, a, b, c), gap,
+                                                                lists.overflow, gaps)
     faces.vertex_counts[v] = sort_and_drop_repeats(faces.vertex_faces, start, count)
 
 
@@ -288,7 +231,7 @@ def gather_vertex_faces(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules: 
 def gather_face_vertices(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules: EdgeRules, lists: ListState,
                          allowance: wp.array(dtype=float), widest: wp.array(dtype=float),
                          inv_cell: wp.array(dtype=float), mask: int, capacity: int, bucket_size: wp.array(dtype=int),
-                         bucket_items: wp.array(dtype=int)):
+                         bucket_items: wp.array(dtype=int), gaps: wp.array(dtype=float)):
     """Each triangle's candidate vertices, where ``rebuild`` is set: the pairs ``gather_vertex_faces`` lists,
     seen from the triangle (the same test on the same positions), as 2 v + the side v lies on, in index
     order; found in the 27 cells around the triangle's first vertex."""
@@ -303,7 +246,6 @@ def gather_face_vertices(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules:
     world = rules.world[t[0]]
     stamp = stamp_of(lists.epoch[0])
     start = t_index * faces.max_neighbors
-    owner = face_list_owner(x, faces.triangles, t_index)
     low = wp.min(wp.min(a, b), c)
     high = wp.max(wp.max(a, b), c)
     own = faces.thickness + triangle_allowance(allowance, t)
@@ -320,6 +262,6 @@ def gather_face_vertices(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules:
                     if may_touch_face_but_at_rest(rules, v, t):
                         gap = point_triangle_distance(p, a, b, c)
                         if gap < own + allowance[v] and apart_at_rest_face(rules, v, t):
-                            count = insert_vertex(faces.face_vertices, start, count, faces.max_neighbors,
-                                                  2 * v + side_bit(p, a, b, c), gap, lists.overflow, owner)
+                            count = insert_keeping_gaps(faces.face_vertices, start, count, faces.max_neighbors,
+                                                        2 * v + side_bit(p, a, b, c), gap, lists.overflow, gaps)
     faces.face_counts[t_index] = sort_and_drop_repeats(faces.face_vertices, start, count)

@@ -118,11 +118,16 @@ def particle_list_owner(x: wp.array(dtype=wp.vec3), i: int) -> ParticleListOwner
 
 
 @wp.func
-def squared_distance(owner: ParticleListOwner, j: int) -> float:
+def squared_distance(owner: ParticleListOwner, slot: int, j: int) -> float:
     return wp.length_sq(owner.x[j] - owner.x[owner.i])
 
 
-insert_particle = keeping_nearest(squared_distance)
+@wp.func
+def forget_gap(owner: ParticleListOwner, slot: int, gap: float):
+    pass
+
+
+insert_particle = keeping_nearest(squared_distance, forget_gap)
 
 
 @wp.func
@@ -134,7 +139,7 @@ def add_candidate(contacts: Contacts, rules: PairRules, lists: ListState, i: int
         return count
     owner = particle_list_owner(x, i)
     return insert_particle(contacts.neighbors, i * contacts.max_neighbors, count, contacts.max_neighbors, j,
-                           squared_distance(owner, j), lists.overflow, owner)
+                           squared_distance(owner, 0, j), lists.overflow, owner)
 
 
 @wp.func

@@ -85,6 +85,9 @@ class FaceContacts:
         self.built = wp.full(n, wp.vec3(1.0e30), dtype=wp.vec3, device=device)  # lists never made: remake at once
         self.allowance = wp.zeros(n, dtype=float, device=device)
         self.widest = wp.zeros(1, dtype=float, device=device)
+        # the gathers' scratch: the listed pairs' gaps while the lists are made, first the vertices', then the
+        # triangles'
+        self.gaps = wp.zeros(max(n, self.triangle_count) * FACE_NEIGHBORS, dtype=float, device=device)
 
     @classmethod
     def of(cls, model: Model, device_model: DeviceModel) -> FaceContacts | None:
@@ -132,11 +135,11 @@ class FaceContacts:
                   outputs=[self.bucket_size, self.bucket_items, lists.overflow], device=device)
         wp.launch(gather_vertex_faces, dim=self.n,
                   inputs=[x, args, rules, lists, self.allowance, self.widest, self.owned_offsets, self.owned,
-                          self.inv_cell, self.mask, BUCKET_CAPACITY, self.bucket_size, self.bucket_items],
+                          self.inv_cell, self.mask, BUCKET_CAPACITY, self.bucket_size, self.bucket_items, self.gaps],
                   device=device)
         wp.launch(gather_face_vertices, dim=self.triangle_count,
                   inputs=[x, args, rules, lists, self.allowance, self.widest, self.inv_cell, self.mask,
-                          BUCKET_CAPACITY, self.bucket_size, self.bucket_items], device=device)
+                          BUCKET_CAPACITY, self.bucket_size, self.bucket_items, self.gaps], device=device)
 
     def separation_pass(self, device_model: DeviceModel, threads: int, bundle: RigidColliders | None) -> GatheringPass:
         """One Jacobi pass moving every listed pair closer than the thickness apart, then the colliders in
