@@ -100,9 +100,11 @@ SUM_TILE = 4096  # partial sums a block loads at a time: 16 a thread (1,024: twi
 def world_total(partial: wp.array(dtype=float), w: int, lanes: int, lane: int) -> float:
     """World w's ``lanes`` partial sums added up by its block (``wp.launch_tiled``, a block a world; every
     thread of the block must call it, and every thread gets the total): a tile at a time where ``lanes`` is a
-    multiple of ``SUM_TILE`` (one world's), else each thread's share of a batch world's few, then the
-    block's tree. (Each thread's share of one world's 16,384, one load after another, took 21 us a total on
-    an H200: the CG 25% slower.)"""
+    multiple of ``SUM_TILE`` (a large world alone), else each thread's share of the few (a batch world's, or a
+    small world's), then the block's tree. (Each thread's share of one world's 16,384, one load after another,
+    took 21 us a total on an H200: the CG 25% slower.) The tree's sum waits for the whole block, so that the
+    kernels after it may let one thread write what every thread read before (``active``, a Newton loop's
+    state)."""
     if lanes % SUM_TILE == 0:
         s = wp.tile_zeros(shape=1, dtype=float)
         for offset in range(w * lanes, (w + 1) * lanes, SUM_TILE):

@@ -138,8 +138,8 @@ def gather_edge_candidates(x: wp.array(dtype=wp.vec3), midpoint: wp.array(dtype=
     """Each edge's candidates from the hash of its midpoint's 27 cells (each bucket once; ``inv_cell[0]``
     the cells' inverse width this remake), where ``rebuild`` is set: edges that may touch it whose segments
     lie within the thickness plus both edges' allowances (surface_reach.py; ``widest[0]`` the largest)
-    (``pair_gap``: each lists the other; the nearest where more than fit, their gaps kept in ``gaps`` meanwhile,
-laid out as the lists), in index order."""
+    (``pair_gap``: each lists the other; the nearest where more than fit, their gaps kept in ``gaps``
+    meanwhile, laid out as the lists), in index order."""
     if lists.rebuild[0] == 0:
         return
     e = wp.tid()

@@ -87,7 +87,7 @@ class FaceContacts:
         self.widest = wp.zeros(1, dtype=float, device=device)
         # the gathers' scratch: the listed pairs' gaps while the lists are made, first the vertices', then the
         # triangles'
-        self.gaps = wp.zeros(max(n, self.triangle_count) * FACE_NEIGHBORS, dtype=float, device=device)
+        self.gaps = wp.zeros(max(args.vertex_faces.shape[0], args.face_vertices.shape[0]), dtype=float, device=device)
 
     @classmethod
     def of(cls, model: Model, device_model: DeviceModel) -> FaceContacts | None:

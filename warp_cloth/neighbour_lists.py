@@ -19,8 +19,8 @@ from warp_cloth.kernels.neighbour_search import (HashGrid, gather_edge_candidate
 from .device_model import DeviceModel
 from .displacement_bounds import DisplacementBounds
 from .passes import contacts_args, edge_contacts_args
-from .state import (BUCKET_CAPACITY, EDGE_BUCKET_CAPACITY, EDGE_NEIGHBORS, DeviceState, edge_hash_table_size,
-                    hash_table_size, uses_hash)
+from .state import (BUCKET_CAPACITY, EDGE_BUCKET_CAPACITY, DeviceState, edge_hash_table_size, hash_table_size,
+                    uses_hash)
 
 # The remake has more to gather (27 cells) than the other gathering passes: 16 threads a particle are
 # fastest at 64^2, 4 at 256^2, one at 1024^2 (docs/results/list-probe-h200.json).
@@ -223,7 +223,8 @@ class EdgeLists:
         self.longest = constants.longest
         self.mask = edge_hash_table_size(self.m) - 1
         self.world = constants.world
-        self.gaps = wp.zeros(self.m * EDGE_NEIGHBORS, dtype=float, device=model.device)  # the gather's scratch
+        # the gather's scratch: the listed pairs' gaps while the lists are made, laid out as the lists
+        self.gaps = wp.zeros(self.edges.neighbors.shape[0], dtype=float, device=model.device)
 
     kernels = [edge_collision.start_edge_cells, edge_collision.midpoints_and_cell_width,
                spatial_hash.insert_points_at_chosen_width, gather_edge_candidates]  # as remake_if_asked launches them
