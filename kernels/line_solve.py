@@ -12,9 +12,10 @@ family's threads move their particles in place.
 
 A thread a segment of a line, by the partition method: a line's springs are cut by separators; a segment is
 the springs between two separators (or a line's end), its thread eliminating them for three right sides at
-once (the line's, and a unit coupling to each separator); one thread a line then solves the small
-tridiagonal system of its separators (their Schur complement), and the segments' threads finish their
-springs from it and move their particles. A line with no separator is one segment: Thomas' algorithm.
+once (the line's, and a unit coupling to each separator); the small tridiagonal system of a line's
+separators (their Schur complement) is then solved by steps of cyclic reduction, a thread a separator,
+until its chains are short, and a thread a chain; the segments' threads finish their springs from it and
+move their particles. A line with no separator is one segment: Thomas' algorithm.
 
 The per-slot arrays are stored in a layout the host chooses (warp_cloth/line_solve.py): segment s's j-th slot
 (j = 0 .. its springs, the last being its right separator's slot or its line's last particle) at storage
@@ -39,42 +40,57 @@ class ClothLines:
 
 @wp.struct
 class LineSegments:
-    """A family's segments and separators, as storage indices, and the solve's per-slot scratch."""
+    """A family's segments and separators, and the solve's scratch: per slot in storage, per separator in
+    the order of their lines."""
     base: wp.array(dtype=int)  # (segments,) the storage index of a segment's first slot
     length: wp.array(dtype=int)  # its springs: its slot j = length is its right separator's or its line's last
     step: int  # from a segment's slot to its next in storage
     left: wp.array(dtype=int)  # the separator's slot before it (-1: it starts its line)
     right: wp.array(dtype=int)  # the separator's slot that ends it (-1: it ends its line)
     after_right: wp.array(dtype=int)  # the slot after that separator (the next segment's first)
-    separator_start: wp.array(dtype=int)  # (lines + 1,) line l's separators are separator[start[l]:start[l + 1]]
-    separator: wp.array(dtype=int)  # their slots, in order along the line
-    before_separator: wp.array(dtype=int)  # the slot before each (the last spring of the segment it ends)
-    after_separator: wp.array(dtype=int)  # the slot after each (the first of the segment after)
-    diagonal: wp.array(dtype=wp.float64)  # per slot, set at separators: scratch, the system's entries
-    lower: wp.array(dtype=wp.float64)  # at separators and segments' first slots: the coupling with the slot before
-    right_side: wp.array(dtype=wp.float64)
-    solution: wp.array(dtype=wp.float64)  # per slot: the segment's solution for the line's right side, then dlambda
-    from_left: wp.array(dtype=wp.float64)  # per slot: its solution for the left separator's coupling
-    from_right: wp.array(dtype=wp.float64)  # per slot: its solution for the right separator's coupling
-    upper: wp.array(dtype=wp.float64)  # per slot: scratch, the eliminated upper diagonal
+    left_separator: wp.array(dtype=int)  # the numbers of those separators (-1: none)
+    right_separator: wp.array(dtype=int)
+    separator_start: wp.array(dtype=int)  # (lines + 1,) line l's separators are start[l] .. start[l + 1] - 1
+    # per slot: the forward elimination of the segment's springs for the line's right side and a unit
+    # coupling to each separator (to the right one stored at the last slot only: above it, it is 0), and the
+    # eliminated upper diagonal (the back substitution is the finish's)
+    solution: wp.array(dtype=wp.float64)
+    from_left: wp.array(dtype=wp.float64)
+    from_right: wp.array(dtype=wp.float64)
+    upper: wp.array(dtype=wp.float64)
+    # per separator: its row of the Schur complement, as the segments before and after it leave it
+    own_diagonal: wp.array(dtype=wp.float64)  # the separator spring's own diagonal entry
+    diagonal_from_before: wp.array(dtype=wp.float64)
+    right_from_before: wp.array(dtype=wp.float64)
+    coupling: wp.array(dtype=wp.float64)  # with the separator before, through the segment between
+    diagonal_from_after: wp.array(dtype=wp.float64)
+    right_from_after: wp.array(dtype=wp.float64)
+    separator_line: wp.array(dtype=int)  # the line it cuts
+    separator_upper: wp.array(dtype=wp.float64)  # scratch: its chain's eliminated upper diagonal
+    separator_solution: wp.array(dtype=wp.float64)  # its dlambda
+
+
+@wp.struct
+class SeparatorRows:
+    """A family's separators' rows as cyclic reduction leaves them: each row couples its separator with the
+    ones ``stride`` before and after it in its line (lower, upper), its diagonal and its right side."""
+    lower: wp.array(dtype=wp.float64)
+    diagonal: wp.array(dtype=wp.float64)
+    upper: wp.array(dtype=wp.float64)
+    right: wp.array(dtype=wp.float64)
 
 
 @wp.func
-def spring_equation(lines: ClothLines, inv_mass: wp.array(dtype=float), hold_margin: float,
-                    x: wp.array(dtype=wp.vec3), k: int, next_slot: int):
-    """The spring from slot k's particle to slot ``next_slot``'s in its line's system: its direction, its diagonal
-    entry and its right side (a spring left out, or that nothing can move, gets direction 0: dlambda 0,
-    coupled to no neighbour)."""
-    a = lines.particle[k]
-    b = lines.particle[next_slot]
-    d = x[b] - x[a]
+def spring_equation(xa: wp.vec3, xb: wp.vec3, wa: float, wb: float, shortest: float, longest: float,
+                    hold_margin: float):
+    """A spring from a to b in its line's system: its direction, its diagonal entry and its right side (a
+    spring left out, or that nothing can move, gets direction 0: dlambda 0, coupled to no neighbour)."""
+    d = xb - xa
     length = wp.length(d)
     normal = wp.vec3(0.0)
     if length > 1.0e-12:
         normal = d / length
-    diagonal = wp.float64(inv_mass[a] + inv_mass[b])
-    longest = lines.max_length[k]
-    shortest = lines.min_length[k]
+    diagonal = wp.float64(wa + wb)
     right = wp.float64(wp.clamp(length, shortest, longest) - length)
     held = length >= (1.0 - hold_margin) * longest or length <= (1.0 + hold_margin) * shortest
     if diagonal == wp.float64(0.0) or length <= 1.0e-12 or not held:
@@ -87,107 +103,173 @@ def spring_equation(lines: ClothLines, inv_mass: wp.array(dtype=float), hold_mar
 @wp.kernel
 def eliminate_segments(lines: ClothLines, segments: LineSegments, inv_mass: wp.array(dtype=float),
                        hold_margin: float, x: wp.array(dtype=wp.vec3)):
-    """Segment s's springs' equations, eliminated for the line's right side and a unit coupling to each
-    separator; its right separator's equation (and the springs' directions into ``lines.normal``) kept for
-    the separators' solve and the finish. One pass builds and eliminates: a separate launch for the
-    equations cost as much again on an H100 (docs/notebook/strain-solve.md)."""
+    """Segment s's springs' equations, eliminated forwards for the line's right side and a unit coupling to
+    each separator; the springs' directions into ``lines.normal``; and what the segment gives its
+    separators' rows: its right separator's equation less its last spring's part, and its first spring's
+    part of its left separator's (the first slot's back substitution as a running sum: with the finish
+    doing the rest, no launch walks a segment twice). A spring's far particle is the next one's near one,
+    and the slot after next is read a spring ahead: each spring waits on one round of loads, not three (the
+    kernel waited on memory, docs/notebook/strain-solve.md)."""
     s = wp.tid()
     base = segments.base[s]
     length = segments.length[s]
     step = segments.step
     left = segments.left[s]
     separator = segments.right[s]
+    a = lines.particle[base]
+    xa = x[a]
+    wa = inv_mass[a]
+    b = lines.particle[base + step]
     normal_before = wp.vec3(0.0)
     if left >= 0:
-        normal_before, unused_diagonal, unused_right = spring_equation(lines, inv_mass, hold_margin, x, left, base)
+        near = lines.particle[left]
+        normal_before, unused_diagonal, unused_right = spring_equation(
+            x[near], xa, inv_mass[near], wa, lines.min_length[left], lines.max_length[left], hold_margin)
     pivot_before = wp.float64(1.0)
     solution_before = wp.float64(0.0)
     left_before = wp.float64(0.0)
-    right_before = wp.float64(0.0)
+    to_left = wp.float64(0.0)
+    product = wp.float64(1.0)  # the first slot's back substitution: the product of -upper so far
+    first_solution = wp.float64(0.0)
+    first_left = wp.float64(0.0)
     for j in range(length):
         k = base + j * step
-        normal, diagonal, right = spring_equation(lines, inv_mass, hold_margin, x, k, k + step)
+        xb = x[b]
+        wb = inv_mass[b]
+        b_next = lines.particle[base + wp.min(j + 2, length) * step]  # unconditional: a load in a branch waits
+        shortest = lines.min_length[k]
+        longest = lines.max_length[k]
+        normal, diagonal, right = spring_equation(xa, xb, wa, wb, shortest, longest, hold_margin)
         lines.normal[k] = normal
-        coupling = wp.float64(-inv_mass[lines.particle[k]] * wp.dot(normal_before, normal))
+        coupling = wp.float64(-wa * wp.dot(normal_before, normal))
         lower = wp.float64(0.0)
         upper_before = wp.float64(0.0)
-        to_left = wp.float64(0.0)
+        to_left_now = wp.float64(0.0)
         if j == 0:
             to_left = coupling  # with the left separator (0 where there is none)
-            segments.lower[k] = coupling
+            to_left_now = coupling
         else:
             lower = coupling
             upper_before = lower / pivot_before
             segments.upper[k - step] = upper_before
-        to_right = wp.float64(0.0)
-        if j == length - 1 and separator >= 0:
-            separator_normal, separator_diagonal, separator_right = spring_equation(
-                lines, inv_mass, hold_margin, x, separator, segments.after_right[s])
-            to_right = wp.float64(-inv_mass[lines.particle[separator]] * wp.dot(normal, separator_normal))
-            lines.normal[separator] = separator_normal
-            segments.lower[separator] = to_right
-            segments.diagonal[separator] = separator_diagonal
-            segments.right_side[separator] = separator_right
         pivot = wp.max(diagonal - lower * upper_before, wp.float64(1.0e-9) * diagonal)
         solution_before = (right - lower * solution_before) / pivot
-        left_before = (to_left - lower * left_before) / pivot
-        right_before = (to_right - lower * right_before) / pivot
+        left_before = (to_left_now - lower * left_before) / pivot
         segments.solution[k] = solution_before
         if left >= 0:  # a side with no separator has no coupling to solve for (a whole line has neither)
             segments.from_left[k] = left_before
-        if separator >= 0:
+            if j > 0:
+                product = -product * upper_before
+            first_solution = first_solution + product * solution_before
+            first_left = first_left + product * left_before
+        if j == length - 1 and separator >= 0:
+            number = segments.right_separator[s]
+            after = lines.particle[segments.after_right[s]]
+            separator_normal, separator_diagonal, separator_right = spring_equation(
+                xb, x[after], wb, inv_mass[after], lines.min_length[separator], lines.max_length[separator],
+                hold_margin)
+            lines.normal[separator] = separator_normal
+            to_right = wp.float64(-wb * wp.dot(normal, separator_normal))
+            right_before = to_right / pivot  # its right side is 0 above its last row, and so is its elimination
             segments.from_right[k] = right_before
+            segments.own_diagonal[number] = separator_diagonal
+            segments.diagonal_from_before[number] = separator_diagonal - to_right * right_before
+            segments.right_from_before[number] = separator_right - to_right * solution_before
+            segments.coupling[number] = -to_right * left_before
         pivot_before = pivot
         normal_before = normal
-    for back in range(1, length):
-        k = base + (length - 1 - back) * step
-        upper = segments.upper[k]
-        segments.solution[k] = segments.solution[k] - upper * segments.solution[k + step]
-        if left >= 0:
-            segments.from_left[k] = segments.from_left[k] - upper * segments.from_left[k + step]
-        if separator >= 0:
-            segments.from_right[k] = segments.from_right[k] - upper * segments.from_right[k + step]
+        xa = xb
+        wa = wb
+        b = b_next
+    if left >= 0:
+        number = segments.left_separator[s]
+        segments.diagonal_from_after[number] = -to_left * first_left
+        segments.right_from_after[number] = -to_left * first_solution
+
+
+@wp.func
+def separator_row(segments: LineSegments, rows: SeparatorRows, r: int, from_segments: int):
+    """Separator r's row: as the segments before and after it left it (``from_segments``: its line's Schur
+    complement, tridiagonal), or as cyclic reduction left it in ``rows``. Lower, diagonal, upper, right."""
+    if from_segments == 0:
+        return rows.lower[r], rows.diagonal[r], rows.upper[r], rows.right[r]
+    upper = wp.float64(0.0)
+    if r + 1 < segments.separator_start[segments.separator_line[r] + 1]:
+        upper = segments.coupling[r + 1]
+    diagonal = wp.max(segments.diagonal_from_before[r] + segments.diagonal_from_after[r],
+                      wp.float64(1.0e-9) * segments.own_diagonal[r])
+    # coupling is 0 at a line's first separator: the segment before it starts the line
+    return segments.coupling[r], diagonal, upper, segments.right_from_before[r] + segments.right_from_after[r]
 
 
 @wp.kernel
-def solve_separators(segments: LineSegments):
-    """Line l's separators' dlambda, from their Schur complement (tridiagonal, one row a separator)."""
-    l = wp.tid()
-    begin = segments.separator_start[l]
-    count = segments.separator_start[l + 1] - begin
+def reduce_separators(segments: LineSegments, stride: int, from_segments: int, rows: SeparatorRows,
+                      reduced: SeparatorRows):
+    """One step of cyclic reduction: separator r's row with the rows ``stride`` before and after it in its
+    line eliminated, so that it couples only the separators 2 ``stride`` away: a line's separators split
+    into twice as many chains, each half as long."""
+    r = wp.tid()
+    line = segments.separator_line[r]
+    lower, diagonal, upper, right = separator_row(segments, rows, r, from_segments)
+    reduced_lower = wp.float64(0.0)
+    reduced_upper = wp.float64(0.0)
+    if r - stride >= segments.separator_start[line]:
+        lower_before, diagonal_before, upper_before, right_before = separator_row(segments, rows, r - stride,
+                                                                                 from_segments)
+        factor = -lower / diagonal_before
+        reduced_lower = factor * lower_before
+        diagonal = diagonal + factor * upper_before
+        right = right + factor * right_before
+    if r + stride < segments.separator_start[line + 1]:
+        lower_after, diagonal_after, upper_after, right_after = separator_row(segments, rows, r + stride,
+                                                                             from_segments)
+        factor = -upper / diagonal_after
+        reduced_upper = factor * upper_after
+        diagonal = diagonal + factor * lower_after
+        right = right + factor * right_after
+    reduced.lower[r] = reduced_lower
+    reduced.diagonal[r] = diagonal
+    reduced.upper[r] = reduced_upper
+    reduced.right[r] = right
+
+
+@wp.kernel
+def solve_separator_chains(segments: LineSegments, stride: int, from_segments: int, rows: SeparatorRows):
+    """The separators' dlambda: a thread a chain, a line's separators ``stride`` apart from its offset,
+    eliminated one after another (Thomas' algorithm on the rows that cyclic reduction left)."""
+    t = wp.tid()
+    line = t // stride
+    begin = segments.separator_start[line] + t % stride
+    end = segments.separator_start[line + 1]
     pivot_before = wp.float64(1.0)
     solution_before = wp.float64(0.0)
-    for i in range(count):
-        k = segments.separator[begin + i]
-        before = segments.before_separator[begin + i]  # the last spring of the segment before
-        after = segments.after_separator[begin + i]  # the first of the segment after
-        lower_in = segments.lower[k]
-        upper_in = segments.lower[after]
-        diagonal = segments.diagonal[k] - lower_in * segments.from_right[before] - upper_in * segments.from_left[after]
-        right = segments.right_side[k] - lower_in * segments.solution[before] - upper_in * segments.solution[after]
-        lower = wp.float64(0.0)
-        upper_before = wp.float64(0.0)
-        if i > 0:
-            lower = -lower_in * segments.from_left[before]
-            upper_before = lower / pivot_before
-            segments.upper[segments.separator[begin + i - 1]] = upper_before
-        pivot = wp.max(diagonal - lower * upper_before, wp.float64(1.0e-9) * segments.diagonal[k])
+    upper_before = wp.float64(0.0)
+    last = begin - stride
+    for r in range(begin, end, stride):
+        lower, diagonal, upper, right = separator_row(segments, rows, r, from_segments)
+        upper_eliminated = upper_before / pivot_before
+        pivot = diagonal - lower * upper_eliminated
         solution_before = (right - lower * solution_before) / pivot
-        segments.solution[k] = solution_before
+        segments.separator_solution[r] = solution_before
+        segments.separator_upper[r] = upper / pivot
         pivot_before = pivot
-    for back in range(1, count):
-        k = segments.separator[begin + count - 1 - back]
-        after = segments.separator[begin + count - back]
-        segments.solution[k] = segments.solution[k] - segments.upper[k] * segments.solution[after]
+        upper_before = upper
+        last = r
+    r = last - stride
+    while r >= begin:
+        solution_before = segments.separator_solution[r] - segments.separator_upper[r] * solution_before
+        segments.separator_solution[r] = solution_before
+        r = r - stride
 
 
 @wp.kernel
 def finish_segments(lines: ClothLines, segments: LineSegments, inv_mass: wp.array(dtype=float), h: float,
                     x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3)):
-    """Segment s's springs' dlambda from its separators', and its particles moved by W J^T dlambda (their
-    velocities by the move over h): from its first slot's to its right separator's first particle, or to its
-    line's last. Each dlambda is used where it is made, never stored: only the separators' are read across
-    segments."""
+    """Segment s's springs' dlambda, back substituted from its last slot to its first and combined with its
+    separators', and its particles moved by W J^T dlambda (their velocities by the move over h): from its
+    right separator's first particle (or its line's last) back to its first slot's. Each dlambda is used
+    where it is made, never stored. Every load is unconditional and a particle's own are read a slot ahead
+    (its index two), so that a slot waits on one round of loads."""
     s = wp.tid()
     base = segments.base[s]
     length = segments.length[s]
@@ -195,35 +277,60 @@ def finish_segments(lines: ClothLines, segments: LineSegments, inv_mass: wp.arra
     left = segments.left[s]
     right = segments.right[s]
     from_left = wp.float64(0.0)
-    before = wp.float64(0.0)  # the dlambda of the spring before the particle
-    normal_before = wp.vec3(0.0)
+    normal_first = wp.vec3(0.0)  # the left separator's direction
     if left >= 0:
-        from_left = segments.solution[left]
-        before = from_left
-        normal_before = lines.normal[left]
+        from_left = segments.separator_solution[segments.left_separator[s]]
+        normal_first = lines.normal[left]
     from_right = wp.float64(0.0)
+    after = wp.float64(0.0)  # the dlambda of the spring after the particle: the separator's, or none
+    normal_after = wp.vec3(0.0)
     if right >= 0:
-        from_right = segments.solution[right]
-    for j in range(length + 1):
-        k = base + j * step
-        after = from_right  # the separator's, or 0 after a line's last particle
-        normal = wp.vec3(0.0)
-        if j < length:
-            after = segments.solution[k]
-            if left >= 0:
-                after = after - from_left * segments.from_left[k]
-            if right >= 0:
-                after = after - from_right * segments.from_right[k]
-        if j < length or right >= 0:
-            normal = lines.normal[k]
-        p = lines.particle[k]
-        w = inv_mass[p]
-        if w > 0.0:
-            move = w * (float(before) * normal_before - float(after) * normal)
-            x[p] = x[p] + move
-            v[p] = v[p] + move / h
-        before = after
-        normal_before = normal
+        from_right = segments.separator_solution[segments.right_separator[s]]
+        after = from_right
+        normal_after = lines.normal[base + length * step]
+    solution = wp.float64(0.0)  # the back substitution at the slot after the particle's, for each right side
+    solution_left = wp.float64(0.0)
+    solution_right = wp.float64(0.0)
+    p = lines.particle[base + length * step]
+    xp = x[p]
+    vp = v[p]
+    wp_ = inv_mass[p]
+    p_before = lines.particle[base + wp.max(length - 1, 0) * step]
+    for back in range(length + 1):
+        j = length - back
+        k_before = base + wp.max(j - 1, 0) * step
+        upper = segments.upper[k_before]
+        eliminated = segments.solution[k_before]
+        eliminated_left = segments.from_left[k_before]
+        eliminated_right = segments.from_right[k_before]
+        normal_before = lines.normal[k_before]
+        x_next = x[p_before]
+        v_next = v[p_before]
+        w_next = inv_mass[p_before]
+        p_next = lines.particle[base + wp.max(j - 2, 0) * step]
+        before = from_left  # the dlambda of the spring before the particle
+        if j > 0:
+            if j == length:
+                upper = wp.float64(0.0)  # the last row is eliminated already
+            else:
+                eliminated_right = wp.float64(0.0)  # the right coupling's elimination is 0 above the last row
+            solution = eliminated - upper * solution
+            solution_left = eliminated_left - upper * solution_left
+            solution_right = eliminated_right - upper * solution_right
+            before = solution - from_left * solution_left - from_right * solution_right
+        else:
+            normal_before = normal_first
+        if wp_ > 0.0:
+            move = wp_ * (float(before) * normal_before - float(after) * normal_after)
+            x[p] = xp + move
+            v[p] = vp + move / h
+        after = before
+        normal_after = normal_before
+        p = p_before
+        xp = x_next
+        vp = v_next
+        wp_ = w_next
+        p_before = p_next
 
 
 @wp.kernel

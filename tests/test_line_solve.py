@@ -17,7 +17,8 @@ from warp_cloth.diagnostics import ContactGaps, TriangleIntersections
 from warp_cloth.lab.bench_meshes import as_mesh_cloth
 from warp_cloth.limit_solve import SolveChoices, lab_hooks
 from warp_cloth.scene_file import scene_from_dict
-from warp_cloth.line_solve import LineSolves, line_segments, longest_line, slot_layout
+from warp_cloth.line_solve import (CHAIN, LineSolves, line_segments, longest_line, reduction_strides,
+                                   segment_for_device, slot_layout)
 from warp_cloth.model import build_model
 from warp_cloth.strain import StrainMonitor
 
@@ -142,15 +143,24 @@ def test_the_interleaved_layout_stores_each_segments_j_th_slot_at_its_segment_pl
 
 
 @pytest.mark.parametrize("device", ["cpu", pytest.param("cuda", marks=pytest.mark.cuda)])
-def test_the_device_chooses_whole_contiguous_lines_on_the_cpu_and_interleaved_segments_of_32_on_cuda(device):
+def test_the_device_chooses_whole_contiguous_lines_on_the_cpu_and_on_cuda_interleaved_segments_of_the_root_of_a_line(
+        device):
     with lab_hooks(SolveChoices(line_solve=True)):
         sim = wc.Simulator(wc.load_scene("hanging"), device=device, graph=False)
     line_solves = sim.plan.projection.later_body[0]
     assert isinstance(line_solves, LineSolves)
     longest = longest_line(cloth_lines(sim.model, sim.scene))
-    assert (line_solves.segment, line_solves.interleaved) == ((32, True) if device == "cuda" else (longest, False))
-    # a segment a line: whole lines, or on CUDA the hanging cloth's lines of 10 springs at most
-    assert all(family.segment_count == family.line_count for family in line_solves.families)
+    assert longest == 10  # the hanging cloth's longest lines
+    assert (line_solves.segment, line_solves.interleaved) == ((3, True) if device == "cuda" else (longest, False))
+    cut = [family.segment_count > family.line_count for family in line_solves.families]
+    assert cut == ([True] * 4 if device == "cuda" else [False] * 4)
+    assert [segment_for_device(n) for n in (1, 3, 255, 1023, 2047)] == [2, 2, 16, 32, 45]
+
+
+def test_cyclic_reduction_halves_the_separators_chains_until_none_is_longer_than_a_thread_walks():
+    lines = lambda separators: line_segments(np.array([0, 2 * separators + 3]), 2)  # noqa: E731
+    assert [reduction_strides(lines(n)) for n in (0, 1, CHAIN, CHAIN + 1, 19, 31, 45)] == [
+        [1], [1], [1], [1, 2], [1, 2, 4], [1, 2, 4], [1, 2, 4, 8]]
 
 
 @pytest.mark.parametrize("device", ["cpu", pytest.param("cuda", marks=pytest.mark.cuda)])

@@ -225,8 +225,8 @@ def test_the_printed_plan_names_every_launch_of_the_solve_and_says_the_simulator
         "          projection_residual",
         "          continue_solve (the loop's bookkeeping)",
         "        after 2 passes, each iteration instead:",
-        "          line solves (4 families, each 2 times: eliminate_segments, solve_separators, finish_segments; "
-        "forwards and backwards in turn: turn_order)",
+        "          line solves (4 families, each 2 times: eliminate_segments, reduce_separators, "
+        "solve_separator_chains, finish_segments; forwards and backwards in turn: turn_order)",
         "          pins+colliders",
         "          limits+colliders",
         "          limits+colliders",

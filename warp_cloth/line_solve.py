@@ -13,8 +13,9 @@ import numpy as np
 import warp as wp
 
 from warp_cloth.kernels.colliders import RigidColliders
-from warp_cloth.kernels.line_solve import (ClothLines, LineSegments, eliminate_segments, finish_segments,
-                                           hold_and_collide, solve_separators, turn_order)
+from warp_cloth.kernels.line_solve import (ClothLines, LineSegments, SeparatorRows, eliminate_segments,
+                                           finish_segments, hold_and_collide, reduce_separators,
+                                           solve_separator_chains, turn_order)
 
 from .cloth_lines import Family
 from .device_model import DeviceModel
@@ -22,11 +23,23 @@ from .limit_solve import SolveChoices
 from .passes import attachments_of
 from .state import DeviceState
 
-# Springs a segment on CUDA, where a thread a line leaves a family's few hundred threads each walking a whole
-# line: on an H100 the 1024^2 sphere cloth took 300 and 291 ms a frame with segments of 16 and 32 (stored
-# interleaved, ordered across lines; contiguous, 8 to 64 took 507 ms at best: docs/notebook/strain-solve.md).
-# The CPU runs a launch's threads one after another: whole lines.
-CUDA_SEGMENT = 32
+
+# The separators a thread eliminates one after another, at most: a step of cyclic reduction halves each
+# line's chain at the cost of a launch, and on an H200 a launch cost about as much as walking 8 (the 1024^2
+# sphere cloth's 31 separators a line took 59 us walked by one thread, 43 us in five steps of cyclic
+# reduction, 33 us in two steps and chains of 8: docs/notebook/strain-solve.md, "Segments as long as the
+# square root of a line").
+CHAIN = 8
+
+
+def segment_for_device(longest: int) -> int:
+    """Springs a segment on CUDA for lines of at most ``longest`` springs: a segment's thread walks its
+    springs one after another, and the separators' solve grows with their number, longest / size, so a
+    round waits on about size + longest / size dependent steps, least at the square root of the longest
+    line (on an H200 the 256^2 and 1024^2 sphere cloths' rounds were fastest at 16 and 32, with their
+    separators walked by a thread a line: docs/notebook/strain-solve.md, "Segments as long as the square
+    root of a line")."""
+    return max(2, round(longest ** 0.5))
 
 
 def longest_line(lines: list[Family]) -> int:
@@ -112,7 +125,26 @@ def storage_index(slots: np.ndarray, layout: SlotLayout) -> np.ndarray:
     return np.where(slots >= 0, layout.storage[slots], -1).astype(np.int32)
 
 
-def upload_family(family: Family, size: int, interleaved: bool, device) -> tuple[ClothLines, LineSegments]:
+def separator_number(slots: np.ndarray, separator: np.ndarray) -> np.ndarray:
+    """The number of each separator's slot in ``slots`` among the family's ``separator`` slots (-1 stays -1)."""
+    return np.where(slots >= 0, np.searchsorted(separator, slots), -1).astype(np.int32)
+
+
+@dataclass
+class FamilySolve:
+    """A family's arrays as the kernels take them, its launches' threads, and its separators' solve: the
+    strides of its cyclic reduction then of its chains (reduction_strides), and the two sets of rows the
+    reduction takes from one into the other."""
+    lines: ClothLines
+    segments: LineSegments
+    segment_count: int
+    line_count: int
+    separator_count: int
+    strides: list[int]
+    rows: tuple[SeparatorRows, SeparatorRows]
+
+
+def upload_family(family: Family, size: int, interleaved: bool, device) -> FamilySolve:
     """A family's lines cut into segments of ``size`` springs, every per-slot array and every slot index in
     the layout ``interleaved`` chooses (slot_layout)."""
     starts, particles, lo, hi = family
@@ -134,22 +166,43 @@ def upload_family(family: Family, size: int, interleaved: bool, device) -> tuple
     uploaded.left = indices(storage_index(segments["left"], layout))
     uploaded.right = indices(storage_index(right, layout))
     uploaded.after_right = indices(storage_index(np.where(right >= 0, right + 1, -1), layout))
+    uploaded.left_separator = indices(separator_number(segments["left"], separator))
+    uploaded.right_separator = indices(separator_number(right, separator))
     uploaded.separator_start = indices(segments["separator_start"])
-    uploaded.separator = indices(storage_index(separator, layout))
-    uploaded.before_separator = indices(storage_index(separator - 1, layout))
-    uploaded.after_separator = indices(storage_index(separator + 1, layout))
-    for name in ("diagonal", "lower", "right_side", "solution", "from_left", "from_right", "upper"):
+    uploaded.separator_line = indices(np.repeat(np.arange(len(starts) - 1), np.diff(segments["separator_start"])))
+    for name in ("solution", "from_left", "from_right", "upper"):
         setattr(uploaded, name, wp.zeros(layout.size, dtype=wp.float64, device=device))
-    return lines, uploaded
+    for name in ("own_diagonal", "diagonal_from_before", "right_from_before", "coupling", "diagonal_from_after",
+                 "right_from_after", "separator_upper", "separator_solution"):
+        setattr(uploaded, name, separator_values(len(separator), device))
+    rows = (separator_rows_scratch(len(separator), device), separator_rows_scratch(len(separator), device))
+    return FamilySolve(lines, uploaded, len(layout.base), len(starts) - 1, len(separator),
+                       reduction_strides(segments), rows)
 
 
-@dataclass
-class FamilySolve:
-    """A family's arrays as the kernels take them, and its launches' threads."""
-    lines: ClothLines
-    segments: LineSegments
-    segment_count: int
-    line_count: int
+def separator_values(count: int, device) -> wp.array:
+    """A float64 value for each of ``count`` separators (one where there are none: Warp's struct members
+    take no empty array)."""
+    return wp.zeros(max(count, 1), dtype=wp.float64, device=device)
+
+
+def separator_rows_scratch(count: int, device) -> SeparatorRows:
+    """The rows of ``count`` separators, for cyclic reduction to reduce into."""
+    rows = SeparatorRows()
+    for name in ("lower", "diagonal", "upper", "right"):
+        setattr(rows, name, separator_values(count, device))
+    return rows
+
+
+def reduction_strides(segments: dict[str, np.ndarray]) -> list[int]:
+    """The strides of the cyclic reduction's steps for the separators of ``segments``' lines (1, 2, 4, ...),
+    and last the stride of the chains that Thomas' algorithm then solves: as many steps as leave no chain
+    longer than CHAIN."""
+    most = int(np.diff(segments["separator_start"]).max(initial=0))
+    strides = [1]
+    while -(-most // strides[-1]) > CHAIN:
+        strides.append(2 * strides[-1])
+    return strides
 
 
 class LineSolves:
@@ -167,23 +220,24 @@ class LineSolves:
             raise ValueError(f"line segments of {segment} springs: at least 2")
         self.model = model
         self.name = (f"line solves ({len(lines)} families, each {newton_steps} times: eliminate_segments, "
-                     "solve_separators, finish_segments; forwards and backwards in turn: turn_order)")
+                     "reduce_separators, solve_separator_chains, finish_segments; forwards and backwards in turn: "
+                     "turn_order)")
         self.hold_margin, self.newton_steps = hold_margin, newton_steps
         self.segment, self.interleaved = segment, interleaved
         self.families = []
         for family in lines:
-            uploaded, segments = upload_family(family, segment, interleaved, model.device)
-            self.families.append(FamilySolve(uploaded, segments, segments.base.shape[0], len(family[0]) - 1))
+            self.families.append(upload_family(family, segment, interleaved, model.device))
 
     @classmethod
     def of(cls, model: DeviceModel, lines: list[Family], choices: SolveChoices) -> LineSolves:
         """The line solves of ``lines`` as the solver's ``choices`` (or the lab's) ask, or where they leave it to
-        the device (None): on CUDA segments of CUDA_SEGMENT springs, interleaved; on the CPU whole lines,
+        the device (None): on CUDA segments of segment_for_device's springs, interleaved; on the CPU whole lines,
         contiguous."""
         cuda = model.device.is_cuda
         segment = choices.line_segment
         if segment is None:
-            segment = CUDA_SEGMENT if cuda else max(longest_line(lines), 2)
+            longest = longest_line(lines)
+            segment = segment_for_device(longest) if cuda else max(longest, 2)
         interleaved = cuda if choices.line_interleaved is None else choices.line_interleaved
         return cls(model, lines, choices.line_hold_margin, choices.line_newton_steps, segment, interleaved)
 
@@ -198,10 +252,24 @@ class LineSolves:
             for _ in range(self.newton_steps):
                 wp.launch(eliminate_segments, dim=family.segment_count,
                           inputs=[family.lines, family.segments, inv_mass, self.hold_margin, state.x], device=device)
-                wp.launch(solve_separators, dim=family.line_count, inputs=[family.segments], device=device)
+                if family.separator_count:
+                    self._solve_separators(family, device)
                 wp.launch(finish_segments, dim=family.segment_count,
                           inputs=[family.lines, family.segments, inv_mass, self.model.h],
                           outputs=[state.x, state.v], device=device)
+
+
+    @staticmethod
+    def _solve_separators(family: FamilySolve, device) -> None:
+        rows, reduced = family.rows
+        *steps, chains = family.strides
+        from_segments = 1  # the first launch reads the rows as the segments left them
+        for stride in steps:
+            wp.launch(reduce_separators, dim=family.separator_count,
+                      inputs=[family.segments, stride, from_segments, rows], outputs=[reduced], device=device)
+            rows, reduced, from_segments = reduced, rows, 0
+        wp.launch(solve_separator_chains, dim=family.line_count * chains,
+                  inputs=[family.segments, chains, from_segments, rows], device=device)
 
 
 class HoldAndCollide:
