@@ -23,17 +23,23 @@ CG_TOLERANCE_SQ = wp.constant(4)  # squared relative tolerance on sqrt(r . z)
 CG_SLOTS = 5
 
 
+@wp.func
+def lane_particles(world_start: wp.array(dtype=int), lanes: int, t: int):
+    """Thread t's world, its first particle and the end of its world's particles: it takes every
+    ``lanes``-th from the first."""
+    w = t / lanes
+    return w, world_start[w] + t - w * lanes, world_start[w + 1]
+
+
 @wp.kernel
 def world_dot_partials(a: wp.array(dtype=wp.vec3), b: wp.array(dtype=wp.vec3), world_start: wp.array(dtype=int),
                        lanes: int, active: wp.array(dtype=int), partial: wp.array(dtype=float)):
     """Each world's a . b over its particles (``world_start[w]`` to ``[w + 1]``) as ``lanes`` partial sums."""
     t = wp.tid()
-    w = t / lanes
+    w, k, end = lane_particles(world_start, lanes, t)
     if active[w] == 0:
         return
     total = float(0.0)
-    k = world_start[w] + t - w * lanes
-    end = world_start[w + 1]
     while k < end:
         total += wp.dot(a[k], b[k])
         k += lanes
@@ -57,12 +63,10 @@ def precondition_and_dot(inverse: wp.array(dtype=wp.mat33), r: wp.array(dtype=wp
     """z = P r (the block-Jacobi ``inverse``), and each world's r . z as ``lanes`` partial sums (as
     ``world_dot_partials``)."""
     t = wp.tid()
-    w = t / lanes
+    w, k, end = lane_particles(world_start, lanes, t)
     if active[w] == 0:
         return
     total = float(0.0)
-    k = world_start[w] + t - w * lanes
-    end = world_start[w + 1]
     while k < end:
         total += precondition_at(inverse, r, k, z)
         k += lanes
@@ -76,13 +80,11 @@ def advance_and_precondition(p: wp.array(dtype=wp.vec3), ap: wp.array(dtype=wp.v
                              r: wp.array(dtype=wp.vec3), z: wp.array(dtype=wp.vec3), partial: wp.array(dtype=float)):
     """x += alpha p, r -= alpha A p, z = P r, and each world's new r . z as ``lanes`` partial sums."""
     t = wp.tid()
-    w = t / lanes
+    w, k, end = lane_particles(world_start, lanes, t)
     if active[w] == 0:
         return
     alpha = scalars[w, CG_ALPHA]
     total = float(0.0)
-    k = world_start[w] + t - w * lanes
-    end = world_start[w + 1]
     while k < end:
         x[k] = x[k] + alpha * p[k]
         r[k] = r[k] - alpha * ap[k]
