@@ -19,11 +19,14 @@ count a limited spring's strain only (a cloth's structural and shear springs whe
 springs never are, which each row checks); ``--scene-frames NAME=N`` runs that scene for N frames instead;
 ``--repeats R`` runs a scene's methods in turn R times and keeps each one's least wall and CPU times.
 ``--substeps``: the matrix runs at each of these substeps a frame (its springs as stiff as each step allows).
+``--segments``: the matrix runs with their lines cut into segments of each of these springs (the lab's
+``line_segment``; by default the device's, warp_cloth/line_solve.py's segment_for_device on CUDA).
 ``--bounds``: each matrix run also with the lab's displacement bounds (warp_cloth/displacement_bounds.py;
 ``off``, ``on`` or ``radius=R,gamma=G,rounds=K``), which adds the particles they held short a substep.
 
     python tools/line_solve_probe.py OUT.json [--sizes 32 64 128] [--methods jacobi lines ...] [--frames 48]
         [--cloth grid triangles quads] [--variant sphere self] [--bounds off on ...] [--substeps 10 40]
+        [--segments 8 16 32]
     python tools/line_solve_probe.py OUT.json --scenes NAME ... [--methods ...] [--frames 48]
         [--scene-frames seed_default=12] [--repeats 3]
 
@@ -61,18 +64,19 @@ METHODS = {"default": SolveChoices(), "jacobi": SolveChoices(line_solve=False), 
 
 
 def measure(n: int, method: str, frames: int, cap: int, device: str, cloth: str = "grid",
-            variant: str = "sphere", bounds: str = "off", substeps: int = MATRIX_SUBSTEPS) -> dict:
+            variant: str = "sphere", bounds: str = "off", substeps: int = MATRIX_SUBSTEPS,
+            segment: int | None = None) -> dict:
     """The speed matrix's cloth at ``n``^2 (``variant``, as a grid or a ``cloth`` mesh) at ``substeps`` a frame
     (its springs as stiff as that step allows) and ``cap`` rounds, with the displacement ``bounds``
-    (BoundSettings.parse's)."""
+    (BoundSettings.parse's), its lines cut into segments of ``segment`` springs (None: as the method has it)."""
     scene = matrix_scene(variant, n, "symplectic", substeps)
     if cloth != "grid":
         scene = as_mesh_cloth(scene, triangles=cloth == "triangles")
     scene = dataclasses.replace(scene, simulation=dataclasses.replace(
         scene.simulation, limit_solve="converged", limit_max_passes=cap))
     return {"n": n, "variant": variant, "cloth": cloth, "method": method, "frames": frames, "cap": cap,
-            "frame_substeps": substeps,
-            **measure_run(scene, method, frames, device, bounds)}
+            "frame_substeps": substeps, "segment": segment,
+            **measure_run(scene, method, frames, device, bounds, segment)}
 
 
 def measure_scene(name: str, method: str, frames: int, device: str) -> dict:
@@ -100,7 +104,8 @@ def cap_of_frame(sim: wc.Simulator) -> int:
     return at_substeps(sim.scene, sim.frame_substeps).simulation.limit_max_passes
 
 
-def measure_run(scene: wc.Scene, method: str, frames: int, device: str, bounds: str = "off") -> dict:
+def measure_run(scene: wc.Scene, method: str, frames: int, device: str, bounds: str = "off",
+                segment: int | None = None) -> dict:
     """``frames`` frames of ``scene`` under ``method``'s hooks: the worst strain of a limited spring over
     every frame (the start's included), the solve's passes (rounds) a substep, frames with a solve at the
     cap, substeps a frame, the wall time of the frames (kernels loaded before) and the process's CPU time in
@@ -110,7 +115,8 @@ def measure_run(scene: wc.Scene, method: str, frames: int, device: str, bounds: 
     substep on average. A scene the simulator refuses, or a run that blows up, is a row too."""
     load = round(os.getloadavg()[0], 2)
     try:
-        with lab_hooks(METHODS[method]), bound_hooks(BoundSettings.parse(bounds)):
+        choices = METHODS[method] if segment is None else dataclasses.replace(METHODS[method], line_segment=segment)
+        with lab_hooks(choices), bound_hooks(BoundSettings.parse(bounds)):
             sim = wc.Simulator(scene, device=device)
     except wc.SceneError as exc:
         return {"stable": None, "refused": str(exc), "load_average": load}
@@ -199,6 +205,8 @@ def main() -> None:
     parser.add_argument("--bounds", nargs="+", default=["off"], help="the matrix runs' displacement bounds")
     parser.add_argument("--substeps", type=int, nargs="+", default=[MATRIX_SUBSTEPS],
                         help="the matrix runs' substeps a frame (the springs stiffen with the step)")
+    parser.add_argument("--segments", type=int, nargs="+", default=[None],
+                        help="the matrix runs' line segments, springs (default: as each method has them)")
     parser.add_argument("--repeats", type=int, default=1,
                         help="with --scenes: each scene's methods run in turn R times; the least times kept")
     args = parser.parse_args()
@@ -220,9 +228,10 @@ def main() -> None:
         return
     for n in args.sizes:
         for cloth in args.cloth:
-            for method, bounds, substeps in ((m, b, k) for m in args.methods for b in args.bounds
-                                             for k in args.substeps):
-                keep(measure(n, method, args.frames, args.cap, args.device, cloth, args.variant, bounds, substeps))
+            for method, bounds, substeps, segment in ((m, b, k, g) for m in args.methods for b in args.bounds
+                                                      for k in args.substeps for g in args.segments):
+                keep(measure(n, method, args.frames, args.cap, args.device, cloth, args.variant, bounds, substeps,
+                             segment))
 
 
 if __name__ == "__main__":
