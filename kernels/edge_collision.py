@@ -14,6 +14,8 @@ share (its barycentric weight over the pair's inverse mass), every particle by t
 
 import warp as wp
 
+from .spatial_hash import box_gap_sq
+
 wp.set_module_options({"fast_math": True})  # as the gathering kernels (see gathering.py)
 
 
@@ -184,14 +186,6 @@ def apart_direction(d: wp.vec3, gap: float, p1: wp.vec3, q1: wp.vec3, p2: wp.vec
     if wp.length_sq(n) > 1.0e-18:
         return wp.normalize(n)
     return wp.normalize(wp.vec3(0.267, 0.535, 0.802))
-
-
-@wp.func
-def box_gap_sq(lo_a: wp.vec3, hi_a: wp.vec3, lo_b: wp.vec3, hi_b: wp.vec3) -> float:
-    """The squared distance between two axis-aligned boxes, a lower bound of their contents' (a cheap test
-    that rejects most neighbours of a layer, which lie side by side in it)."""
-    gap = wp.max(wp.max(lo_b - hi_a, lo_a - hi_b), wp.vec3(0.0))
-    return wp.dot(gap, gap)
 
 
 @wp.func

@@ -8,7 +8,7 @@ import functools
 import warp as wp
 
 from .candidate_lists import insert_keeping_gaps
-from .edge_collision import EdgeContacts, EdgeRules, apart_at_rest, box_gap_sq, may_touch_but_at_rest, pair_gap
+from .edge_collision import EdgeContacts, EdgeRules, apart_at_rest, may_touch_but_at_rest, pair_gap
 from .face_collision import FaceContacts, side_bit
 from .face_collision import apart_at_rest as apart_at_rest_face
 from .face_collision import may_touch_but_at_rest as may_touch_face_but_at_rest
@@ -17,7 +17,8 @@ from .particle_collision import (Contacts, ListState, PairRules, add_candidate, 
                                  sort_and_drop_repeats)
 from .primitive_distances import point_triangle_distance
 from .surface_reach import edge_allowance, triangle_allowance
-from .spatial_hash import cell_of, count_in, first_visit, neighbour_bucket, stamp_of
+from .spatial_hash import (box_gap_sq, cell_of, cell_offset, cell_within, count_in, first_visit, first_visit_within,
+                           neighbour_bucket, stamp_of)
 
 wp.set_module_options(FAST_MATH)
 
@@ -159,10 +160,14 @@ def gather_edge_candidates(x: wp.array(dtype=wp.vec3), midpoint: wp.array(dtype=
     # an edge within reach has its midpoint within half of both lengths plus the reach, and no edge is longer
     # than the cells' width less the reach
     near = BOX_SLACK * 0.5 * (wp.length(q - p) + 1.0 / inv_cell[0] + reach)
+    width = 1.0 / inv_cell[0]
+    cells_reach_sq = (BOX_SLACK * near) * (BOX_SLACK * near)
     count = int(0)
     for k in range(27):
+        if not cell_within(center + cell_offset(k), width, middle, middle, cells_reach_sq):
+            continue
         bucket = neighbour_bucket(center, world, k, mask)
-        if first_visit(center, world, k, bucket, mask):
+        if first_visit_within(center, world, k, bucket, mask, width, middle, middle, cells_reach_sq):
             for s in range(wp.min(count_in(bucket_size[bucket], stamp), capacity)):
                 f = bucket_items[bucket * capacity + s]
                 if wp.length_sq(midpoint[f] - middle) < near * near:
@@ -203,10 +208,14 @@ def gather_vertex_faces(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules: 
     own = faces.thickness + allowance[v]
     box_reach = BOX_SLACK * (own + widest[0])
     box_reach_sq = box_reach * box_reach
+    width = 1.0 / inv_cell[0]
+    cells_reach_sq = (BOX_SLACK * near) * (BOX_SLACK * near)
     count = int(0)
     for k in range(27):
+        if not cell_within(center + cell_offset(k), width, p, p, cells_reach_sq):
+            continue
         bucket = neighbour_bucket(center, world, k, mask)
-        if first_visit(center, world, k, bucket, mask):
+        if first_visit_within(center, world, k, bucket, mask, width, p, p, cells_reach_sq):
             for s in range(wp.min(count_in(bucket_size[bucket], stamp), capacity)):
                 q = bucket_items[bucket * capacity + s]
                 if wp.length_sq(x[q] - p) < near * near:
@@ -251,10 +260,14 @@ def gather_face_vertices(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules:
     own = faces.thickness + triangle_allowance(allowance, t)
     box_reach = BOX_SLACK * (own + widest[0])
     box_reach_sq = box_reach * box_reach
+    width = 1.0 / inv_cell[0]
+    cells_reach_sq = (BOX_SLACK * box_reach) * (BOX_SLACK * box_reach)
     count = int(0)
     for k in range(27):
+        if not cell_within(center + cell_offset(k), width, low, high, cells_reach_sq):
+            continue
         bucket = neighbour_bucket(center, world, k, mask)
-        if first_visit(center, world, k, bucket, mask):
+        if first_visit_within(center, world, k, bucket, mask, width, low, high, cells_reach_sq):
             for s in range(wp.min(count_in(bucket_size[bucket], stamp), capacity)):
                 v = bucket_items[bucket * capacity + s]
                 p = x[v]

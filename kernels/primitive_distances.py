@@ -23,9 +23,9 @@ numbered one's thread.
 
 import warp as wp
 
-from .edge_collision import EdgeRules, box_gap_sq, closest_points, may_touch
+from .edge_collision import EdgeRules, closest_points, may_touch
 from .face_collision import may_touch as may_touch_face
-from .spatial_hash import cell_of, count_in, neighbour_bucket, stamp_of
+from .spatial_hash import box_gap_sq, cell_of, count_in, neighbour_bucket, stamp_of
 
 # The radius a step's longest motion asks for, over motion / gamma: so that gamma times it, rounded, is not
 # below the motion and a particle with nothing near is never held short by a rounding.

@@ -6,7 +6,8 @@ blocks of 2 x 2 x 2 to runs of 8 buckets, so that the 27 cells around a point li
 table, not 27 scattered places (a table of 4M particles' buckets outgrows a GPU's L2 cache). A query visits
 the 27 cells around a point; points from other cells in a bucket are candidates like any other (callers test
 the distance), and a bucket that two of the 27 cells share is visited at the first of them
-(``first_visit``). Each world of a batch (warp_cloth/batch.py) hashes its cells apart from the others' (its
+(``first_visit``). A query within a known reach of a point or a box visits only the cells within that
+reach of it (``cell_within``). Each world of a batch (warp_cloth/batch.py) hashes its cells apart from the others' (its
 number mixed into the hash), so that worlds simulated in one place do not crowd each other's buckets.
 
 A bucket's size is stamped with the epoch of the table it belongs to (the caller counts epochs up), so a new
@@ -36,18 +37,48 @@ def bucket_of(cell: wp.vec3i, world: int, mask: int) -> int:
 
 
 @wp.func
+def cell_offset(k: int) -> wp.vec3i:
+    """The k-th (0..26) cell of a 3x3x3 block, from its center."""
+    return wp.vec3i(k % 3 - 1, (k / 3) % 3 - 1, k / 9 - 1)
+
+
+@wp.func
 def neighbour_bucket(center: wp.vec3i, world: int, k: int, mask: int) -> int:
     """The bucket of the k-th (0..26) cell of the 3x3x3 block around ``center`` in ``world``."""
-    return bucket_of(center + wp.vec3i(k % 3 - 1, (k / 3) % 3 - 1, k / 9 - 1), world, mask)
+    return bucket_of(center + cell_offset(k), world, mask)
+
+
+@wp.func
+def box_gap_sq(lo_a: wp.vec3, hi_a: wp.vec3, lo_b: wp.vec3, hi_b: wp.vec3) -> float:
+    """The squared distance between two axis-aligned boxes, a lower bound of their contents' (a cheap test
+    that rejects most neighbours of a layer, which lie side by side in it)."""
+    gap = wp.max(wp.max(lo_b - hi_a, lo_a - hi_b), wp.vec3(0.0))
+    return wp.dot(gap, gap)
+
+
+@wp.func
+def cell_within(cell: wp.vec3i, width: float, low: wp.vec3, high: wp.vec3, reach_sq: float) -> bool:
+    """Whether the cell (of ``width``) lies within the reach of the box from ``low`` to ``high`` (a point where
+    they are equal): a cell out of reach holds no point a query within it looks for."""
+    corner = wp.vec3(float(cell[0]), float(cell[1]), float(cell[2])) * width
+    return box_gap_sq(corner, corner + wp.vec3(width), low, high) < reach_sq
 
 
 @wp.func
 def first_visit(center: wp.vec3i, world: int, k: int, bucket: int, mask: int) -> bool:
     """Whether no cell before the k-th of the 27 around ``center`` hashes to ``bucket`` (so that a query
-    visits each bucket once). Two cells share a bucket only where their places in the block (their
-    coordinates' parities) agree, so the only cells to compare are the earlier ones among the k-th with
-    some of its -1 and +1 offsets turned over (at most 7; all 26 earlier cells were hashed before)."""
-    offset = wp.vec3i(k % 3 - 1, (k / 3) % 3 - 1, k / 9 - 1)
+    visits each bucket once)."""
+    return first_visit_within(center, world, k, bucket, mask, 1.0, wp.vec3(0.0), wp.vec3(0.0), 1.0e30)
+
+
+@wp.func
+def first_visit_within(center: wp.vec3i, world: int, k: int, bucket: int, mask: int, width: float,
+                       low: wp.vec3, high: wp.vec3, reach_sq: float) -> bool:
+    """Whether no cell before the k-th of the 27 around ``center`` that a query within the reach visits
+    (``cell_within``) hashes to ``bucket``. Two cells share a bucket only where their places in the block
+    (their coordinates' parities) agree, so the only cells to compare are the earlier ones among the k-th
+    with some of its -1 and +1 offsets turned over (at most 7; all 26 earlier cells were hashed before)."""
+    offset = cell_offset(k)
     moving = int(0)
     for axis in range(3):
         if offset[axis] != 0:
@@ -60,7 +91,8 @@ def first_visit(center: wp.vec3i, world: int, k: int, bucket: int, mask: int) ->
                 other[axis] = -other[axis]
         if (other[0] + 1) + 3 * (other[1] + 1) + 9 * (other[2] + 1) < k:
             if bucket_of(center + other, world, mask) == bucket:
-                return False
+                if cell_within(center + other, width, low, high, reach_sq):
+                    return False
         turned = (turned - 1) & moving
     return True
 
