@@ -50,6 +50,12 @@ class LineSegments:
     after_right: wp.array(dtype=int)  # the slot after that separator (the next segment's first)
     left_separator: wp.array(dtype=int)  # the numbers of those separators (-1: none)
     right_separator: wp.array(dtype=int)
+    # a cut ring's one particle at both ends, moved by its first segment alone (warp_cloth/line_solve.py's
+    # line_segments): there the slot of the ring's last spring and the separator before the segment that
+    # ends the ring (-1: not a ring's first segment); 1 for the ring's last segment, which leaves it
+    ring_spring: wp.array(dtype=int)
+    ring_separator: wp.array(dtype=int)
+    ring_end: wp.array(dtype=int)
     separator_start: wp.array(dtype=int)  # (lines + 1,) line l's separators are start[l] .. start[l + 1] - 1
     # per slot: the forward elimination of the segment's springs for the line's right side and a unit
     # coupling to each separator (to the right one stored at the last slot only: above it, it is 0), and the
@@ -228,7 +234,7 @@ def reduce_separators(segments: LineSegments, stride: int, from_segments: int, r
         diagonal = diagonal + factor * lower_after
         right = right + factor * right_after
     reduced.lower[r] = reduced_lower
-    reduced.diagonal[r] = diagonal
+    reduced.diagonal[r] = wp.max(diagonal, wp.float64(1.0e-9) * segments.own_diagonal[r])
     reduced.upper[r] = reduced_upper
     reduced.right[r] = right
 
@@ -248,7 +254,7 @@ def solve_separator_chains(segments: LineSegments, stride: int, from_segments: i
     for r in range(begin, end, stride):
         lower, diagonal, upper, right = separator_row(segments, rows, r, from_segments)
         upper_eliminated = upper_before / pivot_before
-        pivot = diagonal - lower * upper_eliminated
+        pivot = wp.max(diagonal - lower * upper_eliminated, wp.float64(1.0e-9) * segments.own_diagonal[r])
         solution_before = (right - lower * solution_before) / pivot
         segments.separator_solution[r] = solution_before
         segments.separator_upper[r] = upper / pivot
@@ -277,10 +283,18 @@ def finish_segments(lines: ClothLines, segments: LineSegments, inv_mass: wp.arra
     left = segments.left[s]
     right = segments.right[s]
     from_left = wp.float64(0.0)
-    normal_first = wp.vec3(0.0)  # the left separator's direction
+    before_first = wp.float64(0.0)  # the dlambda of the spring before the first slot's particle, and its direction
+    normal_first = wp.vec3(0.0)
     if left >= 0:
         from_left = segments.separator_solution[segments.left_separator[s]]
+        before_first = from_left
         normal_first = lines.normal[left]
+    ring_spring = segments.ring_spring[s]
+    if ring_spring >= 0:  # the ring's last spring: the last row of its segment, eliminated already
+        ring_left = segments.separator_solution[segments.ring_separator[s]]
+        before_first = segments.solution[ring_spring] - ring_left * segments.from_left[ring_spring]
+        normal_first = lines.normal[ring_spring]
+    ring_end = segments.ring_end[s]
     from_right = wp.float64(0.0)
     after = wp.float64(0.0)  # the dlambda of the spring after the particle: the separator's, or none
     normal_after = wp.vec3(0.0)
@@ -308,7 +322,7 @@ def finish_segments(lines: ClothLines, segments: LineSegments, inv_mass: wp.arra
         v_next = v[p_before]
         w_next = inv_mass[p_before]
         p_next = lines.particle[base + wp.max(j - 2, 0) * step]
-        before = from_left  # the dlambda of the spring before the particle
+        before = before_first  # the dlambda of the spring before the particle
         if j > 0:
             if j == length:
                 upper = wp.float64(0.0)  # the last row is eliminated already
@@ -320,7 +334,7 @@ def finish_segments(lines: ClothLines, segments: LineSegments, inv_mass: wp.arra
             before = solution - from_left * solution_left - from_right * solution_right
         else:
             normal_before = normal_first
-        if wp_ > 0.0:
+        if wp_ > 0.0 and (j < length or ring_end == 0):
             move = wp_ * (float(before) * normal_before - float(after) * normal_after)
             x[p] = xp + move
             v[p] = vp + move / h

@@ -192,6 +192,44 @@ def test_lines_solved_in_segments_move_the_particles_as_whole_lines_do(device):
         assert np.abs(positions - moved[whole, False]).max() <= 1e-6 * scale, key
 
 
+def tube_obj(path: Path, around: int, rows: int) -> str:
+    """An OBJ of a tube of quads, ``around`` cells round and ``rows`` high: its rings are closed lines."""
+    angle = 2.0 * np.pi * np.arange(around) / around
+    lines = [f"v {0.5 * np.cos(a):.6f} {0.1 * y:.6f} {0.5 * np.sin(a):.6f}" for y in range(rows + 1) for a in angle]
+    at = lambda i, y: 1 + i % around + around * y  # noqa: E731
+    lines += [f"f {at(i, y)} {at(i + 1, y)} {at(i + 1, y + 1)} {at(i, y + 1)}"
+              for y in range(rows) for i in range(around)]
+    path.write_text("\n".join(lines) + "\n")
+    return str(path)
+
+
+@pytest.mark.parametrize("device", ["cpu", pytest.param("cuda", marks=pytest.mark.cuda)])
+def test_a_tubes_rings_cut_into_segments_move_their_particles_as_whole_rings_do(device, tmp_path):
+    # a ring's first particle is its last: cut, its first segment moves it for both ends (on a GPU two
+    # threads moving it at once would lose a move)
+    cloth = wc.Cloth.from_mesh(tube_obj(tmp_path / "tube.obj", 24, 3), density=0.3, limit=wc.Limit(0.1, 0.1))
+    scene = wc.Scene(name="tube", cloths=(cloth,), simulation=wc.Simulation(limit_solve="converged"))
+    rng = np.random.default_rng(5)
+    moved = {}
+    for segment in (1 << 30, 2, 3, 5):
+        with lab_hooks(SolveChoices(chebyshev_rho=0.0, line_solve=True, line_hold_margin=1.0, line_newton_steps=2,
+                                    line_segment=segment)):
+            sim = wc.Simulator(scene, device=device, graph=False)
+        if not moved:
+            start = sim.positions() + rng.normal(0.0, 0.2, sim.positions().shape) * sim.model.edge_rest.mean()
+            starts, particles = cloth_lines(sim.model, scene)[0][:2]
+            rings = particles[starts[:-1]] == particles[starts[1:] - 1]
+            assert rings.sum() >= 4 and np.diff(starts)[rings].min() > 24  # the tube's rings: closed lines
+        sim.state.x.assign(start.astype(np.float32))
+        line_solves = sim.plan.projection.later_body[0]
+        line_solves.run(sim.state)
+        moved[segment] = sim.positions() - start
+    scale = np.abs(moved[1 << 30]).max()
+    assert scale > 0.1 * sim.model.edge_rest.mean()
+    for segment, positions in moved.items():
+        assert np.abs(positions - moved[1 << 30]).max() <= 1e-6 * scale, segment
+
+
 def test_the_hanging_cloth_comes_to_rest_under_the_line_solve_as_under_the_default():
     # Line rounds alone kept this cloth moving at 0.1 m/s for good; the Jacobi pair before them settles it
     # (docs/notebook/strain-solve.md, "A Jacobi pair before the lines").

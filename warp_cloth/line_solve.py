@@ -47,26 +47,35 @@ def longest_line(lines: list[Family]) -> int:
     return max(int(np.diff(starts).max()) - 1 for starts, *_ in lines)
 
 
-def line_segments(starts: np.ndarray, size: int) -> dict[str, np.ndarray]:
+def line_segments(starts: np.ndarray, size: int, closed: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """The lines' (``starts`` as a family of cloth_lines.py's gives them) separators, every ``size``-th spring
     of a line but its last, and the segments between them (kernels/line_solve.py): per segment its first
     slot, one past its last, and the separators' slots before and after it (-1: none); per line its
-    separators."""
-    first, end, left, right, separator_start, separator = [], [], [], [], [0], []
-    for begin, stop in zip(starts[:-1].tolist(), starts[1:].tolist()):
+    separators. A ``closed`` line (a ring, its first particle its last) that is cut has its one particle at
+    both ends moved by its first segment alone, which also takes the ring's last spring (its slot,
+    ``ring_spring``, and the separator before the segment that ends the ring, ``ring_separator``), while its
+    last segment leaves it (``ring_end``): two threads moving one particle at once would lose one move."""
+    per_segment = {name: [] for name in ("first", "end", "left", "right", "ring_spring", "ring_separator",
+                                         "ring_end")}
+    separator_start, separator = [0], []
+    for line, (begin, stop) in enumerate(zip(starts[:-1].tolist(), starts[1:].tolist())):
         last = stop - 1  # the line's springs are slots begin..last-1
         cuts = [begin + j for j in range(size - 1, last - begin - 1, size)]
         bounds = [begin - 1] + cuts + [last]
+        ring = closed is not None and bool(closed[line]) and len(cuts) > 0
         for i in range(len(bounds) - 1):
-            first.append(bounds[i] + 1)
-            end.append(bounds[i + 1])
-            left.append(bounds[i] if i > 0 else -1)
-            right.append(bounds[i + 1] if i < len(bounds) - 2 else -1)
+            per_segment["first"].append(bounds[i] + 1)
+            per_segment["end"].append(bounds[i + 1])
+            per_segment["left"].append(bounds[i] if i > 0 else -1)
+            per_segment["right"].append(bounds[i + 1] if i < len(bounds) - 2 else -1)
+            per_segment["ring_spring"].append(last - 1 if ring and i == 0 else -1)
+            per_segment["ring_separator"].append(cuts[-1] if ring and i == 0 else -1)
+            per_segment["ring_end"].append(int(ring and i == len(bounds) - 2))
         separator += cuts
         separator_start.append(len(separator))
     as_int = lambda values: np.asarray(values, dtype=np.int32)  # noqa: E731
-    return dict(first=as_int(first), end=as_int(end), left=as_int(left), right=as_int(right),
-                separator_start=as_int(separator_start), separator=as_int(separator))
+    return {name: as_int(values) for name, values in per_segment.items()} | dict(
+        separator_start=as_int(separator_start), separator=as_int(separator))
 
 
 @dataclass(frozen=True)
@@ -109,7 +118,7 @@ def across_lines(segments: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     first_of_line = np.flatnonzero(segments["left"] < 0)
     index_in_line = np.arange(len(line)) - first_of_line[line]
     order = np.lexsort((line, index_in_line))
-    return {name: values[order] if name in ("first", "end", "left", "right") else values
+    return {name: values[order] if name not in ("separator_start", "separator") else values
             for name, values in segments.items()}
 
 
@@ -148,7 +157,7 @@ def upload_family(family: Family, size: int, interleaved: bool, device) -> Famil
     """A family's lines cut into segments of ``size`` springs, every per-slot array and every slot index in
     the layout ``interleaved`` chooses (slot_layout)."""
     starts, particles, lo, hi = family
-    segments = line_segments(starts, size)
+    segments = line_segments(starts, size, closed=particles[starts[:-1]] == particles[starts[1:] - 1])
     if interleaved:
         segments = across_lines(segments)
     layout = slot_layout(segments, interleaved)
@@ -168,6 +177,9 @@ def upload_family(family: Family, size: int, interleaved: bool, device) -> Famil
     uploaded.after_right = indices(storage_index(np.where(right >= 0, right + 1, -1), layout))
     uploaded.left_separator = indices(separator_number(segments["left"], separator))
     uploaded.right_separator = indices(separator_number(right, separator))
+    uploaded.ring_spring = indices(storage_index(segments["ring_spring"], layout))
+    uploaded.ring_separator = indices(separator_number(segments["ring_separator"], separator))
+    uploaded.ring_end = indices(segments["ring_end"])
     uploaded.separator_start = indices(segments["separator_start"])
     uploaded.separator_line = indices(np.repeat(np.arange(len(starts) - 1), np.diff(segments["separator_start"])))
     for name in ("solution", "from_left", "from_right", "upper"):
