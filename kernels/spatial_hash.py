@@ -59,9 +59,12 @@ def box_gap_sq(lo_a: wp.vec3, hi_a: wp.vec3, lo_b: wp.vec3, hi_b: wp.vec3) -> fl
 @wp.func
 def cell_within(cell: wp.vec3i, width: float, low: wp.vec3, high: wp.vec3, reach_sq: float) -> bool:
     """Whether the cell (of ``width``) lies within the reach of the box from ``low`` to ``high`` (a point where
-    they are equal): a cell out of reach holds no point a query within it looks for."""
+    they are equal): a cell out of reach holds no point a query within it looks for. Its box is widened by
+    far more than the rounding of ``cell_of``'s floor, which grows with the distance from the origin."""
     corner = wp.vec3(float(cell[0]), float(cell[1]), float(cell[2])) * width
-    return box_gap_sq(corner, corner + wp.vec3(width), low, high) < reach_sq
+    farthest = wp.max(wp.max(wp.abs(cell[0]), wp.abs(cell[1])), wp.abs(cell[2]))
+    margin = 1.0e-5 * float(farthest + 1) * width
+    return box_gap_sq(corner - wp.vec3(margin), corner + wp.vec3(width + margin), low, high) < reach_sq
 
 
 @wp.func

@@ -424,6 +424,59 @@ def test_a_block_of_2x2x2_cells_hashes_to_one_run_of_8_buckets():
 
 
 @wp.kernel
+def visits_within(points: wp.array(dtype=wp.vec3), inv_width: float, reach: float, world: int, mask: int,
+                  cells: wp.array(dtype=int), visited: wp.array(dtype=int), brute_force: wp.array(dtype=int)):
+    """For each point and each of its 27 cells: whether a query within ``reach`` of the point visits that
+    cell's bucket there (cell_within, then first_visit_within), and whether, by brute force, the cell is
+    within reach and no earlier cell within reach has the same bucket."""
+    i, k = wp.tid()
+    p = points[i]
+    center = spatial_hash.cell_of(p, inv_width)
+    width = 1.0 / inv_width
+    bucket = spatial_hash.neighbour_bucket(center, world, k, mask)
+    within = spatial_hash.cell_within(center + spatial_hash.cell_offset(k), width, p, p, reach * reach)
+    cells[i * 27 + k] = int(within)
+    visited[i * 27 + k] = int(within and spatial_hash.first_visit_within(center, world, k, bucket, mask, width, p, p,
+                                                                         reach * reach))
+    first = int(within)
+    for earlier in range(k):
+        earlier_within = spatial_hash.cell_within(center + spatial_hash.cell_offset(earlier), width, p, p,
+                                                  reach * reach)
+        if earlier_within and spatial_hash.neighbour_bucket(center, world, earlier, mask) == bucket:
+            first = 0
+    brute_force[i * 27 + k] = first
+
+
+@pytest.mark.parametrize("mask", [7, 63])
+def test_a_query_within_a_reach_visits_each_bucket_of_its_cells_within_reach_once(mask):
+    points = np.random.default_rng(mask).uniform(-3.0, 3.0, (5000, 3)).astype(np.float32)
+    cells, visited, brute_force = (wp.zeros(5000 * 27, dtype=int) for _ in range(3))
+    wp.launch(visits_within, (5000, 27), inputs=[wp.array(points, dtype=wp.vec3), 10.0, 0.06, 0, mask],
+              outputs=[cells, visited, brute_force])
+    np.testing.assert_array_equal(visited.numpy(), brute_force.numpy())
+    # a reach of r = 0.6 cells: on average the volume of a cell grown by r, 1 + 6r + 3 pi r^2 + 4/3 pi r^3 = 8.90
+    # of the 27 (Steiner's formula)
+    assert abs(cells.numpy().reshape(5000, 27).sum(axis=1).mean() - 8.90) < 0.1
+
+
+@wp.kernel
+def own_cell_within(points: wp.array(dtype=wp.vec3), inv_width: float, within: wp.array(dtype=int)):
+    i = wp.tid()
+    p = points[i]
+    within[i] = int(spatial_hash.cell_within(spatial_hash.cell_of(p, inv_width), 1.0 / inv_width, p, p, 1.0e-30))
+
+
+def test_a_points_own_cell_is_within_any_reach_of_it_far_from_the_origin():
+    # cell_of's floor rounds: far from the origin a point can lie just outside its cell's box as computed
+    rng = np.random.default_rng(11)
+    points = np.concatenate([rng.uniform(-1.0, 1.0, (20000, 3)) * scale for scale in (1.0, 1e2, 1e4)])
+    within = wp.zeros(len(points), dtype=int)
+    wp.launch(own_cell_within, len(points), inputs=[wp.array(points.astype(np.float32), dtype=wp.vec3), 1.0 / 0.03],
+              outputs=[within])
+    assert within.numpy().all()
+
+
+@wp.kernel
 def first_visits(centers: wp.array(dtype=wp.vec3i), world: int, mask: int, visited: wp.array(dtype=int),
                  brute_force: wp.array(dtype=int)):
     """For each centre and each of its 27 cells: whether ``first_visit`` visits its bucket, and whether no
