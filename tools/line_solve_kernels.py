@@ -11,11 +11,10 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 
 import warp_cloth as wc
-from stacked_drape_kernels import device_seconds, kernel_seconds
-from warp_cloth.lab.bench import MATRIX_SUBSTEPS, environment, matrix_scene
+from stacked_drape_kernels import frames_by_kernel, write_kernels
+from warp_cloth.lab.bench import MATRIX_SUBSTEPS, matrix_scene
 from warp_cloth.limit_solve import SolveChoices, lab_hooks
 
 
@@ -36,20 +35,14 @@ def main() -> None:
         sim = wc.Simulator(scene, device=args.device)
     for _ in range(args.skip):
         sim.step()
-    sim.use_graph = False
-    sim.prepare()
-    timing = device_seconds if sim.device.is_cuda else kernel_seconds
-    wall, kernels = timing(sim, args.frames)
+    wall, kernels = frames_by_kernel(sim, args.frames)
     stats = sim.solver_stats()
     print(f"{args.n}^2, {args.frames} frames after {args.skip}: {wall:.3f} s, rounds a substep "
           f"{stats.limit_mean_passes:.2f} mean, {stats.limit_passes} most")
     for name, (launches, seconds) in kernels.items():
         print(f"{name:<48} {launches:>6} {seconds * 1e3:>9.2f} ms {seconds / launches * 1e6:>8.1f} us")
     if args.json:
-        with open(args.json, "w") as out:
-            json.dump({"args": vars(args), "frames_seconds": wall,
-                       "kernels": {name: {"launches": c, "seconds": s} for name, (c, s) in kernels.items()},
-                       "environment": environment(args.device)}, out, indent=1)
+        write_kernels(args.json, vars(args), wall, kernels, args.device)
 
 
 if __name__ == "__main__":

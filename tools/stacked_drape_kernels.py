@@ -70,6 +70,22 @@ def device_seconds(sim: wc.Simulator, frames: int) -> tuple[float, dict[str, lis
     return wall, dict(sorted(totals.items(), key=lambda item: -item[1][1]))
 
 
+def frames_by_kernel(sim: wc.Simulator, frames: int) -> tuple[float, dict[str, list]]:
+    """``frames`` frames launched pass by pass (no graphs), timed by kernel as the device allows."""
+    sim.use_graph = False
+    sim.prepare()
+    timing = device_seconds if sim.device.is_cuda else kernel_seconds
+    return timing(sim, frames)
+
+
+def write_kernels(path: str, args: dict, wall: float, kernels: dict[str, list], device: str) -> None:
+    """The run's arguments, its frames' seconds and each kernel's launches and seconds, as JSON."""
+    with open(path, "w") as out:
+        json.dump({"args": args, "frames_seconds": wall,
+                   "kernels": {name: {"launches": c, "seconds": s} for name, (c, s) in kernels.items()},
+                   "environment": environment(device)}, out, indent=1)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--sheets", type=int, default=3)
@@ -95,18 +111,12 @@ def main() -> None:
         sim = wc.Simulator(scene, device=args.device)
     for _ in range(args.skip):
         sim.step()
-    sim.use_graph = False
-    sim.prepare()
-    timing = device_seconds if sim.device.is_cuda else kernel_seconds
-    wall, kernels = timing(sim, args.frames)
+    wall, kernels = frames_by_kernel(sim, args.frames)
     print(f"{args.frames} frames after {args.skip} in {wall:.1f} s")
     for name, (launches, seconds) in kernels.items():
         print(f"{name:<40} {launches:>7} {seconds:>8.2f} s {100 * seconds / wall:>5.1f}%")
     if args.json:
-        with open(args.json, "w") as out:
-            json.dump({"args": vars(args), "frames_seconds": wall,
-                       "kernels": {name: {"launches": c, "seconds": s} for name, (c, s) in kernels.items()},
-                       "environment": environment(args.device)}, out, indent=1)
+        write_kernels(args.json, vars(args), wall, kernels, args.device)
 
 
 if __name__ == "__main__":
