@@ -66,6 +66,7 @@ from warp_cloth import contact_thickness
 from warp_cloth.diagnostics import TriangleIntersections
 from warp_cloth.displacement_bounds import BoundSettings, DisplacementBounds, lab_hooks
 from warp_cloth.lab.bench import environment
+from warp_cloth.progress import Progress
 
 DRAPE_MATERIAL = {"density": 0.2, "structural": wc.SpringKind(50.0, 0.05), "shear": wc.SpringKind(50.0, 0.05),
                   "bend": wc.SpringKind(20.0, 0.02, "compression", "compression")}  # scenes/drape.toml's
@@ -128,6 +129,7 @@ def measure(scene: wc.Scene, gap: float, device: str, bounds: BoundSettings | No
         per_frame["closest_surfaces"].append(float(surfaces.nearest.numpy().min()))
 
     measure_frame(0)
+    bar = Progress(scene.simulation.frames, f"{scene.name} on {device}")
     for frame in range(1, scene.simulation.frames + 1):
         started = time.perf_counter()
         try:
@@ -150,6 +152,8 @@ def measure(scene: wc.Scene, gap: float, device: str, bounds: BoundSettings | No
             per_frame["held_short_last"].append(held_short[-1] / sim.frame_substeps)
             per_frame["held_back_m"].append(held_back)
         measure_frame(frame)
+        bar.update(frame)
+    bar.close()
     report = strain.report()
     total = sim.solver_stats(since_start=True)
     counts = per_frame["crossings"]
