@@ -151,10 +151,10 @@ def test_the_device_chooses_whole_contiguous_lines_on_the_cpu_and_on_cuda_interl
     assert isinstance(line_solves, LineSolves)
     longest = longest_line(cloth_lines(sim.model, sim.scene))
     assert longest == 10  # the hanging cloth's longest lines
-    assert (line_solves.segment, line_solves.interleaved) == ((3, True) if device == "cuda" else (longest, False))
+    assert (line_solves.segment, line_solves.interleaved) == ((4, True) if device == "cuda" else (longest, False))
     cut = [family.segment_count > family.line_count for family in line_solves.families]
     assert cut == ([True] * 4 if device == "cuda" else [False] * 4)
-    assert [segment_for_device(n) for n in (1, 3, 255, 1023, 2047)] == [2, 2, 16, 32, 45]
+    assert [segment_for_device(n) for n in (1, 3, 255, 511, 1023, 2047, 4095)] == [4, 4, 4, 8, 16, 16, 16]
 
 
 def test_cyclic_reduction_halves_the_separators_chains_until_none_is_longer_than_a_thread_walks():

@@ -7,6 +7,8 @@ module chooses for the device, then the pins and the colliders (with particle co
 
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass
 
 import numpy as np
@@ -33,13 +35,14 @@ CHAIN = 8
 
 
 def segment_for_device(longest: int) -> int:
-    """Springs a segment on CUDA for lines of at most ``longest`` springs: a segment's thread walks its
-    springs one after another, and the separators' solve grows with their number, longest / size, so a
-    round waits on about size + longest / size dependent steps, least at the square root of the longest
-    line (on an H200 the 256^2 and 1024^2 sphere cloths' rounds were fastest at 16 and 32, with their
-    separators walked by a thread a line: docs/notebook/strain-solve.md, "Segments as long as the square
-    root of a line")."""
-    return max(2, round(longest ** 0.5))
+    """Springs a segment on CUDA for lines of at most ``longest`` springs: the power of two nearest a 64th
+    of the longest line, at least 4 and at most 16. A segment's thread walks its springs one after another
+    and the separators' solve grows only with the log of their number, so a short segment is cheap, but
+    at fewer than about 64 segments a line the card's threads are not filled, and past 16 springs a walk
+    costs more than its threads save (on an H200, the sphere cloth's frame at 256^2, 512^2, 1024^2 and
+    2048^2 was fastest at 4, 8, 16 and 16 among 2 to 48: docs/notebook/strain-solve.md, "Segments for the
+    card's threads")."""
+    return min(16, max(4, 2 ** round(math.log2(max(longest, 1) / 64))))
 
 
 def longest_line(lines: list[Family]) -> int:
