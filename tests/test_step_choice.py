@@ -16,7 +16,7 @@ from warp_cloth.errors import UnstableSimulation
 from warp_cloth.model import FLAG_DAMPING_COMPRESSION, FLAG_DAMPING_TENSION, FLAG_ELASTIC_COMPRESSION, \
     FLAG_ELASTIC_TENSION, build_model
 from warp_cloth.scene import INTEGRATORS
-from warp_cloth.stability import SAFETY, automatic_substeps, model_bound, stable_step
+from warp_cloth.stability import SAFETY, SAFETY_DAMPING, automatic_substeps, model_bound, safety, stable_step
 from conftest import REPO, run_cli_in_process, spring_strains, with_simulation
 
 LINEAR = FLAG_ELASTIC_TENSION | FLAG_ELASTIC_COMPRESSION | FLAG_DAMPING_TENSION | FLAG_DAMPING_COMPRESSION
@@ -65,6 +65,26 @@ def test_damped_single_mode_bounds_are_the_amplification_matrix_limits():
     for integrator, h in (("symplectic", symplectic), ("explicit", explicit)):
         radius = lambda step: max(abs(np.linalg.eigvals(amplification(integrator, step, w2, c))))  # noqa: E731
         assert radius(0.99 * h) < 1.0 < radius(1.01 * h)
+
+
+def test_a_bound_set_by_damping_is_taken_at_half_where_damped_velocities_keep_their_sign():
+    # An overdamped single mode (c^2 > 4 w^2): explicit Euler's bound is the damping's 2/c. At 0.8 of it a
+    # step flips the velocity's sign (a negative eigenvalue); at half of it both eigenvalues stay positive.
+    k, rest, mass, b = 1.0, 1.0, 0.01, 0.5
+    positions, inv_mass, pairs, rests, ks, bs, flags = chain(2, k, rest, mass, b)
+    inv_mass[0] = 0.0
+    w2, c = k / (rest * mass), b / mass
+    bound = stable_step(positions, inv_mass, pairs, rests, ks, bs, flags, "explicit")
+    assert bound.limited_by == "damping" and bound.step == pytest.approx(2.0 / c)
+    assert safety(bound) == SAFETY_DAMPING == 0.5
+    assert min(np.linalg.eigvals(amplification("explicit", 0.8 * bound.step, w2, c)).real) < 0.0
+    assert np.all(np.linalg.eigvals(amplification("explicit", SAFETY_DAMPING * bound.step, w2, c)).real > 0.0)
+    # seed_default's explicit step is bounded by its damping: left to the simulator, it starts at half of it
+    scene = wc.load_scene("seed_default")
+    scene = dataclasses.replace(scene, simulation=dataclasses.replace(scene.simulation, dt=None, substeps=None))
+    sim = wc.Simulator(scene, device="cpu")
+    assert sim.step_choice.bound.limited_by == "damping"
+    assert sim.step_choice.substeps == math.ceil(1.0 / (scene.simulation.fps * 0.5 * sim.step_choice.bound.step))
 
 
 def amplification(integrator: str, h: float, w2: float, c: float) -> np.ndarray:

@@ -50,7 +50,7 @@ class SolveChoices:
     ``line_newton_steps`` linearised steps a line a round (kernels/line_solve.py), a thread a segment of
     ``line_segment`` springs (at least the longest line: whole lines), the per-slot arrays stored interleaved
     where ``line_interleaved``, else contiguous; None leaves either to the device where the simulator builds
-    the solves (line_solve.LineSolves.of: CUDA segments of the root of the longest line, interleaved; the CPU
+    the solves (line_solve.LineSolves.of: CUDA segments of a 64th of the longest line, interleaved; the CPU
     whole lines, contiguous)."""
     chebyshev_rho: float | None = None
     joint_passes: int = 200
