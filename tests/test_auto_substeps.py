@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import warp_cloth as wc
-from warp_cloth.auto_substeps import DOWN, HOLD, MISS, MISS_MEMORY, SolveCaps, SubstepChoice, judge
+from warp_cloth.auto_substeps import DOWN, HOLD, MISS, MISS_MEMORY, SolveCaps, SubstepChoice, flagged_at, judge
 from warp_cloth.implicit import SolveStats
 from warp_cloth.limit_solve import SolveChoices, lab_hooks
 from warp_cloth.metrics import read_metrics
@@ -215,6 +215,23 @@ def test_a_miss_that_twice_the_substeps_does_not_shrink_is_kept_and_the_count_go
     assert choice.keep(2, MISS) == 20 and choice.missed == {2: 10} and choice.kept_stalled == 2
     assert choice.redo(3, MISS, 1.5) == 40 and choice.redo(3, MISS, math.inf) == 80  # a flagged try doubles on
     assert choice.redo(3, MISS, 1.4) == 160 and choice.redo(3, HOLD, 0.0) is None and choice.keep(3, HOLD) == 160
+
+
+def test_a_blow_up_that_twice_the_substeps_does_not_put_off_is_kept_and_doubles_no_further():
+    choice = SubstepChoice(floor=13, most=10000)
+    # flagged at the first substep of 13, then of 26: a smaller step blew up no later in the frame
+    assert choice.redo(27, MISS, math.inf, 1 / 13) == 26 and choice.redo(27, MISS, math.inf, 1 / 26) is None
+    assert choice.keep(27, MISS) == 13 and choice.kept_stalled == 1
+    # a blow-up that more substeps put off goes on doubling, as a flagged frame always did
+    assert choice.redo(28, MISS, math.inf, 3 / 13) == 26 and choice.redo(28, MISS, math.inf, 10 / 26) == 52
+    assert choice.redo(28, MISS, 1.2) == 104  # a miss of the solves after a blow-up: more substeps helped
+
+
+def test_the_guard_flags_say_how_far_through_its_frame_it_first_blew_up():
+    status = np.zeros((8, 2), dtype=np.int32)
+    assert flagged_at(status) is None
+    status[5, 1] = status[7, 0] = 1
+    assert flagged_at(status) == 6 / 8
 
 
 # A sphere rises through a 1 m cloth pinned along two opposite edges: past a 10% limit from frame 1, which no

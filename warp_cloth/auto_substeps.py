@@ -15,6 +15,11 @@ the frame's solve figures and the blow-up guard, and ``judge`` says how it went:
   tolerances from 16 to 4096 substeps a frame, and at 10000, whose capped solves cannot settle, the cloth
   blew up). The frame is kept and the next starts from the count before the doubling (the summary says
   how many were kept so);
+- a stalled blow-up (made again with twice the substeps, the guard flagged the frame again, no later in
+  the frame than before): the frame starts from a state no step can carry on from (seed_default's explicit
+  step at 0.8 of its bound threw its particles to 200 m/s; the next frame, made again with up to 10000
+  substeps, blew up at the first of them, a smaller step only making the same correction faster). It is
+  kept, and the run stops as at a set step;
 - room (every solve within its tolerance in at most half its cap): the next frame tries 3/4 of the
   substeps (rounded up), never below the floor nor at or below a count that missed in the last
   ``MISS_MEMORY`` frames, so that the count does not bounce across the boundary every frame;
@@ -28,6 +33,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+import numpy as np
 import warp as wp
 
 from .implicit import SolveStats
@@ -88,6 +94,15 @@ def miss_size(stats: SolveStats | None, flagged: bool, caps: SolveCaps) -> float
     return max(sizes)
 
 
+def flagged_at(status: np.ndarray) -> float | None:
+    """How far through its frame the guard first flagged a substep (a fraction: 1 / substeps at the first),
+    from the frame's flags (substeps, worlds); None where it flagged none."""
+    flagged = status.any(axis=1)
+    if not flagged.any():
+        return None
+    return (int(np.argmax(flagged)) + 1) / len(flagged)
+
+
 @dataclass
 class SubstepChoice:
     """The substeps of the next frame (``substeps``), between the stable ``floor`` and the ``most`` a frame
@@ -101,19 +116,25 @@ class SubstepChoice:
     frames: list[int] = field(default_factory=list)
     kept_missing: int = 0  # frames kept at ``most`` substeps though they missed
     kept_stalled: int = 0  # frames kept though they missed, where twice the substeps did not shrink the miss
-    _tries: list[tuple[int, float]] = field(default_factory=list, repr=False)  # the frame's misses so far: (substeps, size)
+    # the frame's misses so far: (substeps, size, where the guard first flagged it or None)
+    _tries: list[tuple[int, float, float | None]] = field(default_factory=list, repr=False)
 
     def __post_init__(self) -> None:
         self.substeps = self.substeps or self.floor
 
-    def redo(self, frame: int, verdict: str, miss: float = math.inf) -> int | None:
-        """After frame ``frame`` ran at ``substeps`` with ``verdict`` (missing by ``miss``, ``miss_size``): the
+    def redo(self, frame: int, verdict: str, miss: float = math.inf, flagged_at: float | None = None) -> int | None:
+        """After frame ``frame`` ran at ``substeps`` with ``verdict`` (missing by ``miss``, ``miss_size``; the
+        guard first flagging it ``flagged_at`` the way through it, a fraction, None where it did not): the
         substeps to make it again with (a miss below the most, not stalled), now the count; None: keep it."""
         if verdict != MISS:
             return None
-        if self._tries and math.isfinite(miss) and miss >= STALLED * self._tries[-1][1]:
-            return None
-        self._tries.append((self.substeps, miss))
+        if self._tries:
+            _, last_miss, last_flagged_at = self._tries[-1]
+            if math.isfinite(miss) and miss >= STALLED * last_miss:
+                return None
+            if flagged_at is not None and last_flagged_at is not None and flagged_at <= last_flagged_at:
+                return None
+        self._tries.append((self.substeps, miss, flagged_at))
         self.missed[frame] = max(self.missed.get(frame, 0), self.substeps)
         if self.substeps >= self.most:
             return None

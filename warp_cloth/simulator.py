@@ -18,7 +18,7 @@ import warp as wp
 
 from warp_cloth.kernels import guard
 
-from .auto_substeps import FrameStart, SolveCaps, SubstepChoice, judge, miss_size
+from .auto_substeps import FrameStart, SolveCaps, SubstepChoice, flagged_at, judge, miss_size
 from .checkpoint import Checkpoint, load_checkpoint, restore, save_checkpoint
 from .collider_kinds import Meshes
 from .errors import SceneError, UnstableSimulation
@@ -471,7 +471,7 @@ class Simulator:
             status = self._guard_status_of(frame)
             stats = self._read_stats()
             verdict = judge(stats, bool(status.any()), caps)
-            more = self.auto.redo(frame, verdict, miss_size(stats, bool(status.any()), caps))
+            more = self.auto.redo(frame, verdict, miss_size(stats, bool(status.any()), caps), flagged_at(status))
             if more is None:
                 break
             self.frame -= 1
