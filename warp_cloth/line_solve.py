@@ -8,7 +8,6 @@ module chooses for the device, then the pins and the colliders (with particle co
 from __future__ import annotations
 
 import math
-
 from dataclasses import dataclass
 
 import numpy as np
