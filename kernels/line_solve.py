@@ -28,6 +28,10 @@ import warp as wp
 from .attachments import Attachments, hold_to_pin
 from .colliders import RigidColliders, collide_particle
 
+# Every pivot (Thomas', cyclic reduction's, a chain's) is held to at least this fraction of its own spring's
+# diagonal: a line that cannot reach its limit has a singular system (docs/notebook/strain-solve.md)
+PIVOT_FLOOR = wp.constant(wp.float64(1.0e-9))
+
 
 @wp.struct
 class ClothLines:
@@ -158,7 +162,7 @@ def eliminate_segments(lines: ClothLines, segments: LineSegments, inv_mass: wp.a
             lower = coupling
             upper_before = lower / pivot_before
             segments.upper[k - step] = upper_before
-        pivot = wp.max(diagonal - lower * upper_before, wp.float64(1.0e-9) * diagonal)
+        pivot = wp.max(diagonal - lower * upper_before, PIVOT_FLOOR * diagonal)
         solution_before = (right - lower * solution_before) / pivot
         left_before = (to_left_now - lower * left_before) / pivot
         segments.solution[k] = solution_before
@@ -203,7 +207,7 @@ def separator_row(segments: LineSegments, rows: SeparatorRows, r: int, from_segm
     if r + 1 < segments.separator_start[segments.separator_line[r] + 1]:
         upper = segments.coupling[r + 1]
     diagonal = wp.max(segments.diagonal_from_before[r] + segments.diagonal_from_after[r],
-                      wp.float64(1.0e-9) * segments.own_diagonal[r])
+                      PIVOT_FLOOR * segments.own_diagonal[r])
     # coupling is 0 at a line's first separator: the segment before it starts the line
     return segments.coupling[r], diagonal, upper, segments.right_from_before[r] + segments.right_from_after[r]
 
@@ -234,7 +238,7 @@ def reduce_separators(segments: LineSegments, stride: int, from_segments: int, r
         diagonal = diagonal + factor * lower_after
         right = right + factor * right_after
     reduced.lower[r] = reduced_lower
-    reduced.diagonal[r] = wp.max(diagonal, wp.float64(1.0e-9) * segments.own_diagonal[r])
+    reduced.diagonal[r] = wp.max(diagonal, PIVOT_FLOOR * segments.own_diagonal[r])
     reduced.upper[r] = reduced_upper
     reduced.right[r] = right
 
@@ -254,7 +258,7 @@ def solve_separator_chains(segments: LineSegments, stride: int, from_segments: i
     for r in range(begin, end, stride):
         lower, diagonal, upper, right = separator_row(segments, rows, r, from_segments)
         upper_eliminated = upper_before / pivot_before
-        pivot = wp.max(diagonal - lower * upper_eliminated, wp.float64(1.0e-9) * segments.own_diagonal[r])
+        pivot = wp.max(diagonal - lower * upper_eliminated, PIVOT_FLOOR * segments.own_diagonal[r])
         solution_before = (right - lower * solution_before) / pivot
         segments.separator_solution[r] = solution_before
         segments.separator_upper[r] = upper / pivot

@@ -13,7 +13,7 @@ import argparse
 import dataclasses
 
 import warp_cloth as wc
-from stacked_drape_kernels import frames_by_kernel, write_kernels
+from stacked_drape_kernels import frames_by_kernel, report_kernels
 from warp_cloth.lab.bench import MATRIX_SUBSTEPS, matrix_scene
 from warp_cloth.limit_solve import SolveChoices, lab_hooks
 
@@ -33,16 +33,11 @@ def main() -> None:
         scene.simulation, limit_solve="converged", frames=args.skip + args.frames + 1))
     with lab_hooks(SolveChoices(line_segment=args.segment)):
         sim = wc.Simulator(scene, device=args.device)
-    for _ in range(args.skip):
-        sim.step()
-    wall, kernels = frames_by_kernel(sim, args.frames)
+    wall, kernels = frames_by_kernel(sim, args.frames, args.skip)
     stats = sim.solver_stats()
     print(f"{args.n}^2, {args.frames} frames after {args.skip}: {wall:.3f} s, rounds a substep "
           f"{stats.limit_mean_passes:.2f} mean, {stats.limit_passes} most")
-    for name, (launches, seconds) in kernels.items():
-        print(f"{name:<48} {launches:>6} {seconds * 1e3:>9.2f} ms {seconds / launches * 1e6:>8.1f} us")
-    if args.json:
-        write_kernels(args.json, vars(args), wall, kernels, args.device)
+    report_kernels(args, wall, kernels)
 
 
 if __name__ == "__main__":

@@ -6,8 +6,8 @@ CPU graph replays launches that ``wp.launch`` does not see), after ``--skip`` fr
 the CPU ``wp.launch`` is wrapped in a wall clock: a CPU launch returns when its kernel has run, so each
 launch's wall time is its kernel's. On CUDA Warp's
 activity timing (``wp.timing_begin``) gives each kernel's, copy's and fill's device time, after one frame
-that loads the kernels. Prints the frames' wall time and each kernel's launches and seconds, costliest first,
-and writes them as JSON.
+that loads the kernels. Prints the frames' wall time and each kernel's launches, time, time a launch and
+share of the frames, costliest first, and writes them as JSON.
 
     python tools/stacked_drape_kernels.py --sheets 3 --n 24 --frames 30 --thickness 0.004 \\
         --json docs/results/stacked-drape-3x24-kernels-cpu.json
@@ -70,20 +70,29 @@ def device_seconds(sim: wc.Simulator, frames: int) -> tuple[float, dict[str, lis
     return wall, dict(sorted(totals.items(), key=lambda item: -item[1][1]))
 
 
-def frames_by_kernel(sim: wc.Simulator, frames: int) -> tuple[float, dict[str, list]]:
-    """``frames`` frames launched pass by pass (no graphs), timed by kernel as the device allows."""
+def frames_by_kernel(sim: wc.Simulator, frames: int, skip: int = 0) -> tuple[float, dict[str, list]]:
+    """``skip`` frames stepped with graphs, unmeasured, then ``frames`` frames launched pass by pass (no
+    graphs), timed by kernel as the device allows."""
+    for _ in range(skip):
+        sim.step()
     sim.use_graph = False
     sim.prepare()
     timing = device_seconds if sim.device.is_cuda else kernel_seconds
     return timing(sim, frames)
 
 
-def write_kernels(path: str, args: dict, wall: float, kernels: dict[str, list], device: str) -> None:
-    """The run's arguments, its frames' seconds and each kernel's launches and seconds, as JSON."""
-    with open(path, "w") as out:
-        json.dump({"args": args, "frames_seconds": wall,
-                   "kernels": {name: {"launches": c, "seconds": s} for name, (c, s) in kernels.items()},
-                   "environment": environment(device)}, out, indent=1)
+def report_kernels(args: argparse.Namespace, wall: float, kernels: dict[str, list]) -> None:
+    """Each kernel's launches, milliseconds, microseconds a launch and share of the frames' wall time, costliest
+    first; and, where ``args.json`` names a file, the run's arguments, its frames' seconds and each kernel's
+    launches and seconds there as JSON."""
+    for name, (launches, seconds) in kernels.items():
+        print(f"{name:<48} {launches:>7} {seconds * 1e3:>10.2f} ms {seconds / launches * 1e6:>9.1f} us "
+              f"{100 * seconds / wall:>5.1f}%")
+    if args.json:
+        with open(args.json, "w") as out:
+            json.dump({"args": vars(args), "frames_seconds": wall,
+                       "kernels": {name: {"launches": c, "seconds": s} for name, (c, s) in kernels.items()},
+                       "environment": environment(args.device)}, out, indent=1)
 
 
 def main() -> None:
@@ -109,14 +118,9 @@ def main() -> None:
                                 thickness=args.thickness, substeps=args.substeps, integrator=args.integrator)
     with lab_hooks(BoundSettings.parse(args.bounds)):
         sim = wc.Simulator(scene, device=args.device)
-    for _ in range(args.skip):
-        sim.step()
-    wall, kernels = frames_by_kernel(sim, args.frames)
+    wall, kernels = frames_by_kernel(sim, args.frames, args.skip)
     print(f"{args.frames} frames after {args.skip} in {wall:.1f} s")
-    for name, (launches, seconds) in kernels.items():
-        print(f"{name:<40} {launches:>7} {seconds:>8.2f} s {100 * seconds / wall:>5.1f}%")
-    if args.json:
-        write_kernels(args.json, vars(args), wall, kernels, args.device)
+    report_kernels(args, wall, kernels)
 
 
 if __name__ == "__main__":

@@ -18,6 +18,7 @@ from .scene import ImplicitSolver
 from .state import DeviceState
 
 EXPLICIT_RUN_GROWTH = 2.0  # forward Euler with undamped springs: the fastest mode's growth over the run
+LIMITED_BY_DAMPING = "damping"  # a stable step's limit where the damping rate C sets it (about h < 2 / C)
 
 
 class Integrator(Protocol):
@@ -63,8 +64,8 @@ class ExplicitIntegrator:
         if self.symplectic:
             root = math.sqrt(c * c + 4.0 * w2)
             step = 4.0 / (c + root) if c + root > 0 else math.inf
-            return step, "stiffness" if w2 * step >= 2.0 * c else "damping"
-        candidates = {"damping": 2.0 / c if c > 0 else math.inf}
+            return step, "stiffness" if w2 * step >= 2.0 * c else LIMITED_BY_DAMPING
+        candidates = {LIMITED_BY_DAMPING: 2.0 / c if c > 0 else math.inf}
         if damping_time > 0:
             candidates["damping time b L0/k"] = damping_time
         else:

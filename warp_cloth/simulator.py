@@ -470,8 +470,9 @@ class Simulator:
             frame = self._launch_frame()
             status = self._guard_status_of(frame)
             stats = self._read_stats()
-            verdict = judge(stats, bool(status.any()), caps)
-            more = self.auto.redo(frame, verdict, miss_size(stats, bool(status.any()), caps), flagged_at(status))
+            flagged = bool(status.any())
+            verdict = judge(stats, flagged, caps)
+            more = self.auto.redo(frame, verdict, miss_size(stats, flagged, caps), flagged_at(status))
             if more is None:
                 break
             self.frame -= 1

@@ -46,7 +46,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import SceneError
-from .integrators import integrator_for
+from .integrators import LIMITED_BY_DAMPING, integrator_for
 from .cloth_mesh import BendStencils
 from .model import (FLAG_DAMPING_COMPRESSION, FLAG_DAMPING_TENSION, FLAG_ELASTIC_COMPRESSION,
                     FLAG_ELASTIC_TENSION, Model, build_model)
@@ -68,7 +68,7 @@ SAFETY = 0.8  # the automatic step is this fraction of the bound: the bound is o
 # ... and this where a spring has no damping: switching springs (tension only, limits, contacts) pump energy
 # into an undamped cloth at 0.8 (an undamped cloth on the ground: 22 m/s at 0.8, 7 m/s at 0.4 and at 0.2)
 SAFETY_UNDAMPED = 0.4
-# ... and this where the bound is the damping's (``limited_by`` "damping": about h < 2 / C, where a damped
+# ... and this where the bound is the damping's (``LIMITED_BY_DAMPING``: about h < 2 / C, where a damped
 # velocity's factor a step, 1 - hC, stays above -1): at half of it the factor stays at or above 0, so a damped
 # velocity decays without changing sign each step, which contacts and limits switching on and off pumped at
 # 0.8 (seed_default's explicit step: 495 m/s by frame 25 on the CPU, a blow-up at frame 27 on an H200)
@@ -256,7 +256,7 @@ def safety(bound: StabilityBound) -> float:
     the damping's, or ``SAFETY_UNDAMPED`` where some spring has no damping in its elastic regime."""
     if bound.damping_time_min <= 0:
         return SAFETY_UNDAMPED
-    return SAFETY_DAMPING if bound.limited_by == "damping" else SAFETY
+    return SAFETY_DAMPING if bound.limited_by == LIMITED_BY_DAMPING else SAFETY
 
 
 def choose_step(model: Model, sim: Simulation) -> StepChoice:
