@@ -4,7 +4,7 @@ wall time on the CPU (tools/stacked_drape_kernels.py's timers), with its lines c
 springs where asked (the lab's ``line_segment``; by default the device's). docs/notebook/strain-solve.md
 ("Segments as long as the square root of a line") quotes its output.
 
-    python tools/line_solve_kernels.py --n 1024 --skip 30 --device cuda [--segment 16] [--multilevel] [--json OUT]
+    python tools/line_solve_kernels.py --n 1024 --skip 30 --device cuda [--segment 16] [--json OUT]
 """
 
 from __future__ import annotations
@@ -25,14 +25,13 @@ def main() -> None:
     parser.add_argument("--skip", type=int, default=30, help="frames stepped first, with graphs, unmeasured")
     parser.add_argument("--frames", type=int, default=1)
     parser.add_argument("--segment", type=int, default=None, help="springs a segment (default: the device's)")
-    parser.add_argument("--multilevel", action="store_true", help="the lab's stiff-spring rounds instead of lines")
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--json", default=None)
     args = parser.parse_args()
     scene = matrix_scene("sphere", args.n, "symplectic", args.substeps)
     scene = dataclasses.replace(scene, simulation=dataclasses.replace(
         scene.simulation, limit_solve="converged", frames=args.skip + args.frames + 1))
-    with lab_hooks(SolveChoices(line_segment=args.segment, multilevel=args.multilevel)):
+    with lab_hooks(SolveChoices(line_segment=args.segment)):
         sim = wc.Simulator(scene, device=args.device)
     wall, kernels = frames_by_kernel(sim, args.frames, args.skip)
     stats = sim.solver_stats()

@@ -60,8 +60,7 @@ METHODS = {"default": SolveChoices(), "jacobi": SolveChoices(line_solve=False), 
            "lines-segments": dataclasses.replace(LINES, line_segment=32),
            "lines-segments-contiguous": dataclasses.replace(LINES, line_segment=32, line_interleaved=False),
            "lines-segments-interleaved": dataclasses.replace(LINES, line_segment=32, line_interleaved=True),
-           "lines-held-all": dataclasses.replace(LINES, line_hold_margin=1.0, line_newton_steps=1),
-           "multilevel": SolveChoices(multilevel=True)}
+           "lines-held-all": dataclasses.replace(LINES, line_hold_margin=1.0, line_newton_steps=1)}
 
 
 def measure(n: int, method: str, frames: int, cap: int, device: str, cloth: str = "grid",

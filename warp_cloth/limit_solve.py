@@ -51,8 +51,7 @@ class SolveChoices:
     ``line_segment`` springs (at least the longest line: whole lines), the per-slot arrays stored interleaved
     where ``line_interleaved``, else contiguous; None leaves either to the device where the simulator builds
     the solves (line_solve.LineSolves.of: CUDA segments of a 64th of the longest line, interleaved; the CPU
-    whole lines, contiguous). ``multilevel``: the lab's trial of a round as the stiff-spring projection of every
-    line's springs at once (warp_cloth/multilevel_solve.py) in place of the line solves."""
+    whole lines, contiguous)."""
     chebyshev_rho: float | None = None
     joint_passes: int = 200
     line_solve: bool = True
@@ -61,7 +60,6 @@ class SolveChoices:
     line_newton_steps: int = 2
     line_segment: int | None = None
     line_interleaved: bool | None = None
-    multilevel: bool = False
 
 
 # The choices simulators are built with: the solver's own, or the lab's while ``lab_hooks`` holds others.

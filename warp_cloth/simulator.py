@@ -35,7 +35,6 @@ from .face_contacts import FaceContacts
 from .limit_solve import LimitSolveSettings
 from .cloth_lines import cloth_lines
 from .line_solve import LineSolves
-from .multilevel_solve import MultilevelSolve
 from .control import Control
 from .plan import Plan, build_plan
 from .scene import Scene
@@ -275,8 +274,6 @@ class Simulator:
         wanted = solve.line_rounds and (self.device_model.contacts is None or solve.choices.line_contacts)
         families = cloth_lines(self.model, self.scene) if wanted and self.model.limits is not None else []
         self._lines = LineSolves.of(self.device_model, families, solve.choices) if families else None
-        if families and solve.choices.multilevel:
-            self._lines = MultilevelSolve(self.device_model, families, self.model.positions, self.model.inv_mass)
         # the displacement bounds (displacement_bounds.py: a thickness's or the lab's): made once, for every plan
         self._bounds = DisplacementBounds.of(self.model, self.device_model)
         self._control: Control | None = None  # made when first asked for (``control``)
