@@ -123,10 +123,10 @@ class SubstepChoice:
         self.substeps = self.substeps or self.floor
 
     def redo(self, frame: int, verdict: str, miss: float = math.inf, flagged_at: float | None = None) -> int | None:
-        """After frame ``frame`` ran at ``substeps`` with ``verdict`` (missing by ``miss``, ``miss_size``;
-        ``flagged_at``: how far through the frame the guard first flagged it, ``flagged_at``'s, None where it
-        did not): the substeps to make it again with (a miss below the most, not stalled), now the count;
-        None: keep it."""
+        """After frame ``frame`` ran at ``substeps`` with ``verdict``, missing by ``miss`` (``miss_size``'s) and
+        first flagged by the guard ``flagged_at`` of the way through it (the function ``flagged_at``'s fraction;
+        None: not flagged): the substeps to make it again with (a miss below the most, not stalled), now the
+        count; None: keep it."""
         if verdict != MISS:
             return None
         if self._tries:
