@@ -17,8 +17,8 @@ from .particle_collision import (Contacts, ListState, PairRules, add_candidate, 
                                  sort_and_drop_repeats)
 from .primitive_distances import point_triangle_distance
 from .surface_reach import edge_allowance, triangle_allowance
-from .spatial_hash import (box_gap_sq, cell_of, cell_offset, cell_within, count_in, first_visit, first_visit_within,
-                           neighbour_bucket, stamp_of)
+from .spatial_hash import (Buckets, box_gap_sq, cell_of, cell_offset, cell_within, count_in, first_visit,
+                           first_visit_within, neighbour_bucket, stamp_of)
 
 wp.set_module_options(FAST_MATH)
 
@@ -132,11 +132,9 @@ def launch_gather_neighbors(threads: int, x: wp.array, inputs: list) -> None:
 @wp.kernel
 def gather_edge_candidates(x: wp.array(dtype=wp.vec3), midpoint: wp.array(dtype=wp.vec3),
                            edge_world: wp.array(dtype=int), edges: EdgeContacts, rules: EdgeRules, lists: ListState,
-                           allowance: wp.array(dtype=float), widest: wp.array(dtype=float),
-                           inv_cell: wp.array(dtype=float), mask: int, capacity: int,
-                           bucket_size: wp.array(dtype=int), bucket_items: wp.array(dtype=int),
+                           allowance: wp.array(dtype=float), widest: wp.array(dtype=float), buckets: Buckets,
                            gaps: wp.array(dtype=float)):
-    """Each edge's candidates from the hash of its midpoint's 27 cells (each bucket once; ``inv_cell[0]``
+    """Each edge's candidates from the hash of its midpoint's 27 cells (each bucket once; ``buckets.inv_width``
     the cells' inverse width this remake), where ``rebuild`` is set: edges that may touch it whose segments
     lie within the thickness plus both edges' allowances (surface_reach.py; ``widest[0]`` the largest)
     (``pair_gap``: each lists the other; the nearest where more than fit, their gaps kept in ``gaps``
@@ -146,9 +144,8 @@ def gather_edge_candidates(x: wp.array(dtype=wp.vec3), midpoint: wp.array(dtype=
     e = wp.tid()
     ends_e = edges.ends[e]
     middle = midpoint[e]
-    center = cell_of(middle, inv_cell[0])
+    center = cell_of(middle, buckets.inv_width[0])
     world = edge_world[e]
-    stamp = stamp_of(lists.epoch[0])
     start = e * edges.max_neighbors
     p = x[ends_e[0]]
     q = x[ends_e[1]]
@@ -159,17 +156,17 @@ def gather_edge_candidates(x: wp.array(dtype=wp.vec3), midpoint: wp.array(dtype=
     box_reach_sq = (BOX_SLACK * reach) * (BOX_SLACK * reach)
     # an edge within reach has its midpoint within half of both lengths plus the reach, and no edge is longer
     # than the cells' width less the reach
-    near = BOX_SLACK * 0.5 * (wp.length(q - p) + 1.0 / inv_cell[0] + reach)
-    width = 1.0 / inv_cell[0]
+    near = BOX_SLACK * 0.5 * (wp.length(q - p) + 1.0 / buckets.inv_width[0] + reach)
+    width = 1.0 / buckets.inv_width[0]
     cells_reach_sq = (BOX_SLACK * near) * (BOX_SLACK * near)
     count = int(0)
     for k in range(27):
         if not cell_within(center + cell_offset(k), width, middle, middle, cells_reach_sq):
             continue
-        bucket = neighbour_bucket(center, world, k, mask)
-        if first_visit_within(center, world, k, bucket, mask, width, middle, middle, cells_reach_sq):
-            for s in range(wp.min(count_in(bucket_size[bucket], stamp), capacity)):
-                f = bucket_items[bucket * capacity + s]
+        bucket = neighbour_bucket(center, world, k, buckets.mask)
+        if first_visit_within(center, world, k, bucket, buckets.mask, width, middle, middle, cells_reach_sq):
+            for s in range(buckets.count[bucket]):
+                f = buckets.items[buckets.start[bucket] + s]
                 if wp.length_sq(midpoint[f] - middle) < near * near:
                     ends_f = edges.ends[f]
                     p_f = x[ends_f[0]]
@@ -187,37 +184,35 @@ def gather_edge_candidates(x: wp.array(dtype=wp.vec3), midpoint: wp.array(dtype=
 @wp.kernel
 def gather_vertex_faces(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules: EdgeRules, lists: ListState,
                         allowance: wp.array(dtype=float), widest: wp.array(dtype=float),
-                        owned_offsets: wp.array(dtype=int), owned: wp.array(dtype=int), inv_cell: wp.array(dtype=float),
-                        mask: int, capacity: int, bucket_size: wp.array(dtype=int), bucket_items: wp.array(dtype=int),
+                        owned_offsets: wp.array(dtype=int), owned: wp.array(dtype=int), buckets: Buckets,
                         gaps: wp.array(dtype=float)):
     """Each vertex's candidate triangles at positions ``x``, where ``rebuild`` is set: those it may touch
     within the thickness plus the vertex's and the triangle's allowances (surface_reach.py; ``widest[0]`` the
     largest) (the nearest where more than fit, their gaps kept in ``gaps`` meanwhile), as 2 t + the side it
     lies on, in index order. The hash holds
-    the particles (cells ``inv_cell[0]``, wider than the largest reach plus any triangle's side), each triangle
+    the particles (cells ``buckets.inv_width[0]`` wide, wider than the largest reach plus any triangle's side), each triangle
     found from its first vertex (``owned``)."""
     if lists.rebuild[0] == 0:
         return
     v = wp.tid()
     p = x[v]
-    center = cell_of(p, inv_cell[0])
+    center = cell_of(p, buckets.inv_width[0])
     world = rules.world[v]
-    stamp = stamp_of(lists.epoch[0])
     start = v * faces.max_neighbors
-    near = BOX_SLACK / inv_cell[0]  # a triangle within reach has its first vertex within reach plus its side
+    near = BOX_SLACK / buckets.inv_width[0]  # a triangle within reach has its first vertex within reach plus its side
     own = faces.thickness + allowance[v]
     box_reach = BOX_SLACK * (own + widest[0])
     box_reach_sq = box_reach * box_reach
-    width = 1.0 / inv_cell[0]
+    width = 1.0 / buckets.inv_width[0]
     cells_reach_sq = (BOX_SLACK * near) * (BOX_SLACK * near)
     count = int(0)
     for k in range(27):
         if not cell_within(center + cell_offset(k), width, p, p, cells_reach_sq):
             continue
-        bucket = neighbour_bucket(center, world, k, mask)
-        if first_visit_within(center, world, k, bucket, mask, width, p, p, cells_reach_sq):
-            for s in range(wp.min(count_in(bucket_size[bucket], stamp), capacity)):
-                q = bucket_items[bucket * capacity + s]
+        bucket = neighbour_bucket(center, world, k, buckets.mask)
+        if first_visit_within(center, world, k, bucket, buckets.mask, width, p, p, cells_reach_sq):
+            for s in range(buckets.count[bucket]):
+                q = buckets.items[buckets.start[bucket] + s]
                 if wp.length_sq(x[q] - p) < near * near:
                     for o in range(owned_offsets[q], owned_offsets[q + 1]):
                         t_index = owned[o]
@@ -238,9 +233,8 @@ def gather_vertex_faces(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules: 
 
 @wp.kernel
 def gather_face_vertices(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules: EdgeRules, lists: ListState,
-                         allowance: wp.array(dtype=float), widest: wp.array(dtype=float),
-                         inv_cell: wp.array(dtype=float), mask: int, capacity: int, bucket_size: wp.array(dtype=int),
-                         bucket_items: wp.array(dtype=int), gaps: wp.array(dtype=float)):
+                         allowance: wp.array(dtype=float), widest: wp.array(dtype=float), buckets: Buckets,
+                         gaps: wp.array(dtype=float)):
     """Each triangle's candidate vertices, where ``rebuild`` is set: the pairs ``gather_vertex_faces`` lists,
     seen from the triangle (the same test on the same positions), as 2 v + the side v lies on, in index
     order; found in the 27 cells around the triangle's first vertex."""
@@ -251,25 +245,24 @@ def gather_face_vertices(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules:
     a = x[t[0]]
     b = x[t[1]]
     c = x[t[2]]
-    center = cell_of(a, inv_cell[0])
+    center = cell_of(a, buckets.inv_width[0])
     world = rules.world[t[0]]
-    stamp = stamp_of(lists.epoch[0])
     start = t_index * faces.max_neighbors
     low = wp.min(wp.min(a, b), c)
     high = wp.max(wp.max(a, b), c)
     own = faces.thickness + triangle_allowance(allowance, t)
     box_reach = BOX_SLACK * (own + widest[0])
     box_reach_sq = box_reach * box_reach
-    width = 1.0 / inv_cell[0]
+    width = 1.0 / buckets.inv_width[0]
     cells_reach_sq = (BOX_SLACK * box_reach) * (BOX_SLACK * box_reach)
     count = int(0)
     for k in range(27):
         if not cell_within(center + cell_offset(k), width, low, high, cells_reach_sq):
             continue
-        bucket = neighbour_bucket(center, world, k, mask)
-        if first_visit_within(center, world, k, bucket, mask, width, low, high, cells_reach_sq):
-            for s in range(wp.min(count_in(bucket_size[bucket], stamp), capacity)):
-                v = bucket_items[bucket * capacity + s]
+        bucket = neighbour_bucket(center, world, k, buckets.mask)
+        if first_visit_within(center, world, k, bucket, buckets.mask, width, low, high, cells_reach_sq):
+            for s in range(buckets.count[bucket]):
+                v = buckets.items[buckets.start[bucket] + s]
                 p = x[v]
                 if box_gap_sq(p, p, low, high) < box_reach_sq:
                     if may_touch_face_but_at_rest(rules, v, t):

@@ -11,8 +11,8 @@ gamma r covers the longest motion of a free particle (``widen_to_motion``). Noth
 then bounds it at gamma r, at least its own step: a particle with nothing near takes its whole step, and a
 pair found nearer than r bounds its vertices as before.
 
-The pairs are found through a spatial hash of the particles (spatial_hash.py) whose cells are r plus the
-longest edge wide (``next_table``): a triangle within r of a vertex has every vertex within r + L of it (L
+The pairs are found through a spatial hash of the particles whose buckets hold them all (spatial_hash.py's
+``Buckets``), its cells r plus the longest edge wide (``choose_cells``): a triangle within r of a vertex has every vertex within r + L of it (L
 its longest edge), so its first vertex is among the 27 cells around the vertex; an edge within r of another
 has an end within r + (l + L) / 2 of the other's midpoint, l the other's length (each closest point lies
 within half its segment's length of the middle and of its nearer end), so the 27 cells around the midpoint
@@ -25,7 +25,7 @@ import warp as wp
 
 from .edge_collision import EdgeRules, closest_points, may_touch
 from .face_collision import may_touch as may_touch_face
-from .spatial_hash import box_gap_sq, cell_of, count_in, neighbour_bucket, stamp_of
+from .spatial_hash import Buckets, box_gap_sq, cell_of, neighbour_bucket
 
 # The radius a step's longest motion asks for, over motion / gamma: so that gamma times it, rounded, is not
 # below the motion and a particle with nothing near is never held short by a rounding.
@@ -43,17 +43,6 @@ class Primitives:
     edge_offsets: wp.array(dtype=int)  # (n + 1,) particle i's edges are edges_at[edge_offsets[i]:...[i + 1]]
     edges_at: wp.array(dtype=int)
     rules: EdgeRules
-
-
-@wp.struct
-class DistanceHash:
-    """The particles' spatial hash for the query (spatial_hash.py), its cells chosen at each table."""
-    inv_cell: wp.array(dtype=float)  # (1,)
-    mask: int
-    capacity: int
-    epoch: wp.array(dtype=int)  # (1,)
-    bucket_size: wp.array(dtype=int)
-    bucket_items: wp.array(dtype=int)
 
 
 @wp.func
@@ -112,10 +101,9 @@ def fill_with_radius(radius: wp.array(dtype=float), nearest: wp.array(dtype=floa
 
 
 @wp.kernel
-def next_table(radius: wp.array(dtype=float), longest: wp.array(dtype=float), grid: DistanceHash):
-    """By one thread: the hash's next epoch (an empty table), its cells ``radius`` plus the longest edge wide."""
-    grid.epoch[0] = grid.epoch[0] + 1
-    grid.inv_cell[0] = 1.0 / (radius[0] + longest[0])
+def choose_cells(radius: wp.array(dtype=float), longest: wp.array(dtype=float), inv_width: wp.array(dtype=float)):
+    """By one thread: the hash's cells ``radius`` plus the longest edge wide."""
+    inv_width[0] = 1.0 / (radius[0] + longest[0])
 
 
 @wp.func
@@ -124,7 +112,7 @@ def lower_nearest(nearest: wp.array(dtype=float), i: int, d: float):
 
 
 @wp.kernel
-def nearest_to_triangles(x: wp.array(dtype=wp.vec3), mesh: Primitives, grid: DistanceHash,
+def nearest_to_triangles(x: wp.array(dtype=wp.vec3), mesh: Primitives, grid: Buckets,
                          query: wp.array(dtype=float), longest: wp.array(dtype=float), nearest: wp.array(dtype=float)):
     """Each vertex against the triangles it is not a vertex of: a pair closer than the query radius
     (``query[0]``) lowers ``nearest`` at its four vertices."""
@@ -133,12 +121,11 @@ def nearest_to_triangles(x: wp.array(dtype=wp.vec3), mesh: Primitives, grid: Dis
     p = x[v]
     world = mesh.rules.world[v]
     reach = radius + longest[0]
-    center = cell_of(p, grid.inv_cell[0])
-    stamp = stamp_of(grid.epoch[0])
+    center = cell_of(p, grid.inv_width[0])
     for k in range(27):
         bucket = neighbour_bucket(center, world, k, grid.mask)
-        for s in range(wp.min(count_in(grid.bucket_size[bucket], stamp), grid.capacity)):
-            q = grid.bucket_items[bucket * grid.capacity + s]
+        for s in range(grid.count[bucket]):
+            q = grid.items[grid.start[bucket] + s]
             if mesh.rules.world[q] == world and wp.length_sq(x[q] - p) < reach * reach:
                 for o in range(mesh.owned_offsets[q], mesh.owned_offsets[q + 1]):
                     t = mesh.triangles[mesh.owned[o]]
@@ -156,7 +143,7 @@ def nearest_to_triangles(x: wp.array(dtype=wp.vec3), mesh: Primitives, grid: Dis
 
 
 @wp.kernel
-def nearest_between_edges(x: wp.array(dtype=wp.vec3), mesh: Primitives, grid: DistanceHash,
+def nearest_between_edges(x: wp.array(dtype=wp.vec3), mesh: Primitives, grid: Buckets,
                           query: wp.array(dtype=float), longest: wp.array(dtype=float), nearest: wp.array(dtype=float)):
     """Each edge against the higher numbered edges it shares no vertex with: a pair closer than the query
     radius (``query[0]``) lowers ``nearest`` at its four vertices."""
@@ -169,12 +156,11 @@ def nearest_between_edges(x: wp.array(dtype=wp.vec3), mesh: Primitives, grid: Di
     middle = 0.5 * (pa + pb)
     world = mesh.rules.world[a]
     reach = radius + 0.5 * (wp.length(pb - pa) + longest[0])
-    center = cell_of(middle, grid.inv_cell[0])
-    stamp = stamp_of(grid.epoch[0])
+    center = cell_of(middle, grid.inv_width[0])
     for k in range(27):
         bucket = neighbour_bucket(center, world, k, grid.mask)
-        for s in range(wp.min(count_in(grid.bucket_size[bucket], stamp), grid.capacity)):
-            c = grid.bucket_items[bucket * grid.capacity + s]
+        for s in range(grid.count[bucket]):
+            c = grid.items[grid.start[bucket] + s]
             if mesh.rules.world[c] == world and wp.length_sq(x[c] - middle) < reach * reach:
                 for o in range(mesh.edge_offsets[c], mesh.edge_offsets[c + 1]):
                     f = mesh.edges_at[o]

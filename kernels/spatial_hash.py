@@ -1,18 +1,20 @@
-"""A spatial hash of points (particles, or contact edges' midpoints), built from kernels alone so that it can
-be remade inside a captured graph: cells of a given width (or, for the edges' hash, one a kernel chose at
-the remake: ``insert_points_at_chosen_width``) are hashed (Teschner et al. 2003) into a
-power-of-two table of buckets of fixed capacity, and each point is appended to its cell's bucket. Cells are hashed in
-blocks of 2 x 2 x 2 to runs of 8 buckets, so that the 27 cells around a point lie in at most 8 runs of the
-table, not 27 scattered places (a table of 4M particles' buckets outgrows a GPU's L2 cache). A query visits
-the 27 cells around a point; points from other cells in a bucket are candidates like any other (callers test
-the distance), and a bucket that two of the 27 cells share is visited at the first of them
-(``first_visit``). A query within a known reach of a point or a box visits only the cells within that
-reach of it (``cell_within``). Each world of a batch (warp_cloth/batch.py) hashes its cells apart from the others' (its
-number mixed into the hash), so that worlds simulated in one place do not crowd each other's buckets.
+"""A spatial hash of points (particles, contact edges' midpoints), built from kernels alone so that it can be
+remade inside a captured graph: cells of a given width are hashed (Teschner et al. 2003) into a power-of-two
+table of buckets. Cells are hashed in blocks of 2 x 2 x 2 to runs of 8 buckets, so that the 27 cells around a
+point lie in at most 8 runs of the table, not 27 scattered places (a table of 4M particles' buckets outgrows a
+GPU's L2 cache). A query visits the 27 cells around a point; points from other cells in a bucket are
+candidates like any other (callers test the distance), and a bucket that two of the 27 cells share is visited
+at the first of them (``first_visit``). A query within a known reach of a point or a box visits only the cells
+within that reach of it (``cell_within``). Each world of a batch (warp_cloth/batch.py) hashes its cells apart
+from the others' (its number mixed into the hash), so that worlds simulated in one place do not crowd each
+other's buckets.
 
-A bucket's size is stamped with the epoch of the table it belongs to (the caller counts epochs up), so a new
-table needs no clearing: a bucket whose stamp is not the current epoch's is empty. Stamps keep the epoch's
-low 24 bits; a bucket left untouched for 2^24 epochs would read as filled again.
+Two kinds of bucket. The particle contacts' have a fixed capacity (``insert_points``), each point appended
+to its cell's bucket, those past it counted as dropped; a bucket's size is stamped with the epoch of the table
+it belongs to (the caller counts epochs up), so a new table needs no clearing: a bucket whose stamp is not
+the current epoch's is empty (stamps keep the epoch's low 24 bits; a bucket left untouched for 2^24 epochs
+would read as filled again). The surface contacts' and the displacement bounds' (``Buckets``) hold every
+point, at cells a kernel chose at the fill.
 """
 
 import warp as wp
@@ -169,16 +171,51 @@ def insert_points(x: wp.array(dtype=wp.vec3), world: wp.array(dtype=int), inv_wi
                  overflow)
 
 
+# Buckets that hold every point, for the surface contacts' lists and the bounds' distances, whose guarantee
+# needs every pair within reach: a kernel counts each bucket's points, a scan of the counts places the buckets
+# in one array, and a kernel puts each point at its place. Their cells are as wide as the reach, which follows
+# the step's motion: at seed_default's 4 mm thickness, a 2.9 m query radius made 4.4 m cells whose fullest
+# buckets held more than the fixed room of 127 edges, and 164 edges left out of every list let two pairs
+# cross under the bounds (docs/notebook/layers.md).
+
+
+@wp.struct
+class Buckets:
+    """A spatial hash whose buckets hold every point, filled by ``empty_buckets``, ``count_points``, an
+    exclusive scan of ``count`` into ``start`` and ``place_points``; bucket b's points are
+    ``items[start[b]:start[b] + count[b]]``."""
+    inv_width: wp.array(dtype=float)  # (1,) its cells' inverse width, chosen by a kernel before each fill
+    mask: int  # the table's size - 1
+    count: wp.array(dtype=int)  # (table,)
+    start: wp.array(dtype=int)  # (table,)
+    items: wp.array(dtype=int)  # (points,)
+    bucket: wp.array(dtype=int)  # (points,) each point's bucket, while the hash is filled
+    rank: wp.array(dtype=int)  # (points,) each point's place in its bucket, while the hash is filled
+
+
 @wp.kernel
-def insert_points_at_chosen_width(x: wp.array(dtype=wp.vec3), world: wp.array(dtype=int),
-                                  inv_width: wp.array(dtype=float), mask: int, capacity: int,
-                                  epoch: wp.array(dtype=int), rebuild: wp.array(dtype=int),
-                                  bucket_size: wp.array(dtype=int), bucket_items: wp.array(dtype=int),
-                                  overflow: wp.array(dtype=int)):
-    """As ``insert_points``, the cells' inverse width read from ``inv_width[0]``, which a kernel before
-    chose for this table."""
+def empty_buckets(rebuild: wp.array(dtype=int), count: wp.array(dtype=int)):
+    """Every bucket's count zeroed, where ``rebuild`` is set (else the last fill's counts stay)."""
+    if rebuild[0] != 0:
+        count[wp.tid()] = 0
+
+
+@wp.kernel
+def count_points(x: wp.array(dtype=wp.vec3), world: wp.array(dtype=int), rebuild: wp.array(dtype=int),
+                 buckets: Buckets):
+    """Each point's bucket and its place there, counted, where ``rebuild`` is set."""
     if rebuild[0] == 0:
         return
     i = wp.tid()
-    insert_point(i, x[i], world[i], inv_width[0], mask, capacity, stamp_of(epoch[0]), bucket_size, bucket_items,
-                 overflow)
+    bucket = bucket_of(cell_of(x[i], buckets.inv_width[0]), world[i], buckets.mask)
+    buckets.bucket[i] = bucket
+    buckets.rank[i] = wp.atomic_add(buckets.count, bucket, 1)
+
+
+@wp.kernel
+def place_points(rebuild: wp.array(dtype=int), buckets: Buckets):
+    """Each point at its place, after the scan of the counts, where ``rebuild`` is set."""
+    if rebuild[0] == 0:
+        return
+    i = wp.tid()
+    buckets.items[buckets.start[buckets.bucket[i]] + buckets.rank[i]] = i

@@ -1,7 +1,7 @@
 """How many candidates the edge contacts' lists (and the face lists of a surface thickness) really hold in the
-stacked drape, and how full the edge hash's buckets get: the lists and the buckets made long enough never to
-fill (``--room``, ``--bucket``, at most spatial_hash.COUNT_MASK), read at the end of every frame (the lists of
-that frame's last remake). What sized ``state.EDGE_NEIGHBORS`` and ``EDGE_BUCKET_CAPACITY`` (docs/notebook/layers.md).
+stacked drape, and how full the edge and face hashes' buckets get (they hold every point: counted_hash.py): the
+lists made long enough never to fill (``--room``), read at the end of every frame (the lists of that frame's
+last remake). What sized ``state.EDGE_NEIGHBORS`` (docs/notebook/layers.md).
 
     python tools/candidate_counts.py --sheets 3 --n 32 --frames 60 --thickness 0.004 --json docs/results/x.json
 
@@ -24,15 +24,13 @@ import warp_cloth.passes as passes
 import warp_cloth.state as state
 from stacked_drape import stacked_drape_scene
 from warp_cloth.displacement_bounds import BoundSettings, lab_hooks
-from warp_cloth.kernels.spatial_hash import COUNT_BITS, COUNT_MASK
+from warp_cloth.counted_hash import CountedHash
 from warp_cloth.lab.bench import environment
 
 
-def fullest_bucket(bucket_size: wp.array) -> int:
-    """The most a bucket of the latest table holds (its stamp the latest)."""
-    sizes = bucket_size.numpy()
-    stamps = sizes >> COUNT_BITS
-    return int((sizes & COUNT_MASK)[stamps == stamps.max()].max())
+def fullest_bucket(hash: CountedHash) -> int:
+    """The most a bucket of its latest fill holds."""
+    return int(hash.buckets.count.numpy().max())
 
 
 def main() -> None:
@@ -44,14 +42,12 @@ def main() -> None:
     parser.add_argument("--thickness", type=float, default=None,
                         help="[collision] thickness in metres: face contacts, both kinds that far apart (default none)")
     parser.add_argument("--room", type=int, default=512, help="entries every list holds")
-    parser.add_argument("--bucket", type=int, default=COUNT_MASK, help="edges a bucket of the edge hash holds")
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--json", default=None)
     args = parser.parse_args()
     wp.config.log_level = wp.LOG_ERROR
     wc.set_verbose(False)
     state.EDGE_NEIGHBORS = passes.EDGE_NEIGHBORS = face_contacts.FACE_NEIGHBORS = args.room
-    state.EDGE_BUCKET_CAPACITY = neighbour_lists.EDGE_BUCKET_CAPACITY = args.bucket
     scene = stacked_drape_scene(args.sheets, args.n, frames=args.frames, radius=args.radius, edges=True,
                                 thickness=args.thickness)
     with lab_hooks(BoundSettings.parse("on")):
@@ -61,13 +57,13 @@ def main() -> None:
     rows, started = [], time.perf_counter()
     for frame in range(1, args.frames + 1):
         sim.step()
-        row = {"frame": frame, "edge_list": int(lists.edges.state.counts.numpy().max()),
-               "edge_bucket": fullest_bucket(lists.edges.state.bucket_size), "dropped": lists.overflow}
+        row = {"frame": frame, "edge_list": int(lists.edges.edges.counts.numpy().max()),
+               "edge_bucket": fullest_bucket(lists.edges.hash), "dropped": lists.overflow}
         if lists.faces is not None:
             faces = lists.faces
             row |= {"vertex_list": int(faces.args.vertex_counts.numpy().max()),
                     "triangle_list": int(faces.args.face_counts.numpy().max()),
-                    "face_bucket": fullest_bucket(faces.bucket_size)}
+                    "face_bucket": fullest_bucket(faces.hash)}
         rows.append(row)
         print(row, flush=True)
     most = {key: max(row[key] for row in rows) for key in rows[0] if key != "frame"}

@@ -147,7 +147,7 @@ def measure(scene: wc.Scene, gap: float, device: str, bounds: BoundSettings | No
         per_frame["cg_iterations"].append(stats.cg_iterations)
         per_frame["limit_residual"].append(stats.limit_residual)
         if sim.plan.bounds is not None:
-            held_short, held_back, _ = sim.plan.bounds.read_stats()
+            held_short, held_back = sim.plan.bounds.read_stats()
             per_frame["held_short_first"].append(held_short[0] / sim.frame_substeps)
             per_frame["held_short_last"].append(held_short[-1] / sim.frame_substeps)
             per_frame["held_back_m"].append(held_back)
@@ -183,8 +183,6 @@ def measure(scene: wc.Scene, gap: float, device: str, bounds: BoundSettings | No
             "held_short_last_mean": float(np.mean(per_frame["held_short_last"]))
             if per_frame["held_short_last"] else None,
             "held_back_m": float(np.sum(per_frame["held_back_m"])) if per_frame["held_back_m"] else None,
-            "bounds_overflow": None if sim.plan.bounds is None else int(sim.plan.bounds.overflow.numpy()[0]),
-            "surfaces_overflow": int(surfaces.overflow.numpy()[0]),
             "per_frame": per_frame | {"stretch": report.per_frame[:, 1].tolist(),
                                       "compression": report.per_frame[:, 2].tolist()}}
 

@@ -45,12 +45,13 @@ from typing import Iterator
 import numpy as np
 import warp as wp
 
-from warp_cloth.kernels import displacement_bounds, listed_distances, primitive_distances, spatial_hash
+from warp_cloth.kernels import displacement_bounds, listed_distances, primitive_distances
 from warp_cloth.kernels.edge_collision import EdgeContacts
 from warp_cloth.kernels.face_collision import FaceContacts as FaceContactsArgs
-from warp_cloth.kernels.primitive_distances import DistanceHash, Primitives
+from warp_cloth.kernels.primitive_distances import Primitives
 
 from .adjacency import Adjacency
+from .counted_hash import CountedHash
 from .device_model import DeviceModel
 from .mesh_io import triangle_sides
 from .model import Model
@@ -112,9 +113,6 @@ def lab_hooks(bounds: BoundSettings | None = None) -> Iterator[None]:
         BOUNDS = before
 
 
-BUCKET_CAPACITY = 64  # particles a bucket of the bounds' hash holds: its cells are wider than an edge is long
-
-
 def mesh_primitives(model: Model) -> tuple[np.ndarray, np.ndarray]:
     """Every cloth's triangles, (t, 3), and their edges once each, (m, 2), in the model's particle numbers."""
     triangles = model.triangles
@@ -123,8 +121,7 @@ def mesh_primitives(model: Model) -> tuple[np.ndarray, np.ndarray]:
 
 class DisplacementBounds:
     """The bounds' arrays and their passes (``record_start``, ``measure``, ``hold``, ``clamp`` and
-    ``clamp_held``), made once per simulator. A particle that does not fit its hash bucket is counted in
-    ``overflow`` and its pairs go unmeasured (the tools report it: the guarantee needs none)."""
+    ``clamp_held``), made once per simulator."""
 
     def __init__(self, model: Model, device_model: DeviceModel, settings: BoundSettings) -> None:
         self.settings = settings
@@ -145,21 +142,13 @@ class DisplacementBounds:
         mesh.edge_offsets = wp.array(edges_at.offsets, dtype=int, device=device)
         mesh.edges_at = wp.array(edges_at.spring, dtype=int, device=device)
         mesh.rules = device_model.surface_rules(model)
-        table = hash_table_size(n)
-        grid = self.grid = DistanceHash()
-        grid.inv_cell = wp.zeros(1, dtype=float, device=device)
-        grid.mask = table - 1
-        grid.capacity = BUCKET_CAPACITY
-        grid.epoch = wp.zeros(1, dtype=int, device=device)
-        grid.bucket_size = wp.zeros(table, dtype=int, device=device)
-        grid.bucket_items = wp.zeros(table * BUCKET_CAPACITY, dtype=int, device=device)
+        self.hash = CountedHash(n, hash_table_size(n), device)
         self.insert_always = wp.ones(1, dtype=int, device=device)  # the hash's request to fill: every table
         self.longest = wp.zeros(1, dtype=float, device=device)
         self.query = wp.zeros(1, dtype=float, device=device)  # the query radius last chosen
         self.nearest = wp.zeros(n, dtype=float, device=device)
         self.start = wp.zeros(n, dtype=wp.vec3, device=device)
         self.position = wp.zeros(n, dtype=wp.vec3, device=device)
-        self.overflow = wp.zeros(1, dtype=int, device=device)
         self.clamped = wp.zeros(settings.rounds, dtype=int, device=device)  # particles held short, by round
         self.held_back = wp.zeros(1, dtype=float, device=device)
         self.record_start = RecordStart(self)
@@ -190,16 +179,14 @@ class DisplacementBounds:
     def measure_at(self, x: wp.array, target: wp.array | None = None) -> None:
         """Each particle's nearest pair distance at positions ``x``, into ``nearest``, within the query radius
         (``choose_query``'s), found through the bounds' own spatial hash."""
-        device, grid = self.device, self.grid
+        device, grid = self.device, self.hash.buckets
         self.choose_query(x, target)
         self.longest.zero_()
         wp.launch(primitive_distances.longest_edge, dim=self.edge_count, inputs=[x, self.mesh.ends],
                   outputs=[self.longest], device=device)
-        wp.launch(primitive_distances.next_table, dim=1, inputs=[self.query, self.longest, grid], device=device)
-        wp.launch(spatial_hash.insert_points_at_chosen_width, dim=self.n,
-                  inputs=[x, self.mesh.rules.world, grid.inv_cell, grid.mask, grid.capacity, grid.epoch,
-                          self.insert_always],
-                  outputs=[grid.bucket_size, grid.bucket_items, self.overflow], device=device)
+        wp.launch(primitive_distances.choose_cells, dim=1, inputs=[self.query, self.longest], outputs=[grid.inv_width],
+                  device=device)
+        self.hash.fill(x, self.mesh.rules.world, self.insert_always)
         wp.launch(primitive_distances.fill_with_radius, dim=self.n, inputs=[self.query], outputs=[self.nearest],
                   device=device)
         wp.launch(primitive_distances.nearest_to_triangles, dim=self.n,
@@ -208,17 +195,16 @@ class DisplacementBounds:
                   inputs=[x, self.mesh, grid, self.query, self.longest], outputs=[self.nearest], device=device)
 
     MEASURE_LAUNCHES = ["the query radius filled with the settings'", "widen_to_motion", "a zeroed longest edge",
-                        "longest_edge", "next_table", "insert_points_at_chosen_width", "fill_with_radius",
+                        "longest_edge", "choose_cells", *(k.key for k in CountedHash.kernels), "fill_with_radius",
                         "nearest_to_triangles", "nearest_between_edges"]
 
-    def read_stats(self) -> tuple[list[int], float, int]:
-        """Particles held short in each round, the distance they gave up (metres, summed) and the hash's
-        overflow, since the last reading (waits for the device)."""
-        clamped, held_back, overflow = self.clamped.numpy().tolist(), float(self.held_back.numpy()[0]), \
-            int(self.overflow.numpy()[0])
+    def read_stats(self) -> tuple[list[int], float]:
+        """Particles held short in each round and the distance they gave up (metres, summed), since the last
+        reading (waits for the device)."""
+        clamped, held_back = self.clamped.numpy().tolist(), float(self.held_back.numpy()[0])
         self.clamped.zero_()
         self.held_back.zero_()
-        return clamped, held_back, overflow
+        return clamped, held_back
 
 
 class RecordStart:

@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from warp_cloth.kernels import edge_collision, face_collision, spatial_hash, surface_reach
+from warp_cloth.kernels import edge_collision, face_collision, surface_reach
 from warp_cloth.kernels.colliders import RigidColliders
 from warp_cloth.kernels.face_collision import FaceContacts as FaceContactsArgs
 from warp_cloth.kernels.face_separation import FaceSeparationPassArgs, face_separation_pass_kernel
@@ -27,6 +27,7 @@ from warp_cloth.kernels.neighbour_search import gather_face_vertices, gather_ver
 from warp_cloth.kernels.particle_collision import ListState
 from warp_cloth.kernels.surface_friction import SurfaceFrictionArgs, surface_friction_kernel
 
+from .counted_hash import CountedHash
 from .device_model import DeviceModel
 from .displacement_bounds import DisplacementBounds
 from .model import Model
@@ -35,7 +36,6 @@ from .state import DeviceState, hash_table_size
 
 
 FACE_NEIGHBORS = 32  # pairs a vertex's or a triangle's list holds (the nearest; more are counted in its overflow)
-BUCKET_CAPACITY = 64  # particles a bucket holds: its cells are wider than a triangle
 
 
 def incidence(triangles: np.ndarray, n: int, columns: slice = slice(None)) -> tuple[np.ndarray, np.ndarray]:
@@ -78,10 +78,7 @@ class FaceContacts:
         owned_offsets, owned = incidence(triangles, n, slice(0, 1))
         self.owned_offsets = wp.array(owned_offsets, dtype=int, device=device)
         self.owned = wp.array(owned, dtype=int, device=device)
-        self.mask = hash_table_size(n) - 1
-        self.inv_cell = wp.zeros(1, dtype=float, device=device)
-        self.bucket_size = wp.zeros(self.mask + 1, dtype=int, device=device)
-        self.bucket_items = wp.zeros((self.mask + 1) * BUCKET_CAPACITY, dtype=int, device=device)
+        self.hash = CountedHash(n, hash_table_size(n), device)
         self.built = wp.full(n, wp.vec3(1.0e30), dtype=wp.vec3, device=device)  # lists never made: remake at once
         self.allowance = wp.zeros(n, dtype=float, device=device)
         self.widest = wp.zeros(1, dtype=float, device=device)
@@ -97,9 +94,8 @@ class FaceContacts:
 
     asking = [surface_reach.ask_if_beyond_allowance]  # as ask_if_moved launches them
     allowing = [surface_reach.start_allowances, surface_reach.allow]  # as allow launches them
-    kernels = [edge_collision.start_edge_cells, face_collision.widen_face_cells,
-               spatial_hash.insert_points_at_chosen_width, gather_vertex_faces,
-               gather_face_vertices]  # as remake_if_asked launches them
+    kernels = [edge_collision.start_edge_cells, face_collision.widen_face_cells, *CountedHash.kernels,
+               gather_vertex_faces, gather_face_vertices]  # as remake_if_asked launches them
 
     def ask_if_moved(self, start: wp.array, x: wp.array, bounds: DisplacementBounds, lists: ListState) -> None:
         """Asks for the lists' remake where a particle's move from where they were made, plus its reach this
@@ -123,23 +119,20 @@ class FaceContacts:
         each pair takes the side its vertex lies on there; the step's predicted positions may have passed a
         vertex through a triangle, which the solve would then hold on the wrong side), where the particle
         lists' ``rebuild`` is set (after ``allow``, before the end of the remake)."""
-        device, args, rules = self.device, self.args, self.rules
+        device, args, rules, buckets = self.device, self.args, self.rules, self.hash.buckets
         wp.launch(edge_collision.start_edge_cells, dim=1,
-                  inputs=[lists.rebuild, self.longest, self.thickness, self.widest], outputs=[self.inv_cell],
+                  inputs=[lists.rebuild, self.longest, self.thickness, self.widest], outputs=[buckets.inv_width],
                   device=device)
         wp.launch(face_collision.widen_face_cells, dim=self.triangle_count,
                   inputs=[x, args.triangles, lists.rebuild, self.longest, self.thickness, self.widest],
-                  outputs=[self.inv_cell], device=device)
-        wp.launch(spatial_hash.insert_points_at_chosen_width, dim=self.n,
-                  inputs=[x, rules.world, self.inv_cell, self.mask, BUCKET_CAPACITY, lists.epoch, lists.rebuild],
-                  outputs=[self.bucket_size, self.bucket_items, lists.overflow], device=device)
+                  outputs=[buckets.inv_width], device=device)
+        self.hash.fill(x, rules.world, lists.rebuild)
         wp.launch(gather_vertex_faces, dim=self.n,
                   inputs=[x, args, rules, lists, self.allowance, self.widest, self.owned_offsets, self.owned,
-                          self.inv_cell, self.mask, BUCKET_CAPACITY, self.bucket_size, self.bucket_items, self.gaps],
+                          buckets, self.gaps],
                   device=device)
         wp.launch(gather_face_vertices, dim=self.triangle_count,
-                  inputs=[x, args, rules, lists, self.allowance, self.widest, self.inv_cell, self.mask,
-                          BUCKET_CAPACITY, self.bucket_size, self.bucket_items, self.gaps], device=device)
+                  inputs=[x, args, rules, lists, self.allowance, self.widest, buckets, self.gaps], device=device)
 
     def separation_pass(self, device_model: DeviceModel, threads: int, bundle: RigidColliders | None) -> GatheringPass:
         """One Jacobi pass moving every listed pair closer than the thickness apart, then the colliders in

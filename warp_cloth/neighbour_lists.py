@@ -16,10 +16,11 @@ from warp_cloth.kernels.particle_collision import ListState
 from warp_cloth.kernels.neighbour_search import (HashGrid, gather_edge_candidates, gather_neighbors_kernel,
                                                  launch_gather_neighbors)
 
+from .counted_hash import CountedHash
 from .device_model import DeviceModel
 from .displacement_bounds import DisplacementBounds
 from .passes import contacts_args, edge_contacts_args
-from .state import (BUCKET_CAPACITY, EDGE_BUCKET_CAPACITY, DeviceState, edge_hash_table_size, hash_table_size,
+from .state import (BUCKET_CAPACITY, DeviceState, edge_hash_table_size, hash_table_size,
                     uses_hash)
 
 # The remake has more to gather (27 cells) than the other gathering passes: 16 threads a particle are
@@ -200,7 +201,7 @@ class NeighbourLists:
 
 class EdgeLists:
     """Each contact edge's candidates (kernels/edge_collision.py), remade with the particle lists: from a
-    spatial hash of the edges' midpoints, whose cells are as wide as the longest edge at the remake plus the
+    spatial hash of the edges' midpoints whose buckets hold every edge (counted_hash.py), whose cells are as wide as the longest edge at the remake plus the
     reach (never narrower than the longest an edge may get, ``longest``, plus the reach: the cells of a
     remake without over-long edges), so that the 27 around an edge's midpoint hold every edge within reach.
     An edge's list holds the edges within the pass's thickness plus both edges' allowances: ``rebuild_distance``
@@ -218,31 +219,27 @@ class EdgeLists:
             self.allowance = wp.full(model.particle_count, rebuild_distance, dtype=float, device=model.device)
             self.widest = wp.full(1, rebuild_distance, dtype=float, device=model.device)
         self.rules = constants.rules
-        self.state = state.edges
         self.m = constants.ends.shape[0]
         self.longest = constants.longest
-        self.mask = edge_hash_table_size(self.m) - 1
+        self.hash = CountedHash(self.m, edge_hash_table_size(self.m), model.device)
+        self.midpoint = wp.zeros(self.m, dtype=wp.vec3, device=model.device)
         self.world = constants.world
         # the gather's scratch: the listed pairs' gaps while the lists are made, laid out as the lists
         self.gaps = wp.zeros(self.edges.neighbors.shape[0], dtype=float, device=model.device)
 
-    kernels = [edge_collision.start_edge_cells, edge_collision.midpoints_and_cell_width,
-               spatial_hash.insert_points_at_chosen_width, gather_edge_candidates]  # as remake_if_asked launches them
+    kernels = [edge_collision.start_edge_cells, edge_collision.midpoints_and_cell_width, *CountedHash.kernels,
+               gather_edge_candidates]  # as remake_if_asked launches them
 
     def remake_if_asked(self, x: wp.array, lists: ListState) -> None:
-        edges, state, device = self.edges, self.state, x.device
+        edges, buckets, device = self.edges, self.hash.buckets, x.device
         wp.launch(edge_collision.start_edge_cells, dim=1,
-                  inputs=[lists.rebuild, self.longest, self.thickness, self.widest], outputs=[state.inv_cell],
+                  inputs=[lists.rebuild, self.longest, self.thickness, self.widest], outputs=[buckets.inv_width],
                   device=device)
         wp.launch(edge_collision.midpoints_and_cell_width, dim=self.m,
                   inputs=[x, edges.ends, lists.rebuild, self.longest, self.thickness, self.widest],
-                  outputs=[state.midpoint, state.inv_cell], device=device)
-        wp.launch(spatial_hash.insert_points_at_chosen_width, dim=self.m,
-                  inputs=[state.midpoint, self.world, state.inv_cell, self.mask, EDGE_BUCKET_CAPACITY, lists.epoch,
-                          lists.rebuild],
-                  outputs=[state.bucket_size, state.bucket_items, lists.overflow], device=device)
+                  outputs=[self.midpoint, buckets.inv_width], device=device)
+        self.hash.fill(self.midpoint, self.world, lists.rebuild)
         wp.launch(gather_edge_candidates, dim=self.m,
-                  inputs=[x, state.midpoint, self.world, edges, self.rules, lists, self.allowance, self.widest,
-                          state.inv_cell,
-                          self.mask, EDGE_BUCKET_CAPACITY, state.bucket_size, state.bucket_items, self.gaps],
+                  inputs=[x, self.midpoint, self.world, edges, self.rules, lists, self.allowance, self.widest,
+                          buckets, self.gaps],
                   device=device)

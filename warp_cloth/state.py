@@ -10,7 +10,6 @@ import numpy as np
 import warp as wp
 
 from warp_cloth.kernels.particle_collision import ListState
-from warp_cloth.kernels.spatial_hash import COUNT_MASK
 
 from .collider_kinds import Spheres
 from .device_model import DeviceModel
@@ -46,16 +45,11 @@ class ContactState:
 
 @dataclass
 class EdgeListState:
-    """Edge contacts' arrays (kernels/edge_collision.py): each edge's candidate list, and the spatial hash
-    of the edges' midpoints they are made from (stamped with the particle lists' epoch), its cells' inverse
-    width chosen at each remake (``inv_cell``, one element)."""
+    """Edge contacts' candidate lists (kernels/edge_collision.py); warp_cloth/neighbour_lists.py's
+    ``EdgeLists`` remakes them."""
 
     neighbors: wp.array
     counts: wp.array
-    midpoint: wp.array
-    inv_cell: wp.array
-    bucket_size: wp.array
-    bucket_items: wp.array
 
     CARRIED = ("neighbors", "counts")  # what the next substep reads before it writes
 
@@ -64,13 +58,6 @@ class EdgeListState:
 # lay within reach of an edge in the stacked drape (14, read at every frame's end: 3 sheets of 24^2 over 30
 # frames and of 32^2 over 60, 2 m, 4 mm radius, edge and face contacts and the bounds; docs/notebook/layers.md).
 EDGE_NEIGHBORS = 32
-# Edges a bucket of their hash holds: as many as a bucket's count can (spatial_hash.COUNT_MASK). A cell is
-# wider than the longest edge, so it holds some 9 edges of each layer of a grid (all triangle sides long
-# enough, the drape's) and every layer of a stack, and a bucket holds the cells of another block whose hash
-# is the same whatever the table's size: the fullest bucket held 44 to 89 edges in the 3-sheet drape above
-# (at 64, the edges past it were left out of the hash, so out of every list), and holds 80 to 100 in 5 flat
-# sheets of 24^2 to 128^2, 4 mm radius (counted at rest with the hash's function).
-EDGE_BUCKET_CAPACITY = COUNT_MASK
 
 BUCKET_CAPACITY = 16  # particles a spatial-hash bucket holds (overflow is counted, tests keep it 0)
 # Particles up to which the lists are made by checking all pairs, which costs less there than the hash
@@ -136,13 +123,8 @@ class DeviceState:
 
     def _edge_state(self, model: DeviceModel) -> EdgeListState:
         m, device = model.contacts.edges.ends.shape[0], model.device
-        table = edge_hash_table_size(m)
         return EdgeListState(neighbors=wp.zeros(m * EDGE_NEIGHBORS, dtype=int, device=device),
-                             counts=wp.zeros(m, dtype=int, device=device),
-                             midpoint=wp.zeros(m, dtype=wp.vec3, device=device),
-                             inv_cell=wp.zeros(1, dtype=float, device=device),
-                             bucket_size=wp.zeros(table, dtype=int, device=device),
-                             bucket_items=wp.zeros(table * EDGE_BUCKET_CAPACITY, dtype=int, device=device))
+                             counts=wp.zeros(m, dtype=int, device=device))
 
     @property
     def x(self) -> wp.array:
