@@ -133,12 +133,12 @@ def launch_gather_neighbors(threads: int, x: wp.array, inputs: list) -> None:
 def gather_edge_candidates(x: wp.array(dtype=wp.vec3), midpoint: wp.array(dtype=wp.vec3),
                            edge_world: wp.array(dtype=int), edges: EdgeContacts, rules: EdgeRules, lists: ListState,
                            allowance: wp.array(dtype=float), widest: wp.array(dtype=float), buckets: Buckets,
-                           gaps: wp.array(dtype=float)):
+                           gaps: wp.array(dtype=float), dropped: wp.array(dtype=int)):
     """Each edge's candidates from the hash of its midpoint's 27 cells (each bucket once; ``buckets.inv_width``
     the cells' inverse width this remake), where ``rebuild`` is set: edges that may touch it whose segments
     lie within the thickness plus both edges' allowances (surface_reach.py; ``widest[0]`` the largest)
-    (``pair_gap``: each lists the other; the nearest where more than fit, their gaps kept in ``gaps``
-    meanwhile, laid out as the lists), in index order."""
+    (``pair_gap``: each lists the other; the nearest where more than fit, the others counted in
+    ``dropped``, their gaps kept in ``gaps`` meanwhile, laid out as the lists), in index order."""
     if lists.rebuild[0] == 0:
         return
     e = wp.tid()
@@ -177,7 +177,7 @@ def gather_edge_candidates(x: wp.array(dtype=wp.vec3), midpoint: wp.array(dtype=
                             within = gap < own + edge_allowance(allowance, ends_f)
                             if within and apart_at_rest(rules, ends_e, ends_f):
                                 count = insert_keeping_gaps(edges.neighbors, start, count, edges.max_neighbors, f,
-                                                            gap, lists.overflow, gaps)
+                                                            gap, dropped, gaps)
     edges.counts[e] = sort_and_drop_repeats(edges.neighbors, start, count)
 
 
@@ -185,10 +185,11 @@ def gather_edge_candidates(x: wp.array(dtype=wp.vec3), midpoint: wp.array(dtype=
 def gather_vertex_faces(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules: EdgeRules, lists: ListState,
                         allowance: wp.array(dtype=float), widest: wp.array(dtype=float),
                         owned_offsets: wp.array(dtype=int), owned: wp.array(dtype=int), buckets: Buckets,
-                        gaps: wp.array(dtype=float)):
+                        gaps: wp.array(dtype=float), dropped: wp.array(dtype=int)):
     """Each vertex's candidate triangles at positions ``x``, where ``rebuild`` is set: those it may touch
     within the thickness plus the vertex's and the triangle's allowances (surface_reach.py; ``widest[0]`` the
-    largest) (the nearest where more than fit, their gaps kept in ``gaps`` meanwhile), as 2 t + the side it
+    largest) (the nearest where more than fit, the others counted in ``dropped``, their gaps kept in ``gaps``
+    meanwhile), as 2 t + the side it
     lies on, in index order. The hash holds
     the particles (cells ``buckets.inv_width[0]`` wide, wider than the largest reach plus any triangle's side), each triangle
     found from its first vertex (``owned``)."""
@@ -227,14 +228,14 @@ def gather_vertex_faces(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules: 
                                 if within and apart_at_rest_face(rules, v, t):
                                     count = insert_keeping_gaps(faces.vertex_faces, start, count, faces.max_neighbors,
                                                                 2 * t_index + side_bit(p, a, b, c), gap,
-                                                                lists.overflow, gaps)
+                                                                dropped, gaps)
     faces.vertex_counts[v] = sort_and_drop_repeats(faces.vertex_faces, start, count)
 
 
 @wp.kernel
 def gather_face_vertices(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules: EdgeRules, lists: ListState,
                          allowance: wp.array(dtype=float), widest: wp.array(dtype=float), buckets: Buckets,
-                         gaps: wp.array(dtype=float)):
+                         gaps: wp.array(dtype=float), dropped: wp.array(dtype=int)):
     """Each triangle's candidate vertices, where ``rebuild`` is set: the pairs ``gather_vertex_faces`` lists,
     seen from the triangle (the same test on the same positions), as 2 v + the side v lies on, in index
     order; found in the 27 cells around the triangle's first vertex."""
@@ -269,5 +270,5 @@ def gather_face_vertices(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules:
                         gap = point_triangle_distance(p, a, b, c)
                         if gap < own + allowance[v] and apart_at_rest_face(rules, v, t):
                             count = insert_keeping_gaps(faces.face_vertices, start, count, faces.max_neighbors,
-                                                        2 * v + side_bit(p, a, b, c), gap, lists.overflow, gaps)
+                                                        2 * v + side_bit(p, a, b, c), gap, dropped, gaps)
     faces.face_counts[t_index] = sort_and_drop_repeats(faces.face_vertices, start, count)

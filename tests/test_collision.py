@@ -558,7 +558,8 @@ def test_a_joint_pass_moves_by_both_means_but_no_limit_pulls_into_a_contact(pin_
 
 def test_the_run_summary_says_when_contact_candidates_were_dropped():
     """Candidates past a list's or a bucket's room go unchecked: the summary line says how many, and says
-    nothing where none were (the suite's scenes keep it 0)."""
+    nothing where none were (the suite's scenes keep it 0); the surface lists' farthest pairs left out are
+    said apart, since the bounds still keep them from crossing."""
     from warp_cloth.cli import _lists_full
 
     sim = wc.Simulator(wc.load_scene("fold"), device="cpu")
@@ -569,6 +570,14 @@ def test_the_run_summary_says_when_contact_candidates_were_dropped():
     sim.plan.lists.lists.overflow.assign(np.array([spatial_hash.DROPPED_MOST], dtype=np.int32))
     assert _lists_full(sim) == ("; contact lists full: at least 1073741824 candidates dropped, "
                                 "their contacts unchecked")
+    scene = wc.load_scene("fold")
+    surfaces = wc.Simulator(dataclasses.replace(scene, collision=dataclasses.replace(scene.collision, thickness=0.005)),
+                            device="cpu")
+    surfaces.step()
+    assert _lists_full(surfaces) == ""
+    surfaces.plan.lists.faces.dropped.assign(np.array([5], dtype=np.int32))
+    assert _lists_full(surfaces) == ("; surface lists full: 5 candidates left out (the farthest: kept from "
+                                     "crossing, not held a thickness apart)")
 
 
 def test_the_count_of_dropped_candidates_stops_short_of_wrapping():

@@ -58,7 +58,7 @@ def main() -> None:
     for frame in range(1, args.frames + 1):
         sim.step()
         row = {"frame": frame, "edge_list": int(lists.edges.edges.counts.numpy().max()),
-               "edge_bucket": fullest_bucket(lists.edges.hash), "dropped": lists.overflow}
+               "edge_bucket": fullest_bucket(lists.edges.hash), "dropped": lists.overflow + lists.surface_dropped}
         if lists.faces is not None:
             faces = lists.faces
             row |= {"vertex_list": int(faces.args.vertex_counts.numpy().max()),

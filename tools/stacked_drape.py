@@ -28,14 +28,14 @@ A run the start check refuses, or that blows up, is reported as such: that is a 
 ``--thickness`` runs each contact setting once per value: ``off``, or the scene key ``[collision] thickness``
 in metres (surface contacts: edge and face contacts held that far apart, the displacement bounds of that
 thickness and the solve's check of their pairs; ``Collision``'s docstring). Every run reports its closest
-surfaces also as a fraction of the thickness (the edge contacts' rule's where none is set), and the lists'
-overflow.
+surfaces also as a fraction of the thickness (the edge contacts' rule's where none is set), the particle
+lists' overflow and the surface lists' (the pairs within reach that full lists left out).
 
 ``--bounds`` runs each of those once per spec: ``off`` (the scene's own: its thickness's bounds, none
 without one), or the lab's displacement bounds (warp_cloth/displacement_bounds.py) as ``on`` or
 comma-separated ``radius=``, ``gamma=``, ``rounds=`` (say ``rounds=3``: a 1 cm radius, a 4 mm thickness's); a
-bounded run adds the particles held short a substep (first and last round), the distance given up, the
-bounds' hash overflow, and the settings it ran with.
+bounded run adds the particles held short a substep (first and last round), the distance given up, and the
+settings it ran with.
 
     python tools/stacked_drape.py --sheets 3 --n 32 --frames 60 --radius 0.004 default --device cpu \\
         --json docs/results/stacked-drape-cpu.json
@@ -178,6 +178,7 @@ def measure(scene: wc.Scene, gap: float, device: str, bounds: BoundSettings | No
             "closest_surfaces_m": min(per_frame["closest_surfaces"]),
             "thickness": thickness, "closest_surfaces_of_thickness": min(per_frame["closest_surfaces"]) / thickness,
             "surface_thickness": scene.collision.thickness, "lists_overflow": sim.plan.lists.overflow,
+            "surface_lists_dropped": sim.plan.lists.surface_dropped,
             "bounds": None if sim.plan.bounds is None else vars(sim.plan.bounds.settings),
             "held_short_mean": float(np.mean(per_frame["held_short_first"])) if per_frame["held_short_first"] else None,
             "held_short_last_mean": float(np.mean(per_frame["held_short_last"]))

@@ -260,13 +260,21 @@ def _limit_solve(sim) -> str:
 
 def _lists_full(sim) -> str:
     """Contact candidates that did not fit their lists or hash buckets over the run, for the summary line
-    ('' where none): their pairs went unchecked, so contacts may have been missed."""
+    ('' where none): the particles' went unchecked, so contacts may have been missed; the surfaces' (with a
+    thickness) were the farthest of full lists, held from crossing by the bounds, which read the nearest, but
+    not a thickness apart."""
     from warp_cloth.kernels.spatial_hash import DROPPED_MOST
 
-    dropped = sim.plan.lists.overflow if sim.plan.lists is not None else 0
-    at_least = "at least " if dropped >= DROPPED_MOST else ""
-    return f"; contact lists full: {at_least}{counted(dropped, 'candidate')} dropped, their contacts unchecked" \
-        if dropped else ""
+    lists = sim.plan.lists
+    said = []
+    for dropped, what in ((lists.overflow if lists is not None else 0, "contact lists full: {} dropped, their "
+                           "contacts unchecked"),
+                          (lists.surface_dropped if lists is not None else 0, "surface lists full: {} left out "
+                           "(the farthest: kept from crossing, not held a thickness apart)")):
+        if dropped:
+            at_least = "at least " if dropped >= DROPPED_MOST else ""
+            said.append("; " + what.format(at_least + counted(dropped, "candidate")))
+    return "".join(said)
 
 
 def _cmd_plan(args: argparse.Namespace) -> int:

@@ -82,6 +82,9 @@ class FaceContacts:
         self.built = wp.full(n, wp.vec3(1.0e30), dtype=wp.vec3, device=device)  # lists never made: remake at once
         self.allowance = wp.zeros(n, dtype=float, device=device)
         self.widest = wp.zeros(1, dtype=float, device=device)
+        # surface pairs within reach left out of full lists (the farthest: the bounds read the nearest, so no
+        # crossing follows, but a pair left out is not held a thickness apart), this list's and the edges'
+        self.dropped = wp.zeros(1, dtype=int, device=device)
         # the gathers' scratch: the listed pairs' gaps while the lists are made, first the vertices', then the
         # triangles'
         self.gaps = wp.zeros(max(args.vertex_faces.shape[0], args.face_vertices.shape[0]), dtype=float, device=device)
@@ -129,10 +132,11 @@ class FaceContacts:
         self.hash.fill(x, rules.world, lists.rebuild)
         wp.launch(gather_vertex_faces, dim=self.n,
                   inputs=[x, args, rules, lists, self.allowance, self.widest, self.owned_offsets, self.owned,
-                          buckets, self.gaps],
+                          buckets, self.gaps, self.dropped],
                   device=device)
         wp.launch(gather_face_vertices, dim=self.triangle_count,
-                  inputs=[x, args, rules, lists, self.allowance, self.widest, buckets, self.gaps], device=device)
+                  inputs=[x, args, rules, lists, self.allowance, self.widest, buckets, self.gaps, self.dropped],
+                  device=device)
 
     def separation_pass(self, device_model: DeviceModel, threads: int, bundle: RigidColliders | None) -> GatheringPass:
         """One Jacobi pass moving every listed pair closer than the thickness apart, then the colliders in
@@ -164,4 +168,4 @@ class FaceContacts:
         args = self.args
         return {"faces.vertex_faces": args.vertex_faces, "faces.vertex_counts": args.vertex_counts,
                 "faces.face_vertices": args.face_vertices, "faces.face_counts": args.face_counts,
-                "faces.built": self.built, "faces.allowance": self.allowance}
+                "faces.built": self.built, "faces.allowance": self.allowance, "faces.dropped": self.dropped}

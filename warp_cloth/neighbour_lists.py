@@ -188,9 +188,16 @@ class NeighbourLists:
 
     @property
     def overflow(self) -> int:
-        """Candidates dropped so far, from a full list (which keeps the nearest) or a full hash bucket, at most
-        ``spatial_hash.DROPPED_MOST`` (the count stops there; waits for the device)."""
+        """Particle candidates (and contact edges', without a thickness) dropped so far, from a full list
+        (which keeps the nearest) or a full hash bucket, at most ``spatial_hash.DROPPED_MOST`` (the count
+        stops there; waits for the device)."""
         return int(self.lists.overflow.numpy()[0])
+
+    @property
+    def surface_dropped(self) -> int:
+        """With a thickness, the surface pairs within reach left out of full lists so far (the farthest;
+        waits for the device), as ``overflow`` counts; 0 without one."""
+        return int(self.faces.dropped.numpy()[0]) if self.faces is not None else 0
 
     def candidates(self) -> list[np.ndarray]:
         """Each particle's candidate list as last made, in index order (waits for the device)."""
@@ -213,6 +220,7 @@ class EdgeLists:
         constants = model.contacts.edges
         self.edges = edge_contacts_args(model, state)
         self.thickness = constants.thickness
+        self.dropped = faces.dropped if faces is not None else None  # None: the particle lists' count
         if faces is not None:
             self.allowance, self.widest = faces.allowance, faces.widest
         else:
@@ -241,5 +249,5 @@ class EdgeLists:
         self.hash.fill(self.midpoint, self.world, lists.rebuild)
         wp.launch(gather_edge_candidates, dim=self.m,
                   inputs=[x, self.midpoint, self.world, edges, self.rules, lists, self.allowance, self.widest,
-                          buckets, self.gaps],
+                          buckets, self.gaps, lists.overflow if self.dropped is None else self.dropped],
                   device=device)
