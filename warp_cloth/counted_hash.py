@@ -23,11 +23,14 @@ class PrefixSum:
 
     def exclusive(self, values: wp.array, prefix: wp.array) -> None:
         device = self.device
-        wp.launch(prefix_sum.scan_tiles, dim=(self.tiles, prefix_sum.TILE), inputs=[values],
-                  outputs=[prefix, self.totals], block_dim=prefix_sum.TILE, device=device)
-        wp.launch(prefix_sum.scan_totals, dim=(1, prefix_sum.TOTALS_TILE),
+        # a block's threads share its tiles on a GPU; on the CPU a block is one thread (as wp.launch_tiled
+        # launches it there: 256 would each scan the whole tile)
+        lanes, totals_lanes = (prefix_sum.TILE, prefix_sum.TOTALS_TILE) if wp.get_device(device).is_cuda else (1, 1)
+        wp.launch(prefix_sum.scan_tiles, dim=(self.tiles, lanes), inputs=[values], outputs=[prefix, self.totals],
+                  block_dim=lanes, device=device)
+        wp.launch(prefix_sum.scan_totals, dim=(1, totals_lanes),
                   inputs=[self.totals, -(-self.tiles // prefix_sum.TOTALS_TILE)], outputs=[self.offsets],
-                  block_dim=prefix_sum.TOTALS_TILE, device=device)
+                  block_dim=totals_lanes, device=device)
         wp.launch(prefix_sum.add_offsets, dim=self.size, inputs=[self.offsets], outputs=[prefix], device=device)
 
 
