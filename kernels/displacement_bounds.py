@@ -52,19 +52,6 @@ def clamp_to_bounds(target: wp.array(dtype=wp.vec3), nearest: wp.array(dtype=flo
 
 
 @wp.kernel
-def measure_cut(start: wp.array(dtype=wp.vec3), x: wp.array(dtype=wp.vec3), nearest: wp.array(dtype=float),
-                gamma: float, inv_mass: wp.array(dtype=float), inv_thickness: float, most_cut: wp.array(dtype=float)):
-    """How far each free particle's bound cuts its predicted step (from ``start`` to ``x``, before the solves),
-    in thicknesses: the most into ``most_cut[0]`` (substeps auto reads it: a cut is speed the bound takes)."""
-    i = wp.tid()
-    if inv_mass[i] == 0.0:
-        return
-    cut = wp.length(x[i] - start[i]) - bound_of(nearest[i], gamma)
-    if cut > 0.0:
-        wp.atomic_max(most_cut, 0, cut * inv_thickness)
-
-
-@wp.kernel
 def take_bounded_step(start: wp.array(dtype=wp.vec3), position: wp.array(dtype=wp.vec3), inv_h: float,
                       x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), held_back: wp.array(dtype=float)):
     """Each particle held short of where the solve put it (``x``) goes where its clamps left it, with the

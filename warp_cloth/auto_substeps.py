@@ -5,10 +5,9 @@ whose step is stable.
 A run starts at the stable floor (``stability.automatic_substeps``). After each frame the simulator reads
 the frame's solve figures and the blow-up guard, and ``judge`` says how it went:
 
-- a miss (a solve stopped at its cap outside its tolerance, the guard flagged the frame, or, with a surface
-  thickness, a displacement bound cut a predicted step by more than ``BOUNDS_CUT``: speed the step lost): the
-  frame is made again from its start (``FrameStart``, a copy on the device) with twice the substeps, up to
-  the most a frame may take; a frame that misses there is kept, and the run goes on as with a set step (its
+- a miss (a solve stopped at its cap outside its tolerance, or the guard flagged the frame): the frame is
+  made again from its start (``FrameStart``, a copy on the device) with twice the substeps, up to the most
+  a frame may take; a frame that misses there is kept, and the run goes on as with a set step (its
   summary says how many were kept so);
 - a stalled miss (made again with twice the substeps, the frame's solves missed by at least ``STALLED`` of
   their last miss, ``miss_size``): more substeps do not help, because what the solve is asked cannot be
@@ -46,13 +45,6 @@ MISS, HOLD, DOWN = "miss", "hold", "room"  # what a frame's solves and guard say
 # halving the step shrinks the violation each substep makes, so a miss that is a matter of substeps falls
 # with them (the swing of tests/test_auto_substeps.py: 1.5 tolerances to within them).
 STALLED = 0.9
-# With a surface thickness: the most a displacement bound may cut a particle's predicted step, in thicknesses,
-# before the frame counts as missed. A bound lets a vertex move 0.45 of its nearest pair's distance a substep,
-# and takes away the rest of its speed: a sheet thrown at 4 m/s over another 5 mm below (60 fps) was cut 1.10
-# thicknesses at 10 substeps a frame and slowed to 1.35 m/s, 0.27 at 20 (2.7 m/s), none at 40 (4 m/s kept);
-# three 24^2 sheets draping over a sphere were cut up to 0.49 at 26 substeps (3 m/s lost in a step) and 0.055 at
-# 52 (docs/notebook/layers.md, "The cap on sliding").
-BOUNDS_CUT = 0.1
 
 
 @dataclass(frozen=True)
@@ -65,7 +57,6 @@ class SolveCaps:
     cg_tolerance: float = 0.0
     newton_iterations: int | None = None
     newton_tolerance: float = 0.0
-    bounds_cut: float | None = None  # the surface bounds' (``BOUNDS_CUT``; None without a thickness)
 
 
 def judge(stats: SolveStats | None, flagged: bool, caps: SolveCaps) -> str:
@@ -83,8 +74,6 @@ def judge(stats: SolveStats | None, flagged: bool, caps: SolveCaps) -> str:
         solves.append((stats.newton_iterations >= caps.newton_iterations
                        and stats.newton_residual > caps.newton_tolerance,
                        stats.newton_iterations <= ROOM * caps.newton_iterations))
-    if stats is not None and caps.bounds_cut is not None and stats.bounds_cut is not None:
-        solves.append((stats.bounds_cut > caps.bounds_cut, stats.bounds_cut <= ROOM * caps.bounds_cut))
     if any(missed for missed, _ in solves):
         return MISS
     return DOWN if all(room for _, room in solves) else HOLD
@@ -102,8 +91,6 @@ def miss_size(stats: SolveStats | None, flagged: bool, caps: SolveCaps) -> float
         sizes.append(stats.cg_relative_residual / caps.cg_tolerance)
     if stats is not None and caps.newton_iterations is not None and stats.newton_residual is not None:
         sizes.append(stats.newton_residual / caps.newton_tolerance)
-    if stats is not None and caps.bounds_cut is not None and stats.bounds_cut is not None:
-        sizes.append(stats.bounds_cut / caps.bounds_cut)
     return max(sizes)
 
 

@@ -151,7 +151,6 @@ class DisplacementBounds:
         self.position = wp.zeros(n, dtype=wp.vec3, device=device)
         self.clamped = wp.zeros(settings.rounds, dtype=int, device=device)  # particles held short, by round
         self.held_back = wp.zeros(1, dtype=float, device=device)
-        self.most_cut = wp.zeros(1, dtype=float, device=device)  # thicknesses, since ``read_cut``
         self.record_start = RecordStart(self)
         self.clamp = ClampToBounds(self, measured_before=False)
         self.measure = MeasureBounds(self)
@@ -198,13 +197,6 @@ class DisplacementBounds:
     MEASURE_LAUNCHES = ["the query radius filled with the settings'", "widen_to_motion", "a zeroed longest edge",
                         "longest_edge", "choose_cells", *(k.key for k in CountedHash.kernels), "fill_with_radius",
                         "nearest_to_triangles", "nearest_between_edges"]
-
-    def read_cut(self) -> float:
-        """The most a bound read off the surface lists cut a particle's predicted step since the last reading,
-        in thicknesses (waits for the device)."""
-        cut = float(self.most_cut.numpy()[0])
-        self.most_cut.zero_()
-        return cut
 
     def read_stats(self) -> tuple[list[int], float]:
         """Particles held short in each round and the distance they gave up (metres, summed), since the last
@@ -266,12 +258,12 @@ class ChooseQuery:
 class BoundsFromLists:
     """After the surface contacts' lists (with a thickness): the bounds read off them where the substep
     started (kernels/listed_distances.py; the lists hold every pair the substep's bounds need), for
-    ``HoldWithinBounds`` in the solve, and the most they cut a predicted step (``DisplacementBounds.most_cut``). A search of the bounds' own (``MeasureBounds``) cost the stacked drape
+    ``HoldWithinBounds`` in the solve. A search of the bounds' own (``MeasureBounds``) cost the stacked drape
     a third of a substep's time on an H200 (docs/notebook/layers.md)."""
 
     name = "bounds:from-lists"
     kernels = [listed_distances.nearest_listed_triangles, listed_distances.nearest_listed_vertices,
-               listed_distances.nearest_listed_edges, displacement_bounds.measure_cut]
+               listed_distances.nearest_listed_edges]
 
     def __init__(self, bounds: DisplacementBounds, faces: FaceContactsArgs, edges: EdgeContacts) -> None:
         self.bounds, self.faces, self.edges = bounds, faces, edges
@@ -288,10 +280,6 @@ class BoundsFromLists:
                   inputs=[start, self.faces], outputs=[nearest], device=device)
         wp.launch(listed_distances.nearest_listed_edges, dim=self.edges.ends.shape[0], inputs=[start, self.edges],
                   outputs=[nearest], device=device)
-        wp.launch(displacement_bounds.measure_cut, dim=bounds.n,
-                  inputs=[start, state.x, nearest, bounds.settings.gamma, bounds.device_model.inv_mass,
-                          1.0 / self.faces.thickness],
-                  outputs=[bounds.most_cut], device=device)
 
 
 class HoldWithinBounds:

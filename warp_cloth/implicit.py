@@ -25,8 +25,7 @@ PARTIALS = 16384  # one world: partial sums of every dot product, then totalled 
 @dataclass(frozen=True)
 class SolveStats:
     """The worst over the substeps since the last reading: of the implicit step's solve (None with the
-    explicit integrators), of a converged limit solve (None with ``limit_solve = "fixed"``) and of the
-    surface bounds' cut (None without a thickness)."""
+    explicit integrators) and of a converged limit solve (None with ``limit_solve = "fixed"``)."""
 
     cg_iterations: int | None = None
     cg_relative_residual: float | None = None  # sqrt(r.z / b.Pb): the preconditioned residual, of the rhs's
@@ -36,7 +35,6 @@ class SolveStats:
     limit_mean_passes: float | None = None  # projection passes a substep, on average
     limit_residual: float | None = None  # where a solve ended, in its tolerances (at most 1: within them)
     limit_solves: int | None = None  # the substeps' solves these figures are over
-    bounds_cut: float | None = None  # the most a displacement bound cut a predicted step, in thicknesses
 
     def merged(self, later: "SolveStats") -> "SolveStats":
         """These figures and ``later``'s as one reading over the substeps of both."""
@@ -52,8 +50,7 @@ class SolveStats:
                           worst(self.newton_iterations, later.newton_iterations),
                           worst(self.newton_residual, later.newton_residual),
                           worst(self.limit_passes, later.limit_passes), mean,
-                          worst(self.limit_residual, later.limit_residual), solves,
-                          worst(self.bounds_cut, later.bounds_cut))
+                          worst(self.limit_residual, later.limit_residual), solves)
 
 
 def world_lanes(world_start: np.ndarray) -> int:

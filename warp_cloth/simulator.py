@@ -18,7 +18,7 @@ import warp as wp
 
 from warp_cloth.kernels import guard
 
-from .auto_substeps import BOUNDS_CUT, FrameStart, SolveCaps, SubstepChoice, flagged_at, judge, miss_size
+from .auto_substeps import FrameStart, SolveCaps, SubstepChoice, flagged_at, judge, miss_size
 from .checkpoint import Checkpoint, load_checkpoint, restore, save_checkpoint
 from .collider_kinds import Meshes
 from .errors import SceneError, UnstableSimulation
@@ -428,8 +428,6 @@ class Simulator:
             most, residual, mean, solves = self.plan.projection.read_stats()
             stats = dataclasses.replace(stats or SolveStats(), limit_passes=most, limit_residual=residual,
                                         limit_mean_passes=mean, limit_solves=solves)
-        if self._faces is not None:
-            stats = dataclasses.replace(stats or SolveStats(), bounds_cut=self.plan.bounds.read_cut())
         return stats
 
     @property
@@ -498,13 +496,11 @@ class Simulator:
     def _solve_caps(self) -> SolveCaps:
         """The caps and tolerances of the solves at the current substeps (``auto_substeps.judge``)."""
         limit = self.limit_solve.max_passes if self.plan.projection is not None else None
-        cut = BOUNDS_CUT if self._faces is not None else None
         if self.plan.solve is None:
-            return SolveCaps(limit, bounds_cut=cut)
+            return SolveCaps(limit)
         implicit = self.scene.implicit
         newton = implicit.newton_iterations if implicit.newton_iterations > 1 else None
-        return SolveCaps(limit, implicit.cg_max_iterations, implicit.cg_tolerance, newton, implicit.newton_tolerance,
-                         cut)
+        return SolveCaps(limit, implicit.cg_max_iterations, implicit.cg_tolerance, newton, implicit.newton_tolerance)
 
     def _set_substeps(self, substeps: int) -> None:
         """Take ``substeps`` a frame from the current frame on (with substeps auto, between frames): the
