@@ -156,8 +156,8 @@ def gather_edge_candidates(x: wp.array(dtype=wp.vec3), midpoint: wp.array(dtype=
     box_reach_sq = (BOX_SLACK * reach) * (BOX_SLACK * reach)
     # an edge within reach has its midpoint within half of both lengths plus the reach, and no edge is longer
     # than the cells' width less the reach
-    near = BOX_SLACK * 0.5 * (wp.length(q - p) + 1.0 / buckets.inv_width[0] + reach)
     width = 1.0 / buckets.inv_width[0]
+    near = BOX_SLACK * 0.5 * (wp.length(q - p) + width + reach)
     cells_reach_sq = (BOX_SLACK * near) * (BOX_SLACK * near)
     count = int(0)
     for k in range(27):
@@ -189,10 +189,9 @@ def gather_vertex_faces(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules: 
     """Each vertex's candidate triangles at positions ``x``, where ``rebuild`` is set: those it may touch
     within the thickness plus the vertex's and the triangle's allowances (surface_reach.py; ``widest[0]`` the
     largest) (the nearest where more than fit, the others counted in ``dropped``, their gaps kept in ``gaps``
-    meanwhile), as 2 t + the side it
-    lies on, in index order. The hash holds
-    the particles (cells ``buckets.inv_width[0]`` wide, wider than the largest reach plus any triangle's side), each triangle
-    found from its first vertex (``owned``)."""
+    meanwhile), as 2 t + the side it lies on, in index order. The hash holds the particles (cells of inverse
+    width ``buckets.inv_width[0]``, wider than the largest reach plus any triangle's side), each triangle found
+    from its first vertex (``owned``)."""
     if lists.rebuild[0] == 0:
         return
     v = wp.tid()
@@ -200,11 +199,11 @@ def gather_vertex_faces(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules: 
     center = cell_of(p, buckets.inv_width[0])
     world = rules.world[v]
     start = v * faces.max_neighbors
-    near = BOX_SLACK / buckets.inv_width[0]  # a triangle within reach has its first vertex within reach plus its side
+    width = 1.0 / buckets.inv_width[0]
+    near = BOX_SLACK * width  # a triangle within reach has its first vertex within reach plus its side
     own = faces.thickness + allowance[v]
     box_reach = BOX_SLACK * (own + widest[0])
     box_reach_sq = box_reach * box_reach
-    width = 1.0 / buckets.inv_width[0]
     cells_reach_sq = (BOX_SLACK * near) * (BOX_SLACK * near)
     count = int(0)
     for k in range(27):

@@ -12,8 +12,9 @@ then bounds it at gamma r, at least its own step: a particle with nothing near t
 pair found nearer than r bounds its vertices as before.
 
 The pairs are found through a spatial hash of the particles whose buckets hold them all (spatial_hash.py's
-``Buckets``), its cells r plus the longest edge wide (``choose_cells``): a triangle within r of a vertex has every vertex within r + L of it (L
-its longest edge), so its first vertex is among the 27 cells around the vertex; an edge within r of another
+``Buckets``), its cells r plus the longest edge wide (``choose_cells``): a triangle within r of a vertex has
+every vertex within r + L of it (L its longest edge), so its first vertex is among the 27 cells around the
+vertex; an edge within r of another
 has an end within r + (l + L) / 2 of the other's midpoint, l the other's length (each closest point lies
 within half its segment's length of the middle and of its nearer end), so the 27 cells around the midpoint
 hold that end. A triangle is visited

@@ -266,11 +266,12 @@ def _lists_full(sim) -> str:
     from warp_cloth.kernels.spatial_hash import DROPPED_MOST
 
     lists = sim.plan.lists
+    if lists is None:
+        return ""
     said = []
-    for dropped, what in ((lists.overflow if lists is not None else 0, "contact lists full: {} dropped, their "
-                           "contacts unchecked"),
-                          (lists.surface_dropped if lists is not None else 0, "surface lists full: {} left out "
-                           "(the farthest: kept from crossing, not held a thickness apart)")):
+    for dropped, what in ((lists.overflow, "contact lists full: {} dropped, their contacts unchecked"),
+                          (lists.surface_dropped, "surface lists full: {} left out (the farthest: kept from "
+                           "crossing, not held a thickness apart)")):
         if dropped:
             at_least = "at least " if dropped >= DROPPED_MOST else ""
             said.append("; " + what.format(at_least + counted(dropped, "candidate")))

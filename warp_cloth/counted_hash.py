@@ -18,19 +18,20 @@ class PrefixSum:
     def __init__(self, size: int, device) -> None:
         self.size, self.device = size, device
         self.tiles = -(-size // prefix_sum.TILE)
+        self.pieces = -(-self.tiles // prefix_sum.TOTALS_TILE)  # of the totals, for the one block that scans them
+        # a block's threads share its tiles on a GPU; on the CPU a block is one thread (as wp.launch_tiled
+        # launches it there: 256 would each scan the whole tile)
+        self.lanes, self.totals_lanes = (prefix_sum.TILE, prefix_sum.TOTALS_TILE) if wp.get_device(device).is_cuda \
+            else (1, 1)
         self.totals = wp.zeros(self.tiles, dtype=int, device=device)
         self.offsets = wp.zeros(self.tiles, dtype=int, device=device)
 
     def exclusive(self, values: wp.array, prefix: wp.array) -> None:
         device = self.device
-        # a block's threads share its tiles on a GPU; on the CPU a block is one thread (as wp.launch_tiled
-        # launches it there: 256 would each scan the whole tile)
-        lanes, totals_lanes = (prefix_sum.TILE, prefix_sum.TOTALS_TILE) if wp.get_device(device).is_cuda else (1, 1)
-        wp.launch(prefix_sum.scan_tiles, dim=(self.tiles, lanes), inputs=[values], outputs=[prefix, self.totals],
-                  block_dim=lanes, device=device)
-        wp.launch(prefix_sum.scan_totals, dim=(1, totals_lanes),
-                  inputs=[self.totals, -(-self.tiles // prefix_sum.TOTALS_TILE)], outputs=[self.offsets],
-                  block_dim=totals_lanes, device=device)
+        wp.launch(prefix_sum.scan_tiles, dim=(self.tiles, self.lanes), inputs=[values],
+                  outputs=[prefix, self.totals], block_dim=self.lanes, device=device)
+        wp.launch(prefix_sum.scan_totals, dim=(1, self.totals_lanes), inputs=[self.totals, self.pieces],
+                  outputs=[self.offsets], block_dim=self.totals_lanes, device=device)
         wp.launch(prefix_sum.add_offsets, dim=self.size, inputs=[self.offsets], outputs=[prefix], device=device)
 
 

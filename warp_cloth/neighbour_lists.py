@@ -208,9 +208,10 @@ class NeighbourLists:
 
 class EdgeLists:
     """Each contact edge's candidates (kernels/edge_collision.py), remade with the particle lists: from a
-    spatial hash of the edges' midpoints whose buckets hold every edge (counted_hash.py), whose cells are as wide as the longest edge at the remake plus the
-    reach (never narrower than the longest an edge may get, ``longest``, plus the reach: the cells of a
-    remake without over-long edges), so that the 27 around an edge's midpoint hold every edge within reach.
+    spatial hash of the edges' midpoints whose buckets hold every edge (counted_hash.py), whose cells are as
+    wide as the longest edge at the remake plus the reach (never narrower than the longest an edge may get,
+    ``longest``, plus the reach: the cells of a remake without over-long edges), so that the 27 around an
+    edge's midpoint hold every edge within reach.
     An edge's list holds the edges within the pass's thickness plus both edges' allowances: ``rebuild_distance``
     each (until a particle has moved that far and the lists are remade, no edge left out can come within it),
     or with ``faces`` (a thickness's) the face contacts' allowances (kernels/surface_reach.py)."""
@@ -220,7 +221,9 @@ class EdgeLists:
         constants = model.contacts.edges
         self.edges = edge_contacts_args(model, state)
         self.thickness = constants.thickness
-        self.dropped = faces.dropped if faces is not None else None  # None: the particle lists' count
+        # where a full list counts what it leaves out: with a thickness the surface lists' count, else the
+        # particle lists'
+        self.dropped = faces.dropped if faces is not None else state.contacts.overflow
         if faces is not None:
             self.allowance, self.widest = faces.allowance, faces.widest
         else:
@@ -249,5 +252,5 @@ class EdgeLists:
         self.hash.fill(self.midpoint, self.world, lists.rebuild)
         wp.launch(gather_edge_candidates, dim=self.m,
                   inputs=[x, self.midpoint, self.world, edges, self.rules, lists, self.allowance, self.widest,
-                          buckets, self.gaps, lists.overflow if self.dropped is None else self.dropped],
+                          buckets, self.gaps, self.dropped],
                   device=device)
