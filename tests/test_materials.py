@@ -231,13 +231,17 @@ def _tip_sag(preset: str, length: float, resolution: tuple[int, int], mesh: Path
         if np.linalg.norm(gradient) < 1e-8 * weight.sum():
             break
         scale = np.abs(np.diag(hessian)) + 1e-6 * np.abs(np.diag(hessian)).mean()
-        while True:
+        while shift < 1e12:
             trial = x.ravel().copy()
             trial[free] += np.linalg.solve(hessian + shift * np.diag(scale), -gradient)
             if energy(trial.reshape(-1, 3), False)[0] < total:
                 x, shift = trial.reshape(-1, 3), max(shift / 10.0, 1e-12)
                 break
             shift *= 4.0
+        else:  # no step lowers the energy any more in float64: a minimum to its rounding, where the gradient is small
+            if np.linalg.norm(gradient) < 1e-6 * weight.sum():
+                break
+            raise AssertionError("the strip's Newton steps stalled short of its equilibrium")
     else:
         raise AssertionError("the strip's equilibrium was not found")
     return -x[column == resolution[0], 2].mean()
