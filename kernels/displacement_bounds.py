@@ -81,3 +81,55 @@ def hold_within_bounds(start: wp.array(dtype=wp.vec3), nearest: wp.array(dtype=f
         held = start[i] + step * (bound / length)
         v[i] = v[i] + (held - x[i]) * inv_h
         x[i] = held
+
+
+@wp.func
+def held_at_bound(i: int, anchor: wp.array(dtype=wp.vec3), nearest: wp.array(dtype=float), gamma: float,
+                  inv_mass: wp.array(dtype=float), x: wp.array(dtype=wp.vec3),
+                  predicted: wp.array(dtype=wp.vec3)) -> bool:
+    """Whether free particle i stands at its bound (to a thousandth of it) with its predicted position
+    beyond: the bounds, not the solve, stopped it there."""
+    if inv_mass[i] == 0.0:
+        return False
+    bound = bound_of(nearest[i], gamma)
+    return bound > 0.0 and wp.length(x[i] - anchor[i]) >= 0.999 * bound and \
+        wp.length(predicted[i] - anchor[i]) > bound
+
+
+@wp.kernel
+def start_round(rounds: wp.array(dtype=int), again: wp.array(dtype=int)):
+    """One thread, before ``find_held``: counts a round down (``rounds[0]`` left) and clears ``again``."""
+    again[0] = 0
+    rounds[0] = rounds[0] - 1
+
+
+@wp.kernel
+def find_held(anchor: wp.array(dtype=wp.vec3), nearest: wp.array(dtype=float), gamma: float,
+              inv_mass: wp.array(dtype=float), x: wp.array(dtype=wp.vec3), predicted: wp.array(dtype=wp.vec3),
+              rounds: wp.array(dtype=int), again: wp.array(dtype=int), measured: wp.array(dtype=int),
+              left_held: wp.array(dtype=int)):
+    """Sets ``again[0]`` where a round is left and some particle is held at its bound with its predicted
+    position beyond (``held_at_bound``), counting the round in ``measured[0]`` (once, by the first such);
+    with no round left, counts the particles so held in ``left_held[0]``."""
+    i = wp.tid()
+    if not held_at_bound(i, anchor, nearest, gamma, inv_mass, x, predicted):
+        return
+    if rounds[0] < 0:
+        wp.atomic_add(left_held, 0, 1)
+    elif wp.atomic_max(again, 0, 1) == 0:
+        wp.atomic_add(measured, 0, 1)
+
+
+@wp.kernel
+def send_on(nearest: wp.array(dtype=float), gamma: float, inv_mass: wp.array(dtype=float),
+            predicted: wp.array(dtype=wp.vec3), inv_h: float, anchor: wp.array(dtype=wp.vec3),
+            x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3)):
+    """Before the bounds are measured again: each particle's anchor moved to where the solve left it, and a
+    particle held at its old bound sent on to its predicted position, its velocity changed by the move over
+    the substep (in place: it reads only its own particle)."""
+    i = wp.tid()
+    held = held_at_bound(i, anchor, nearest, gamma, inv_mass, x, predicted)
+    anchor[i] = x[i]
+    if held:
+        v[i] = v[i] + (predicted[i] - x[i]) * inv_h
+        x[i] = predicted[i]

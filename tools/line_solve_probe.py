@@ -162,7 +162,7 @@ def measure_run(scene: wc.Scene, method: str, frames: int, device: str, bounds: 
             capped += stats.limit_passes >= cap_of_frame(sim)
             residual = max(residual, stats.limit_residual)
         if sim.plan.bounds is not None:
-            held_short += sim.plan.bounds.read_stats()[0][-1]
+            held_short += sim.plan.bounds.read_stats().held_short[-1]
         measure_frame()
     contacts = {} if crossings is None else {"closest_contact": round(closest, 4), "most_crossings": most_crossings}
     if sim.plan.bounds is not None:

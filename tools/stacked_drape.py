@@ -33,9 +33,10 @@ lists' overflow and the surface lists' (the pairs within reach that full lists l
 
 ``--bounds`` runs each of those once per spec: ``off`` (the scene's own: its thickness's bounds, none
 without one), or the lab's displacement bounds (warp_cloth/displacement_bounds.py) as ``on`` or
-comma-separated ``radius=``, ``gamma=``, ``rounds=`` (say ``rounds=3``: a 1 cm radius, a 4 mm thickness's); a
-bounded run adds the particles held short a substep (first and last round), the distance given up, and the
-settings it ran with.
+comma-separated ``radius=``, ``gamma=``, ``rounds=``, ``again=`` (say ``rounds=3``: a 1 cm radius, a 4 mm
+thickness's); a bounded run adds the particles held short a substep (first and last round), the distance given
+up, the rounds a substep in which the bounds were measured again (``again``), the particles left held at
+their bounds with their rounds spent (summed over substeps), and the settings it ran with.
 
     python tools/stacked_drape.py --sheets 3 --n 32 --frames 60 --radius 0.004 default --device cpu \\
         --json docs/results/stacked-drape-cpu.json
@@ -118,7 +119,8 @@ def measure(scene: wc.Scene, gap: float, device: str, bounds: BoundSettings | No
     thickness = contacts.thickness if contacts is not None else contact_thickness.RULE * distance
     per_frame = {"crossings": [], "closest_contact": [], "seconds": [], "substeps": [], "limit_passes": [],
                  "limit_mean_passes": [], "limit_residual": [], "cg_iterations": [],
-                 "closest_surfaces": [], "held_short_first": [], "held_short_last": [], "held_back_m": []}
+                 "closest_surfaces": [], "held_short_first": [], "held_short_last": [], "held_back_m": [],
+                 "measured_again": [], "left_held": []}
     stepping, outcome = 0.0, "completed"
 
     def measure_frame(frame: int) -> None:
@@ -147,10 +149,12 @@ def measure(scene: wc.Scene, gap: float, device: str, bounds: BoundSettings | No
         per_frame["cg_iterations"].append(stats.cg_iterations)
         per_frame["limit_residual"].append(stats.limit_residual)
         if sim.plan.bounds is not None:
-            held_short, held_back = sim.plan.bounds.read_stats()
-            per_frame["held_short_first"].append(held_short[0] / sim.frame_substeps)
-            per_frame["held_short_last"].append(held_short[-1] / sim.frame_substeps)
-            per_frame["held_back_m"].append(held_back)
+            bound_stats = sim.plan.bounds.read_stats()
+            per_frame["held_short_first"].append(bound_stats.held_short[0] / sim.frame_substeps)
+            per_frame["held_short_last"].append(bound_stats.held_short[-1] / sim.frame_substeps)
+            per_frame["held_back_m"].append(bound_stats.held_back)
+            per_frame["measured_again"].append(bound_stats.measured_again / sim.frame_substeps)
+            per_frame["left_held"].append(bound_stats.left_held)
         measure_frame(frame)
         bar.update(frame)
     bar.close()
@@ -184,13 +188,16 @@ def measure(scene: wc.Scene, gap: float, device: str, bounds: BoundSettings | No
             "held_short_last_mean": float(np.mean(per_frame["held_short_last"]))
             if per_frame["held_short_last"] else None,
             "held_back_m": float(np.sum(per_frame["held_back_m"])) if per_frame["held_back_m"] else None,
+            "measured_again_mean": float(np.mean(per_frame["measured_again"])) if per_frame["measured_again"] else None,
+            "measured_again_most": max(per_frame["measured_again"], default=None),
+            "left_held": int(np.sum(per_frame["left_held"])) if per_frame["left_held"] else None,
             "per_frame": per_frame | {"stretch": report.per_frame[:, 1].tolist(),
                                       "compression": report.per_frame[:, 2].tolist()}}
 
 
 HEADER = (f"{'run':<44} {'frames':>6} {'step s':>8} {'substeps':>8} {'stretch':>8} {'compress':>8} "
           f"{'most crossings':>15} {'first':>5} {'closest':>7} {'m':>8} {'of gap':>6} {'passes mean/most/cap':>20} "
-          f"{'capped':>6} {'surfaces m':>10} {'of thick':>8} {'held short':>10}")
+          f"{'capped':>6} {'surfaces m':>10} {'of thick':>8} {'held short':>10} {'again':>5}")
 
 
 def table_lines(row: dict) -> list[str]:
@@ -208,7 +215,8 @@ def table_lines(row: dict) -> list[str]:
              f"{row['limit_passes_mean']:>7.1f}/{row['limit_passes_most']:>4}/{row['limit_passes_cap']:>5} "
              f"{row['frames_ending_outside_tolerance']:>6} {row['closest_surfaces_m']:>10.5f} "
              f"{row['closest_surfaces_of_thickness']:>8.3f} "
-             f"{'-' if row['held_short_mean'] is None else format(row['held_short_mean'], '.1f'):>10}"]
+             f"{'-' if row['held_short_mean'] is None else format(row['held_short_mean'], '.1f'):>10} "
+             f"{'-' if row['measured_again_mean'] is None else format(row['measured_again_mean'], '.2f'):>5}"]
     if row["outcome"] != "completed":
         lines.append(f"{'':<44} {row['outcome']}")
     return lines

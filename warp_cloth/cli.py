@@ -278,6 +278,20 @@ def _lists_full(sim) -> str:
     return "".join(said)
 
 
+def _measured_again(sim, summary) -> str:
+    """How often the run measured the displacement bounds again inside a substep, where the solve held
+    particles at them (with a thickness), for the summary line ('' where never)."""
+    bounds = sim.plan.bounds
+    stats = bounds.read_stats() if bounds is not None else None
+    if stats is None or not stats.measured_again or not summary.substeps:
+        return ""
+    said = f"; bounds measured again {stats.measured_again / summary.substeps:.3g} times a substep on average"
+    if stats.left_held:
+        said += (f", {counted(stats.left_held, 'particle')} left held at them with the "
+                 f"{bounds.settings.again} rounds spent (steps cut short)")
+    return said
+
+
 def _cmd_plan(args: argparse.Namespace) -> int:
     _quiet_warp()
     from .scene_file import load_scene
@@ -527,7 +541,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
           f"{sim_settings.integrator}) of {summary.particles} particles on {sim.device.alias} in "
           f"{summary.wall_seconds:.2f} s (+{building + summary.prepare_seconds:.1f} s building and compiling; "
           f"{summary.particle_substeps_per_second:.3g} particle-substeps/s); "
-          f"wrote {wrote}; {_strain(strain)}{_limit_solve(sim)}{_lists_full(sim)}" +
+          f"wrote {wrote}; {_strain(strain)}{_limit_solve(sim)}{_measured_again(sim, summary)}{_lists_full(sim)}" +
           (f"; {check.summary()}" if check else ""))
     return EXIT_SIGNAL_BASE + summary.stop_signal if summary.interrupted else 0
 

@@ -112,7 +112,7 @@ class NeighbourLists:
     def run(self, state: DeviceState) -> None:
         if self.every_substep:
             self.rebuild.fill_(1)
-        self._remake_if_asked(state.x, self.bounds.start if self.faces is not None else state.x)
+        self._remake_if_asked(state.x, self.bounds.anchor if self.faces is not None else state.x)
 
     @property
     def kernels(self) -> list[wp.Kernel]:
@@ -154,7 +154,13 @@ class NeighbourLists:
         """Remake every particle's list from positions ``x`` now, outside a substep."""
         self.rebuild.fill_(1)
         self._remake_if_asked(x, x)
-        wp.launch(particle_collision.end_remake_once, dim=1, inputs=[self.lists], device=x.device)
+        self.end_remake()
+
+    def end_remake(self) -> None:
+        """Ends a remake (or none) before the lists are asked for again in the same substep (its end does the
+        same in the contact velocities' pass): the request cleared and, where lists were remade, the particle
+        hash's next epoch started, so that a second fill does not add to the first."""
+        wp.launch(particle_collision.end_remake_once, dim=1, inputs=[self.lists], device=self.rebuild.device)
 
     def closest_contacts(self, x: wp.array, worlds: int, remake: bool = True) -> np.ndarray:
         """Each world's closest approach of two particles that may collide, as a fraction of their contact

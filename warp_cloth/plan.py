@@ -13,7 +13,7 @@ import warp as wp
 from warp_cloth.kernels.colliders import RigidColliders
 
 from .device_model import DeviceModel
-from .displacement_bounds import BoundsFromLists, DisplacementBounds
+from .displacement_bounds import BoundsFromLists, DisplacementBounds, MeasureAgain
 from .face_contacts import FaceContacts
 from .implicit import SolveStats
 from .integrators import Integrator
@@ -113,7 +113,8 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
     solve of particle collision (not the lab's line rounds with contacts), measured there before the lists,
     held after each of its separating passes and the step clamped to the same bounds after it (wherever
     ``faces`` is given, their query radius chosen before the lists and the bounds read off the lists after
-    them); ``control``: the
+    them, and after the solve, in place of the clamp, the bounds measured again where the solve held particles
+    at them and the solve run again within them, ``MeasureAgain``); ``control``: the
     passes that put what a script sent from Python (control.py's ``Control.passes``) after the colliders'
     motion (``"colliders"``), with the soft pins' motion before the step (``"soft pins"``: where their springs
     pull, which the step reads) and after the hard pins' motion (``"pins"``); ``faces``: the face contacts
@@ -159,14 +160,14 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
         line_rounds = converged and model.limits is not None and lines is not None
         held = bounds is not None and converged and not line_rounds
         measured_before = bounds is not None and (held or faces is not None)
-        if faces is not None:
-            passes += [bounds.choose, lists, BoundsFromLists(bounds, faces.args, edge_contacts_args(model, state))]
+        from_lists = BoundsFromLists(bounds, faces.args, edge_contacts_args(model, state)) if faces is not None else None
+        if from_lists is not None:
+            passes += [bounds.choose, lists, from_lists]
         else:
             passes += [bounds.measure, lists] if measured_before else [lists]
         edge_passes = [edge_separation_pass(model, state, chosen, rigid)] if state.edges is not None else []
         if faces is not None:
             edge_passes.append(faces.separation_pass(model, chosen, rigid))
-        clamp = bounds.clamp_held if measured_before else bounds.clamp if bounds is not None else None
         if line_rounds:
             projection = line_contact_projection(model, state, solve, chosen, rigid, edge_passes, lines, faces)
             passes.append(projection)
@@ -176,8 +177,10 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
             passes.append(projection)
         else:
             passes.extend(edge_passes + projection_passes(model, state, solve, chosen, rigid))
-        if clamp is not None:
-            passes.append(clamp)
+        if from_lists is not None and held and bounds.settings.again > 0:
+            passes.append(MeasureAgain(bounds, lists, from_lists, projection))  # its last hold is the clamp
+        elif bounds is not None:
+            passes.append(bounds.clamp_held if measured_before else bounds.clamp)
         friction = faces.friction_pass(model, state, chosen) if faces is not None else None
         if friction is not None:
             passes.append(friction)
