@@ -5,6 +5,7 @@ crossed pair pushed back to its side; two sheets pressed together left with no c
 vertex and edge at least 0.9 of the thickness from the other sheet's triangles and edges; the start check
 accepting layers a thickness apart and refusing closer ones."""
 
+import tomllib
 from dataclasses import replace
 
 import numpy as np
@@ -15,6 +16,7 @@ from conftest import assert_restored_run_continues
 from test_displacement_bounds import brute_force_nearest, point_triangle, segment_segment
 from warp_cloth.diagnostics import TriangleIntersections
 from warp_cloth.displacement_bounds import BoundSettings, DisplacementBounds, lab_hooks, mesh_primitives
+from warp_cloth.scene_file import scene_from_dict
 
 DRAPE_MATERIAL = {"density": 0.2, "structural": wc.SpringKind(50.0, 0.05), "shear": wc.SpringKind(50.0, 0.05),
                   "bend": wc.SpringKind(20.0, 0.02, "compression", "compression")}  # scenes/drape.toml's
@@ -277,15 +279,47 @@ def test_crowded_hash_cells_leave_no_pair_out_of_the_bounds(speed, query):
     assert np.all(listed >= nearest * (1.0 - 1e-4))
 
 
+SLIDING_TOML = """name = "sliding"
+
+[simulation]
+fps = 60
+frames = 6
+substeps = {substeps}
+gravity = [0.0, 0.0, 0.0]
+
+[collision]
+radius = 0.002
+thickness = 0.004
+
+[[cloth]]
+name = "below"
+resolution = [20, 20]
+size = [1.0, 1.0]
+origin = [-0.5, 0.0, 0.5]
+{sheet}
+[[cloth.pins]]
+corners = ["bottom-left", "bottom-right", "top-left", "top-right"]
+
+[[cloth]]
+name = "above"
+resolution = [8, 8]
+size = [0.4, 0.4]
+origin = [-0.4, 0.005, 0.2]
+velocity = [{speed}, 0.0, 0.0]
+{sheet}"""
+SHEET_TOML = """orientation = "horizontal"
+limit = { stretch = 0.1, compression = 0.1 }
+"""
+
+
+def sliding_toml(speed: float, substeps: int) -> str:
+    return SLIDING_TOML.format(speed=speed, substeps=substeps, sheet=SHEET_TOML)
+
+
 def sliding_scene(speed: float, substeps: int) -> wc.Scene:
     """A 0.4 m sheet of 9^2 thrown sideways at ``speed`` m/s, 5 mm over a 1 m sheet pinned at its corners
     (thickness 4 mm, no gravity, no friction), 60 frames a second."""
-    below = wc.Cloth(name="below", resolution=(20, 20), size=(1.0, 1.0), orientation="horizontal",
-                     origin=(-0.5, 0.0, 0.5), pins=(wc.Pin(corners=CORNERS),), limit=wc.Limit(0.1, 0.1))
-    above = wc.Cloth(name="above", resolution=(8, 8), size=(0.4, 0.4), orientation="horizontal",
-                     origin=(-0.4, 0.005, 0.2), velocity=(speed, 0.0, 0.0), limit=wc.Limit(0.1, 0.1))
-    return wc.Scene(name="sliding", cloths=(below, above), collision=wc.Collision(radius=0.002, thickness=0.004),
-                    simulation=wc.Simulation(fps=60, frames=6, substeps=substeps, gravity=(0.0, 0.0, 0.0)))
+    return scene_from_dict(tomllib.loads(sliding_toml(speed, substeps)))
 
 
 @pytest.mark.parametrize("speed, substeps, device", [(1.0, 10, "cpu"), (4.0, 10, "cpu"), (4.0, 40, "cpu"),
@@ -309,44 +343,12 @@ def test_a_sheet_slides_over_another_at_its_speed(speed, substeps, device):
     assert sim.plan.bounds.read_stats().measured_again == (2 * 6 * substeps if capped else 0)
 
 
-SLIDING_TOML = """[simulation]
-fps = 60
-frames = 3
-substeps = 10
-gravity = [0.0, 0.0, 0.0]
-
-[collision]
-radius = 0.002
-thickness = 0.004
-
-[[cloth]]
-name = "below"
-resolution = [20, 20]
-size = [1.0, 1.0]
-orientation = "horizontal"
-origin = [-0.5, 0.0, 0.5]
-limit = { stretch = 0.1, compression = 0.1 }
-
-[[cloth.pins]]
-corners = ["bottom-left", "bottom-right", "top-left", "top-right"]
-
-[[cloth]]
-name = "above"
-resolution = [8, 8]
-size = [0.4, 0.4]
-orientation = "horizontal"
-origin = [-0.4, 0.005, 0.2]
-velocity = [4.0, 0.0, 0.0]
-limit = { stretch = 0.1, compression = 0.1 }
-"""
-
-
 def test_the_summary_says_how_often_the_bounds_were_measured_again(tmp_path):
     """``sliding_scene`` at 4 m/s as a scene file, run from the command line: the summary line says that the
     bounds were measured again twice a substep."""
     from conftest import run_cli_in_process
 
-    (tmp_path / "sliding.toml").write_text(SLIDING_TOML)
+    (tmp_path / "sliding.toml").write_text(sliding_toml(4.0, 10))
     code, out, err = run_cli_in_process("run", "sliding.toml", "--device", "cpu", "--out", str(tmp_path / "out"),
                                         cwd=tmp_path)
     assert code == 0, err
