@@ -216,7 +216,8 @@ class DisplacementBounds:
         wp.launch(primitive_distances.nearest_between_edges, dim=self.edge_count,
                   inputs=[x, self.mesh, grid, self.query, self.longest], outputs=[self.nearest], device=device)
 
-    MEASURE_LAUNCHES = ["the query radius filled with the settings'", "widen_to_motion", "a zeroed longest edge",
+    QUERY_LAUNCHES = ["the query radius filled with the settings'", "widen_to_motion"]  # choose_query's
+    MEASURE_LAUNCHES = [*QUERY_LAUNCHES, "a zeroed longest edge",
                         "longest_edge", "choose_cells", *(k.key for k in CountedHash.kernels), "fill_with_radius",
                         "nearest_to_triangles", "nearest_between_edges"]
 
@@ -279,7 +280,8 @@ class ChooseQuery:
         self.bounds = bounds
 
     def describe(self) -> list[str]:
-        return [f"{self.name}:"] + [f"    {launch}" for launch in DisplacementBounds.MEASURE_LAUNCHES[:2]]
+        return [f"{self.name}:", "    a copy of the positions (where the step would take the particles)"] + \
+            [f"    {launch}" for launch in DisplacementBounds.QUERY_LAUNCHES]
 
     def run(self, state: DeviceState) -> None:
         wp.copy(self.bounds.predicted, state.x)
@@ -401,7 +403,8 @@ class MeasureAgain:
                 f"    {kernels.hold_within_bounds.key}, {kernels.start_round.key}, {kernels.find_held.key} "
                 "(whether to go on)",
                 "  each round:", f"    {kernels.send_on.key}", "    end_remake_once",
-                f"    {self.bounds.choose.name}", f"    {self.lists.name}", f"    {self.from_lists.name}",
+                *(f"    {launch}" for launch in DisplacementBounds.QUERY_LAUNCHES),
+                f"    {self.lists.name}", f"    {self.from_lists.name}",
                 f"    {self.projection.name}",
                 f"    {kernels.hold_within_bounds.key}, {kernels.start_round.key}, {kernels.find_held.key}"]
 
