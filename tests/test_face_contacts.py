@@ -279,6 +279,24 @@ def test_crowded_hash_cells_leave_no_pair_out_of_the_bounds(speed, query):
     assert np.all(listed >= nearest * (1.0 - 1e-4))
 
 
+def test_a_sheet_whose_rounds_run_out_slides_at_their_cap_and_is_counted():
+    """With one round a substep allowed (the lab's ``again``), the 4 m/s sheet of the test above moves two
+    bounds a substep, 2 x 0.45 x 5 mm: 2.70 m/s at 10 substeps of 60 fps; the particles left held with the
+    round spent are counted, and nothing crosses."""
+    with lab_hooks(replace(BoundSettings.for_thickness(0.004), again=1)):
+        sim = wc.Simulator(sliding_scene(4.0, 10), device="cpu")
+    above = np.arange(21 * 21, sim.model.particle_count)
+    crossings = TriangleIntersections(sim)
+    xs = []
+    for _ in range(6):
+        sim.step()
+        xs.append(sim.positions()[above, 0].mean())
+        assert crossings(sim) == 0
+    assert (xs[-1] - xs[-2]) * 60 == pytest.approx(2 * 0.45 * 0.005 * 60 * 10, rel=0.001)
+    stats = sim.plan.bounds.read_stats()
+    assert stats.measured_again == 60 and stats.left_held > 0
+
+
 SLIDING_TOML = """name = "sliding"
 
 [simulation]
