@@ -101,7 +101,6 @@ def stepped_over_a_triangle(start_height: float, stepped_height: float):
     start[vertex] = middle + np.array([0.0, start_height, 0.0], dtype=np.float32)
     stepped = start.copy()
     stepped[vertex] = middle + np.array([0.0, stepped_height, 0.0], dtype=np.float32)
-    sim.plan.bounds.start.assign(start)
     sim.plan.bounds.anchor.assign(start)
     sim.state.x.assign(stepped)
     return sim, triangle, vertex, stepped, middle

@@ -165,8 +165,9 @@ class DisplacementBounds:
         self.longest = wp.zeros(1, dtype=float, device=device)
         self.query = wp.zeros(1, dtype=float, device=device)  # the query radius last chosen
         self.nearest = wp.zeros(n, dtype=float, device=device)
-        self.start = wp.zeros(n, dtype=wp.vec3, device=device)  # where the substep started
-        self.anchor = wp.zeros(n, dtype=wp.vec3, device=device)  # where the bounds were last measured
+        # where the bounds were last measured: where the substep started, until MeasureAgain moves it (a plan
+        # that clamps after its solves never does, so there it is the start the clamp takes the velocity from)
+        self.anchor = wp.zeros(n, dtype=wp.vec3, device=device)
         self.predicted = wp.zeros(n, dtype=wp.vec3, device=device)  # where the step would take the particles
         self.position = wp.zeros(n, dtype=wp.vec3, device=device)
         self.clamped = wp.zeros(settings.rounds, dtype=int, device=device)  # particles held short, by round
@@ -246,10 +247,9 @@ class RecordStart:
         self.bounds = bounds
 
     def describe(self) -> list[str]:
-        return [f"{self.name}:", "    two copies of the positions (the start, and the bounds' anchor)"]
+        return [f"{self.name}:", "    a copy of the positions (the bounds' anchor)"]
 
     def run(self, state: DeviceState) -> None:
-        wp.copy(self.bounds.start, state.x)
         wp.copy(self.bounds.anchor, state.x)
 
 
@@ -375,7 +375,7 @@ class ClampToBounds:
                       inputs=[state.x, bounds.nearest, bounds.settings.gamma, model.inv_mass, bounds.position,
                               bounds.clamped, slot], device=device)
         wp.launch(displacement_bounds.take_bounded_step, dim=bounds.n,
-                  inputs=[bounds.start, bounds.position, 1.0 / model.h],
+                  inputs=[bounds.anchor, bounds.position, 1.0 / model.h],
                   outputs=[state.x, state.v, bounds.held_back], device=device)
 
 
