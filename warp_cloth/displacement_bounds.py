@@ -32,8 +32,9 @@ speed of a cloth falling through empty air (0.56 thicknesses a substep at 1.25 t
 the step (before a converged solve that holds them, else after the solves), the radius follows it, and a
 particle with nothing near takes its whole step. One radius for all gives every particle room for the solve's
 corrections beyond its own step: each particle's own radius held the slow ones short of their limits'
-corrections (seed_default at 4 mm and its 17 substeps: +16.0% in 18 frames against +10.5%,
-docs/notebook/layers.md).
+corrections (seed_default at 4 mm and its 17 substeps: +16.0% in 18 frames against +10.5%), and, given room for
+them and the rounds to catch the rest, measured no faster on an H200 (docs/notebook/layers.md, "Each particle's
+own query radius, with the rounds").
 
 A scene with a surface thickness (``[collision] thickness``) has them at ``for_thickness``'s settings, and
 reads them off the surface contacts' lists, which hold every pair they need (kernels/listed_distances.py),
