@@ -165,9 +165,10 @@ def gather_edge_candidates(x: wp.array(dtype=wp.vec3), midpoint: wp.array(dtype=
             continue
         bucket = neighbour_bucket(center, world, k, buckets.mask)
         if first_visit_within(center, world, k, bucket, buckets.mask, width, middle, middle, cells_reach_sq):
+            first = buckets.start[bucket]
             for s in range(buckets.count[bucket]):
-                f = buckets.items[buckets.start[bucket] + s]
-                if wp.length_sq(midpoint[f] - middle) < near * near:
+                if wp.length_sq(buckets.points[first + s] - middle) < near * near:
+                    f = buckets.items[first + s]
                     ends_f = edges.ends[f]
                     p_f = x[ends_f[0]]
                     q_f = x[ends_f[1]]
@@ -211,9 +212,10 @@ def gather_vertex_faces(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules: 
             continue
         bucket = neighbour_bucket(center, world, k, buckets.mask)
         if first_visit_within(center, world, k, bucket, buckets.mask, width, p, p, cells_reach_sq):
+            first = buckets.start[bucket]
             for s in range(buckets.count[bucket]):
-                q = buckets.items[buckets.start[bucket] + s]
-                if wp.length_sq(x[q] - p) < near * near:
+                if wp.length_sq(buckets.points[first + s] - p) < near * near:
+                    q = buckets.items[first + s]
                     for o in range(owned_offsets[q], owned_offsets[q + 1]):
                         t_index = owned[o]
                         t = faces.triangles[t_index]
@@ -261,10 +263,11 @@ def gather_face_vertices(x: wp.array(dtype=wp.vec3), faces: FaceContacts, rules:
             continue
         bucket = neighbour_bucket(center, world, k, buckets.mask)
         if first_visit_within(center, world, k, bucket, buckets.mask, width, low, high, cells_reach_sq):
+            first = buckets.start[bucket]
             for s in range(buckets.count[bucket]):
-                v = buckets.items[buckets.start[bucket] + s]
-                p = x[v]
+                p = buckets.points[first + s]
                 if box_gap_sq(p, p, low, high) < box_reach_sq:
+                    v = buckets.items[first + s]
                     if may_touch_face_but_at_rest(rules, v, t):
                         gap = point_triangle_distance(p, a, b, c)
                         if gap < own + allowance[v] and apart_at_rest_face(rules, v, t):

@@ -189,6 +189,7 @@ class Buckets:
     count: wp.array(dtype=int)  # (table,)
     start: wp.array(dtype=int)  # (table,)
     items: wp.array(dtype=int)  # (points,)
+    points: wp.array(dtype=wp.vec3)  # (points,) the items' positions, in the items' order: read in a row
     bucket: wp.array(dtype=int)  # (points,) each point's bucket, while the hash is filled
     rank: wp.array(dtype=int)  # (points,) each point's place in its bucket, while the hash is filled
 
@@ -213,9 +214,11 @@ def count_points(x: wp.array(dtype=wp.vec3), world: wp.array(dtype=int), rebuild
 
 
 @wp.kernel
-def place_points(rebuild: wp.array(dtype=int), buckets: Buckets):
-    """Each point at its place, after the scan of the counts, where ``rebuild`` is set."""
+def place_points(x: wp.array(dtype=wp.vec3), rebuild: wp.array(dtype=int), buckets: Buckets):
+    """Each point, and its position, at its place, after the scan of the counts, where ``rebuild`` is set."""
     if rebuild[0] == 0:
         return
     i = wp.tid()
-    buckets.items[buckets.start[buckets.bucket[i]] + buckets.rank[i]] = i
+    slot = buckets.start[buckets.bucket[i]] + buckets.rank[i]
+    buckets.items[slot] = i
+    buckets.points[slot] = x[i]

@@ -49,6 +49,7 @@ class CountedHash:
         buckets.count = wp.zeros(table, dtype=int, device=device)
         buckets.start = wp.zeros(table, dtype=int, device=device)
         buckets.items = wp.zeros(points, dtype=int, device=device)
+        buckets.points = wp.zeros(points, dtype=wp.vec3, device=device)
         buckets.bucket = wp.zeros(points, dtype=int, device=device)
         buckets.rank = wp.zeros(points, dtype=int, device=device)
         self.scan = PrefixSum(table, device)
@@ -62,4 +63,4 @@ class CountedHash:
                   device=device)
         wp.launch(spatial_hash.count_points, dim=x.shape[0], inputs=[x, world, rebuild, buckets], device=device)
         self.scan.exclusive(buckets.count, buckets.start)
-        wp.launch(spatial_hash.place_points, dim=x.shape[0], inputs=[rebuild, buckets], device=device)
+        wp.launch(spatial_hash.place_points, dim=x.shape[0], inputs=[x, rebuild, buckets], device=device)
