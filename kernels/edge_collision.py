@@ -3,8 +3,8 @@
 Particle contacts keep points apart, not the edges between them. Two edges of length L crossing at their
 middles keep every end sqrt(2) L / 2 from the other's: past the contact distance for a grid's triangle
 diagonals (1.41 cells against the seed's 0.82), so a cloth folded flat onto itself can pass a diagonal
-through another while every particle stays apart. The model lists the triangle edges long enough for this
-(warp_cloth/model.py, ``long_triangle_edges``); each edge's candidates are the listed edges whose segments lie
+through another while every particle stays apart. With a surface thickness the model lists every triangle
+edge (warp_cloth/model.py, ``_contact_edges``); each edge's candidates are the listed edges whose segments lie
 within ``reach``, found through a spatial hash of the edges' midpoints (neighbour_search.py), its cells as
 wide as the longest edge then plus the reach, whenever the particle lists are remade, so that they stay valid
 as long as those do; a pass then moves each pair's closest points apart to ``thickness``, each end by its

@@ -1,6 +1,6 @@
 """Candidate lists that fill up (kernels/candidate_lists.py): a full list, the edge contacts' or the face
-contacts', keeps the nearest candidates; and the edge contacts' lists and hash hold every candidate of a
-stack of layers."""
+contacts' (a surface thickness's), keeps the nearest candidates; and the edge contacts' lists and hash hold
+every candidate of a stack of layers."""
 
 import numpy as np
 import warp as wp
@@ -12,7 +12,7 @@ from warp_cloth.kernels import edge_collision, primitive_distances
 
 QUADS = 8
 HELD = 5  # entries an edge's list holds here: fewer than the candidates of most edges
-THICKNESS = 0.0021  # the face contacts' (the edge contacts' rule at this 4 mm radius, as the lab ran it)
+THICKNESS = 0.0021  # metres: the surfaces' (a quarter of the particles' 8.4 mm contact distance)
 
 
 @wp.kernel
@@ -29,7 +29,7 @@ def crossed_quads(sim: wc.Simulator, turned: bool) -> np.ndarray:
     rng = np.random.default_rng(3)
     rest = sim.model.positions.reshape(QUADS, 4, 3)
     corners = rest - rest.mean(axis=1, keepdims=True)
-    reach = sim.plan.lists.edges.thickness + 2.0 * sim.plan.lists.rebuild_distance
+    reach = widest_reach(sim.plan.lists.edges)
     x = np.empty_like(rest)
     for k in range(QUADS):
         turn = np.pi / 2 * k / QUADS if turned else 0.0
@@ -40,12 +40,12 @@ def crossed_quads(sim: wc.Simulator, turned: bool) -> np.ndarray:
     return x.reshape(-1, 3)
 
 
-def crossed_quad_simulator(turned: bool, thickness: float | None = None) -> wc.Simulator:
-    """The quads of ``crossed_quads``, their lists made there; ``thickness``: the surfaces' (None: none)."""
+def crossed_quad_simulator(turned: bool) -> wc.Simulator:
+    """The quads of ``crossed_quads``, their lists made there, their surfaces ``THICKNESS`` apart."""
     quads = tuple(wc.Cloth(name=f"q{k}", resolution=(1, 1), size=(0.1, 0.1), orientation="horizontal",
                            origin=(-0.05, float(k), 0.05), limit=wc.Limit()) for k in range(QUADS))
     scene = wc.Scene(name="crossed", cloths=quads,
-                     collision=wc.Collision(radius=0.004, edges=True, self_collision=False, thickness=thickness))
+                     collision=wc.Collision(radius=0.004, self_collision=False, thickness=THICKNESS))
     sim = wc.Simulator(scene, device="cpu", graph=False)
     sim.state.x.assign(crossed_quads(sim, turned))
     sim.plan.lists.remake_now(sim.state.x)
@@ -79,7 +79,7 @@ def test_a_full_edge_list_keeps_the_nearest_candidates(monkeypatch):
     quad = ends.numpy()[:, 0] // 4
     overfull = assert_nearest_kept(sim.state.edges.counts.numpy(), sim.state.edges.neighbors.numpy().reshape(m, HELD),
                                    gap.numpy(), quad[:, None] != quad[None, :], widest_reach(sim.plan.lists.edges))
-    assert overfull > m // 2 and sim.plan.lists.overflow > 0
+    assert overfull > m // 2 and sim.plan.lists.surface_dropped > 0
 
 
 @wp.kernel
@@ -94,7 +94,7 @@ def test_full_face_lists_keep_the_nearest_pairs(monkeypatch):
     """The quads moved over each other, with surface contacts: each vertex's list of triangles and
     each triangle's list of vertices hold 5, the 5 nearest (by the point-triangle distance)."""
     monkeypatch.setattr(face_contacts, "FACE_NEIGHBORS", HELD)
-    sim = crossed_quad_simulator(turned=False, thickness=THICKNESS)
+    sim = crossed_quad_simulator(turned=False)
     faces = sim.plan.faces
     n, t = sim.model.particle_count, faces.triangle_count
     gap = wp.zeros((n, t), dtype=float, device="cpu")
@@ -107,13 +107,13 @@ def test_full_face_lists_keep_the_nearest_pairs(monkeypatch):
                                gap.T, other_quad.T, widest_reach(faces)) >= t // 2
 
 def stacked_sheets(sheets: int, n: int) -> wc.Scene:
-    """``sheets`` horizontal 0.5 m sheets of n x n particles, 1 cm apart, with edge contacts, over a sphere
-    (tools/stacked_drape.py's case, small)."""
+    """``sheets`` horizontal 0.5 m sheets of n x n particles, 1 cm apart, their surfaces held ``THICKNESS``
+    apart, over a sphere (tools/stacked_drape.py's case, small)."""
     cloths = tuple(wc.Cloth(name=f"sheet{k}", resolution=(n - 1, n - 1), size=(0.5, 0.5), orientation="horizontal",
                             origin=(-0.25, 0.3 + 0.01 * k, 0.25), limit=wc.Limit(0.05, 0.05),
                             pins=(wc.Pin(corners=("top-left", "top-right")),)) for k in range(sheets))
     return wc.Scene(name="stack", cloths=cloths, spheres=(wc.Sphere(name="ball", center=(0.0, 0.0, 0.0), radius=0.25),),
-                    collision=wc.Collision(radius=0.004, edges=True),
+                    collision=wc.Collision(radius=0.004, thickness=THICKNESS),
                     simulation=wc.Simulation(fps=60.0, frames=3))
 
 

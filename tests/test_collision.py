@@ -15,7 +15,7 @@ from warp_cloth.kernels import attachments, edge_collision, particle_collision, 
 from warp_cloth.cloth_grid import build_grid
 from warp_cloth.cloth_mesh import rest_adjacent_pairs
 from warp_cloth.checkpoint import Checkpoint, scene_fingerprint
-from warp_cloth.model import collision_radii, long_triangle_edges, needs_adjacent_exclusion
+from warp_cloth.model import EDGE_OVERSHOOT, collision_radii, needs_adjacent_exclusion
 from warp_cloth.neighbour_lists import widest_reach
 from warp_cloth.device_model import no_colliders
 from warp_cloth.kernels import projection_passes
@@ -168,10 +168,9 @@ def test_collision_scene_over_its_whole_length_on_cuda(name, threads):
 # 1 + k 1e-6 (tools/crossing_spread.py). Where its falling cloth folds flat, a triangle diagonal can pass
 # through another while every particle stays apart; with the limit solved, the most pairs crossing at once
 # over 240 frames on an H100 were 0, 1, 0, 0, 0, 0, 0 and 1 for k = 0..7
-# (docs/results/seed-default-crossings-converged-h100.jsonl), and with the scene's edge contacts none for
-# k = 0..15, the closest contact 0.993 or more (seed-default-crossings-edges-h100.jsonl); on an H200 with the
-# sequential projection the scene then declared (issue 32 left the order to the solver), none for k = 0..15, the closest contact 0.992 or more
-# (seed-default-crossings-sequential-h200.jsonl).
+# (docs/results/seed-default-crossings-converged-h100.jsonl), and with the edge contacts it then declared (a
+# rule since retired) none for k = 0..15, the closest contact 0.993 or more (seed-default-crossings-edges-h100.jsonl).
+# The scene now holds its surfaces a thickness apart, under bounds that let no step make a crossing.
 
 
 def check_scene_every_frame(name: str, frames: int, device: str, threads: int | None = None) -> None:
@@ -195,16 +194,17 @@ def check_scene_every_frame(name: str, frames: int, device: str, threads: int | 
 FOLDS = Path(__file__).parent / "data" / "seed_default_folds.npz"
 
 
-def seed_default_at_a_fold(k: int, edges: bool) -> wc.Simulator:
+def seed_default_at_a_fold(k: int, thickness: float | None) -> wc.Simulator:
     """seed_default, gravity scaled by 1 + k 1e-6, from the state an H100 run of it had at the start of a
     frame in which a triangle diagonal of the falling cloth, folded flat, passed through another
-    (``python tools/capture_crossing.py OUT cuda 240 1 7``; one crossing pair, every particle apart), with
-    edge contacts or without; its lists are remade at the first substep."""
+    (``python tools/capture_crossing.py OUT cuda 240 1 7``; particle contacts alone, with the edge contacts of
+    a retired rule off: one crossing pair, every particle apart), with the surfaces ``thickness`` apart (None:
+    particle contacts alone); its lists are remade at the first substep."""
     base = wc.load_scene("seed_default")
     gravity = tuple(g * (1.0 + 1e-6 * k) for g in base.simulation.gravity)
     simulation = dataclasses.replace(base.simulation, gravity=gravity)
     scene = dataclasses.replace(base, simulation=simulation,
-                                collision=dataclasses.replace(base.collision, edges=edges))
+                                collision=dataclasses.replace(base.collision, thickness=thickness))
     sim = wc.Simulator(scene, device="cpu", graph=False)
     arrays = {name: array.numpy() for name, array in sim.carried().items()}
     with np.load(FOLDS) as state:
@@ -217,33 +217,46 @@ def seed_default_at_a_fold(k: int, edges: bool) -> wc.Simulator:
 
 
 @pytest.mark.parametrize("k", [1, 7])
-def test_edge_contacts_keep_a_folded_diagonal_from_passing_through_another(k):
+def test_a_thickness_keeps_a_folded_diagonal_from_passing_through_another(k):
+    """Where particle contacts alone let a diagonal of the folded cloth pass through another, seed_default's
+    own thickness lets none pass."""
+    thickness = wc.load_scene("seed_default").collision.thickness
     crossings = {}
-    for edges in (False, True):
-        sim = seed_default_at_a_fold(k, edges)
+    for surfaces in (None, thickness):
+        sim = seed_default_at_a_fold(k, surfaces)
         count, most = TriangleIntersections(sim), 0
         for _ in range(2 * sim.substeps_per_frame):
             sim.substep()
             most = max(most, count(sim))
-        crossings[edges] = most
+        crossings[surfaces] = most
         assert ContactGaps(sim)(sim) >= CLOSEST_CONTACT and sim.plan.lists.overflow == 0
-    assert crossings == {False: 1, True: 0}
+    assert crossings == {None: 1, thickness: 0}
 
 
 @pytest.mark.parametrize("height", [0.0, 0.05], ids=["meeting", "apart"])
 def test_an_edge_pass_moves_two_crossing_diagonals_apart_to_the_thickness(height):
     """Two one-quad cloths, the second turned a quarter about the first's centre so that their diagonals
-    cross at their middles (``height`` apart, or meeting), equal masses: one edge pass moves the four ends
-    opposite ways, each pair's closest points to the thickness apart, and keeps their momentum."""
+    cross at their middles (``height`` apart, or meeting), equal masses, the diagonals' pair alone listed (the
+    quads' sides, on each other, are pairs too): one edge pass moves the four ends opposite ways, the pair's
+    closest points to the thickness apart, and keeps their momentum."""
     quads = tuple(wc.Cloth(name=name, resolution=(1, 1), size=(1.0, 1.0), orientation="horizontal",
                            origin=(-0.5, y, 0.5), limit=wc.Limit()) for name, y in (("a", 0.0), ("b", 2.0)))
-    scene = wc.Scene(name="crossing", cloths=quads, collision=wc.Collision(edges=True, self_collision=False))
+    scene = wc.Scene(name="crossing", cloths=quads, collision=wc.Collision(thickness=0.2, self_collision=False))
     sim = wc.Simulator(scene, device="cpu", graph=False)
     a = sim.model.positions[:4].astype(np.float64)
     turned = a[:, [2, 1, 0]] * np.array([-1.0, 1.0, 1.0]) + np.array([0.0, height, 0.0])
     sim.state.x.assign(np.concatenate([a, turned]).astype(np.float32))
-    ends = sim.device_model.contacts.edges.ends.numpy()
+    all_ends = sim.device_model.contacts.edges.ends.numpy()
+    diagonals = [e for e, (p, q) in enumerate(all_ends) if q - p == 3]
+    ends = all_ends[diagonals]
     sim.plan.lists.remake_now(sim.state.x)
+    listed = sim.state.edges
+    room = listed.neighbors.shape[0] // len(all_ends)
+    counts, neighbors = np.zeros(len(all_ends), dtype=np.int32), listed.neighbors.numpy()
+    for e, f in (diagonals, diagonals[::-1]):
+        counts[e], neighbors[e * room] = 1, f
+    listed.counts.assign(counts)
+    listed.neighbors.assign(neighbors)
     before = sim.positions().astype(np.float64)
     edge_separation_pass(sim.device_model, sim.state, 1, None).run(sim.state)
     moved = sim.positions().astype(np.float64) - before
@@ -257,26 +270,27 @@ def test_an_edge_pass_moves_two_crossing_diagonals_apart_to_the_thickness(height
 
 def test_edge_lists_hold_a_pair_within_reach_however_long_an_edge_is_stretched():
     """The diagonal of one quad stretched to six times the cells the edge hash needs without over-long
-    edges, the other's crossing it near one end, a contact's thickness above: its midpoint lies more than
-    two such cells from the long one's, out of their 27 cells, yet the pair is listed (the cells widen to
-    the longest edge at the remake) and nothing overflows."""
+    edges, the other's crossing it near one end, a thickness above: its midpoint lies more than two such
+    cells from the long one's, out of their 27 cells, yet the pair is listed (the cells widen to the longest
+    edge at the remake) and nothing is dropped."""
     quads = tuple(wc.Cloth(name=name, resolution=(1, 1), size=(1.0, 1.0), orientation="horizontal",
                            origin=(-0.5, y, 0.5), limit=wc.Limit()) for name, y in (("a", 0.0), ("b", 2.0)))
-    scene = wc.Scene(name="stretched", cloths=quads, collision=wc.Collision(edges=True, self_collision=False))
+    scene = wc.Scene(name="stretched", cloths=quads, collision=wc.Collision(thickness=0.2, self_collision=False))
     sim = wc.Simulator(scene, device="cpu", graph=False)
     edge_lists = sim.plan.lists.edges
     width = sim.device_model.contacts.edges.longest + widest_reach(edge_lists)
     thickness = sim.device_model.contacts.edges.thickness
-    ends = sim.device_model.contacts.edges.ends.numpy()
+    all_ends = sim.device_model.contacts.edges.ends.numpy()
+    long, crossing = (e for e, (p, q) in enumerate(all_ends) if q - p == 3)  # the quads' diagonals
     x = sim.model.positions.copy()
-    x[ends[0]] = [(0.0, 0.0, 0.0), (6.0 * width, 0.0, 0.0)]
-    x[ends[1]] = [(5.8 * width, thickness, -0.5), (5.8 * width, thickness, 0.5)]
+    x[all_ends[long]] = [(0.0, 0.0, 0.0), (6.0 * width, 0.0, 0.0)]
+    x[all_ends[crossing]] = [(5.8 * width, thickness, -0.5), (5.8 * width, thickness, 0.5)]
     sim.state.x.assign(x)
     sim.plan.lists.remake_now(sim.state.x)
     counts = sim.state.edges.counts.numpy()
     listed = sim.state.edges.neighbors.numpy().reshape(len(counts), -1)
-    assert [list(listed[e, :counts[e]]) for e in (0, 1)] == [[1], [0]]
-    assert sim.plan.lists.overflow == 0
+    assert crossing in listed[long, :counts[long]] and long in listed[crossing, :counts[crossing]]
+    assert sim.plan.lists.overflow == 0 and sim.plan.lists.surface_dropped == 0
 
 
 @wp.kernel
@@ -306,16 +320,18 @@ def segment_distance(p1, q1, p2, q2, samples=2001) -> float:
     return float(np.min(np.linalg.norm(points - (p2 + along * d), axis=1)))
 
 
-def test_only_edges_too_long_for_the_particles_are_contact_edges():
-    """On the seed's grid (contact 0.82 of a cell at a 10% stretch limit) the triangles' diagonals, 1.41
-    cells long, are contact edges, and the structural edges, 1 cell, are not: two crossing at their middles
-    keep their ends 0.71 cells apart, inside the particles' contact distance."""
+def test_with_a_thickness_every_triangle_side_is_a_contact_edge():
+    """A 4 x 3 grid's triangles have 4 x 4 + 5 x 3 structural sides and 4 x 3 diagonals: with a thickness all
+    43 are contact edges, once each, and the edge hash is sized for the longest at its stretch limit (the
+    diagonal's 1.1 sqrt 2 cells, with the solve's tolerance); with none there are no edge contacts."""
     cloth = wc.Cloth(name="grid", resolution=(4, 3), size=(4.0, 3.0), limit=wc.Limit())
-    mesh = build_grid(cloth)
-    radii = collision_radii(cloth, mesh, None)
-    edges, at_limit = long_triangle_edges(cloth, mesh, radii, wc.Collision().separation)
-    lengths = np.linalg.norm(mesh.positions[edges[:, 0]] - mesh.positions[edges[:, 1]], axis=1)
-    assert len(edges) == 4 * 3 and np.allclose(lengths, np.sqrt(2.0)) and np.allclose(at_limit, 1.1 * lengths)
+    sim = wc.Simulator(wc.Scene(name="grid", cloths=(cloth,), collision=wc.Collision(thickness=0.1)), device="cpu")
+    edges = sim.device_model.contacts.edges
+    ends = np.sort(edges.ends.numpy(), axis=1)
+    assert len(ends) == 43 and len({tuple(e) for e in ends}) == 43
+    assert np.isclose(edges.longest, EDGE_OVERSHOOT * 1.1 * np.sqrt(2.0), rtol=1e-6)
+    assert wc.Simulator(wc.Scene(name="grid", cloths=(cloth,), collision=wc.Collision()),
+                        device="cpu").device_model.contacts.edges is None
 
 
 def test_collision_run_is_deterministic_on_cpu():

@@ -247,19 +247,20 @@ def test_the_printed_plan_names_every_launch_of_the_solve_and_says_the_simulator
 @pytest.mark.parametrize("name", ["flag", "seed_default"])
 def test_the_printed_plan_names_each_launch_of_the_wind_and_the_lists(name, launches):
     # The wind's pass and the lists' remake launch several kernels a substep (each list kernel returning at
-    # once where nothing is remade): the plan prints them under the pass, from the list the pass launches.
+    # once where nothing is remade), as do the bounds read off the surface lists: the plan prints them under
+    # the pass, from the list the pass launches.
     sim = wc.Simulator(wc.load_scene(name), device="cpu", graph=False)
     launches.clear()
     sim.substep()
     printed = str(sim.plan).splitlines()
     several = [p for p in sim.plan.passes if hasattr(p, "kernels")]
     assert {p.name for p in several} == ({"wind", "lists:remake-if-moved"} if name == "flag"
-                                         else {"lists:remake-if-moved+edges"})
+                                         else {"lists:remake-if-moved+edges+faces", "bounds:from-lists"})
     for step in several:
         at = next(k for k, line in enumerate(printed) if line.endswith(f". {step.name}:"))
         keys = [kernel.key for kernel in step.kernels]
         assert [line.strip() for line in printed[at + 1:at + 1 + len(keys)]] == keys
-        assert all(launches[key] == 1 for key in keys), dict(launches)
+        assert all(launches[key] == keys.count(key) for key in keys), dict(launches)  # two hashes: each fill twice
 
 
 def test_bare_cloth_launches_one_kernel_and_holds_no_effect_arrays(launches):

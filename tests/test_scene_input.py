@@ -97,7 +97,7 @@ BAD = [
     (VALID.replace("frames = 2", "frames = 2.5"), "simulation.frames", "a whole number"),
     (VALID.replace("substeps = 2", 'integrator = "implicit"\ncompensated = true'), "simulation.compensated",
      "false with the implicit integrator"),
-    (VALID + "\n[collision]\nedges = true\n", "collision.edges", "a strain limit on every cloth"),
+    (VALID + "\n[collision]\nthickness = 0.004\n", "collision.thickness", "a strain limit on every cloth"),
     (VALID + "\n[collision]\nthickness = 0.0\n", "collision.thickness", "a number > 0, got 0.0"),
     (VALID + "\n[collision]\nthickness = -0.004\n", "collision.thickness", "a number > 0"),
     (VALID + '\n[collision]\nthickness = "4 mm"\n', "collision.thickness", "a number"),
@@ -142,6 +142,7 @@ RETIRED = [
     (VALID.replace("substeps = 2", "substeps = 2\nlimit_chebyshev_rho = 0.95"), "simulation.limit_chebyshev_rho",
      "estimates its Chebyshev radius itself"),
     (VALID + "\n[collision]\nprojection = \"sequential\"\n", "collision.projection", "jointly for a substep's first 200"),
+    (VALID + "\n[collision]\nedges = true\n", "collision.edges", "set [collision] thickness"),
 ]
 
 

@@ -1,12 +1,12 @@
-"""How many candidates the edge contacts' lists (and the face lists of a surface thickness) really hold in the
-stacked drape, and how full the edge and face hashes' buckets get (they hold every point: counted_hash.py): the
-lists made long enough never to fill (``--room``), read at the end of every frame (the lists of that frame's
-last remake). What sized ``state.EDGE_NEIGHBORS`` (docs/notebook/layers.md).
+"""How many candidates the surface thickness's edge and face lists really hold in the stacked drape, and how
+full the edge and face hashes' buckets get (they hold every point: counted_hash.py): the lists made long
+enough never to fill (``--room``), read at the end of every frame (the lists of that frame's last remake).
+What sized ``state.EDGE_NEIGHBORS`` (docs/notebook/layers.md).
 
     python tools/candidate_counts.py --sheets 3 --n 32 --frames 60 --thickness 0.004 --json docs/results/x.json
 
-The scene is tools/stacked_drape.py's, with edge contacts and the lab's displacement bounds (their defaults),
-and the surface thickness asked.
+The scene is tools/stacked_drape.py's, with the surface thickness asked (4 mm unless told) and the lab's
+displacement bounds (their defaults).
 """
 
 from __future__ import annotations
@@ -39,8 +39,8 @@ def main() -> None:
     parser.add_argument("--n", type=int, default=32)
     parser.add_argument("--frames", type=int, default=60)
     parser.add_argument("--radius", type=float, default=0.004)
-    parser.add_argument("--thickness", type=float, default=None,
-                        help="[collision] thickness in metres: face contacts, both kinds that far apart (default none)")
+    parser.add_argument("--thickness", type=float, default=0.004,
+                        help="[collision] thickness in metres: edge and face contacts held that far apart")
     parser.add_argument("--room", type=int, default=512, help="entries every list holds")
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--json", default=None)
@@ -48,7 +48,7 @@ def main() -> None:
     wp.config.log_level = wp.LOG_ERROR
     wc.set_verbose(False)
     state.EDGE_NEIGHBORS = passes.EDGE_NEIGHBORS = face_contacts.FACE_NEIGHBORS = args.room
-    scene = stacked_drape_scene(args.sheets, args.n, frames=args.frames, radius=args.radius, edges=True,
+    scene = stacked_drape_scene(args.sheets, args.n, frames=args.frames, radius=args.radius,
                                 thickness=args.thickness)
     with lab_hooks(BoundSettings.parse("on")):
         sim = wc.Simulator(scene, device=args.device)

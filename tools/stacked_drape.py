@@ -6,7 +6,7 @@ metres apart, each pinned at two corners of one edge, fall from ``drop`` metres 
 128^2, 2 m, 1 cm apart, a 5% strain limit, a 0.5 m sphere, 100 frames at 60 fps. The material (density,
 springs) is the built-in drape scene's; the step is the simulator's choice unless ``--substeps`` fixes it.
 One run per contact setting: ``--radius`` in metres (the particles' sphere; "default" for the project's own
-rule, ``Collision``'s docstring), with self and cloth-cloth collision, edge contacts and friction as asked.
+rule, ``Collision``'s docstring), with self and cloth-cloth collision and friction as asked.
 
 Per run, over every frame written (frame 0 included):
 - worst edge strain, stretch and compression, of every structural and shear edge (all limited here), as
@@ -28,7 +28,7 @@ A run the start check refuses, or that blows up, is reported as such: that is a 
 ``--thickness`` runs each contact setting once per value: ``off``, or the scene key ``[collision] thickness``
 in metres (surface contacts: edge and face contacts held that far apart, the displacement bounds of that
 thickness and the solve's check of their pairs; ``Collision``'s docstring). Every run reports its closest
-surfaces also as a fraction of the thickness (the edge contacts' rule's where none is set), the particle
+surfaces also as a fraction of the thickness (where one is set), the particle
 lists' overflow and the surface lists' (the pairs within reach that full lists left out).
 
 ``--bounds`` runs each of those once per spec: ``off`` (the scene's own: its thickness's bounds, none
@@ -63,7 +63,6 @@ import numpy as np
 import warp as wp
 
 import warp_cloth as wc
-from warp_cloth import contact_thickness
 from warp_cloth.diagnostics import TriangleIntersections
 from warp_cloth.displacement_bounds import BoundSettings, DisplacementBounds, lab_hooks
 from warp_cloth.lab.bench import environment
@@ -76,7 +75,7 @@ DRAPE_MATERIAL = {"density": 0.2, "structural": wc.SpringKind(50.0, 0.05), "shea
 def stacked_drape_scene(sheets: int = 5, n: int = 128, gap: float = 0.01, limit: float = 0.05, frames: int = 100,
                         fps: float = 60.0, size: float = 2.0, sphere_radius: float = 0.5, drop: float = 0.05,
                         radius: float | None = None, self_collision: bool = True, between_cloths: bool = True,
-                        edges: bool = False, friction: float = 0.0, substeps: int | None = None,
+                        friction: float = 0.0, substeps: int | None = None,
                         thickness: float | None = None, integrator: str = "symplectic") -> wc.Scene:
     """The stacked drape: the sphere's centre at the origin, the lowest sheet ``drop`` above its top, the
     sheets centred over it, ``gap`` apart; ``radius`` None is the project's contact rule, ``thickness`` the
@@ -89,7 +88,7 @@ def stacked_drape_scene(sheets: int = 5, n: int = 128, gap: float = 0.01, limit:
     return wc.Scene(name=f"stacked_{sheets}x{n}", cloths=cloths,
                     spheres=(wc.Sphere(name="ball", center=(0.0, 0.0, 0.0), radius=sphere_radius),),
                     collision=wc.Collision(self_collision=self_collision, between_cloths=between_cloths,
-                                           radius=radius, edges=edges, friction=friction,
+                                           radius=radius, friction=friction,
                                            thickness=thickness),
                     simulation=wc.Simulation(fps=fps, frames=frames, substeps=substeps, integrator=integrator))
 
@@ -115,8 +114,7 @@ def measure(scene: wc.Scene, gap: float, device: str, bounds: BoundSettings | No
     strain, crossings = wc.StrainMonitor(), TriangleIntersections(sim)
     strain.begin(sim)
     distance = contact_distance(sim)
-    contacts = sim.device_model.contacts
-    thickness = contacts.thickness if contacts is not None else contact_thickness.RULE * distance
+    thickness = scene.collision.thickness if scene.collision is not None else None
     per_frame = {"crossings": [], "closest_contact": [], "seconds": [], "substeps": [], "limit_passes": [],
                  "limit_mean_passes": [], "limit_residual": [], "cg_iterations": [],
                  "closest_surfaces": [], "held_short_first": [], "held_short_last": [], "held_back_m": [],
@@ -180,7 +178,7 @@ def measure(scene: wc.Scene, gap: float, device: str, bounds: BoundSettings | No
             "limit_passes_cap": sim.limit_solve.max_passes,
             "frames_ending_outside_tolerance": sum(r > 1.0 for r in per_frame["limit_residual"]),
             "closest_surfaces_m": min(per_frame["closest_surfaces"]),
-            "thickness": thickness, "closest_surfaces_of_thickness": min(per_frame["closest_surfaces"]) / thickness,
+            "thickness": thickness, "closest_surfaces_of_thickness": None if thickness is None else min(per_frame["closest_surfaces"]) / thickness,
             "surface_thickness": scene.collision.thickness, "lists_overflow": sim.plan.lists.overflow,
             "surface_lists_dropped": sim.plan.lists.surface_dropped,
             "bounds": None if sim.plan.bounds is None else vars(sim.plan.bounds.settings),
@@ -214,7 +212,7 @@ def table_lines(row: dict) -> list[str]:
                 if row["closest_contact"] is not None else f"{'-':>7} {'-':>8} {'-':>6} ") +
              f"{row['limit_passes_mean']:>7.1f}/{row['limit_passes_most']:>4}/{row['limit_passes_cap']:>5} "
              f"{row['frames_ending_outside_tolerance']:>6} {row['closest_surfaces_m']:>10.5f} "
-             f"{row['closest_surfaces_of_thickness']:>8.3f} "
+             f"{'-' if row['closest_surfaces_of_thickness'] is None else format(row['closest_surfaces_of_thickness'], '.3f'):>8} "
              f"{'-' if row['held_short_mean'] is None else format(row['held_short_mean'], '.1f'):>10} "
              f"{'-' if row['measured_again_mean'] is None else format(row['measured_again_mean'], '.2f'):>5}"]
     if row["outcome"] != "completed":
@@ -255,7 +253,6 @@ def main() -> None:
     parser.add_argument("--radius", nargs="+", default=["0.004", "default"],
                         help="particle contact radius in metres, or 'default' (the project's rule): one run each")
     parser.add_argument("--no-self", action="store_true", help="cloth-cloth collision only")
-    parser.add_argument("--edges", action="store_true", help="edge contacts ([collision] edges = true)")
     parser.add_argument("--friction", type=float, default=0.0)
     parser.add_argument("--substeps", type=int, default=None, help="fixed substeps a frame (default: the simulator's)")
     parser.add_argument("--integrator", default="symplectic", choices=("symplectic", "implicit", "explicit"),
@@ -285,19 +282,20 @@ def main() -> None:
         radius = None if text == "default" else float(text)
         thickness = None if surface == "off" else float(surface)
         if args.scene is not None:
+            scene = scene_with_thickness(args.scene, thickness, args.frames, args.auto_substeps)
+            own = scene.collision.thickness if scene.collision is not None else None
             rows.append({"run": f"{args.scene}{'' if thickness is None else f' thickness {1e3 * thickness:g}mm'}"
                                 f"{'' if spec == 'off' else ' bounds ' + spec}"
                                 f"{' substeps auto' if args.auto_substeps else ''}",
-                         **measure(scene_with_thickness(args.scene, thickness, args.frames, args.auto_substeps),
-                                   thickness or args.gap, device, BoundSettings.parse(spec))})
+                         **measure(scene, own or args.gap, device, BoundSettings.parse(spec))})
             print(*table_lines(rows[-1]), sep="\n", flush=True)
             write(args.json, device, settings, rows)
             continue
         scene = stacked_drape_scene(args.sheets, args.n, args.gap, args.limit, args.frames, args.fps, args.size,
-                                    args.sphere_radius, args.drop, radius, not args.no_self, True, args.edges,
+                                    args.sphere_radius, args.drop, radius, not args.no_self, True,
                                     args.friction, args.substeps, thickness, args.integrator)
         name = (f"{args.sheets}x{args.n}^2 r={'default' if radius is None else f'{1e3 * radius:g}mm'}"
-                f"{' edges' if args.edges else ''}{' no-self' if args.no_self else ''}"
+                f"{' no-self' if args.no_self else ''}"
                 f"{'' if thickness is None else f' thickness {1e3 * thickness:g}mm'}"
                 f"{'' if spec == 'off' else ' bounds ' + spec}"
                 f"{'' if args.integrator == 'symplectic' else ' ' + args.integrator}"

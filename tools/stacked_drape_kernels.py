@@ -1,6 +1,6 @@
 """Where the stacked drape's frames spend their time, kernel by kernel (docs/notebook/layers.md).
 
-The stacked drape of tools/stacked_drape.py (its scene, a 4 mm contact radius, edge contacts), with the
+The stacked drape of tools/stacked_drape.py (its scene, a 4 mm contact radius), with the
 surface thickness and the lab's displacement bounds as asked, stepped without graphs (``use_graph`` off: a
 CPU graph replays launches that ``wp.launch`` does not see), after ``--skip`` frames stepped with them. On
 the CPU ``wp.launch`` is wrapped in a wall clock: a CPU launch returns when its kernel has run, so each
@@ -114,7 +114,7 @@ def main() -> None:
     parser.add_argument("--json", default=None)
     args = parser.parse_args()
     scene = stacked_drape_scene(sheets=args.sheets, n=args.n, frames=args.skip + args.frames, size=args.size,
-                                sphere_radius=args.sphere_radius, radius=args.radius, edges=True,
+                                sphere_radius=args.sphere_radius, radius=args.radius,
                                 thickness=args.thickness, substeps=args.substeps, integrator=args.integrator)
     with lab_hooks(BoundSettings.parse(args.bounds)):
         sim = wc.Simulator(scene, device=args.device)

@@ -21,7 +21,7 @@ from warp_cloth.kernels.bending import Bending
 from warp_cloth.kernels.springs import Springs
 from warp_cloth.kernels.wind import Wind
 
-from . import contact_thickness, surface_pairs
+from . import surface_pairs
 from .collider_kinds import KINDS, Meshes, upload
 from .model import Model, Worlds
 from .scene import Collision, Scene, WindKey
@@ -82,7 +82,7 @@ class DeviceContactEdges:
     incident_offsets: wp.array  # (n + 1,) each particle's edges (CSR)
     incident: wp.array
     rules: EdgeRules
-    thickness: float  # how far apart edges are held: ParticleContacts.thickness
+    thickness: float  # how far apart edges are held: the scene's [collision] thickness
     longest: float  # the longest an edge may get (model.ContactEdges): a longer one widens the hash's cells
 
 
@@ -103,7 +103,6 @@ class ParticleContacts:
     rules: PairRules
     max_radius: float
     min_radius: float
-    thickness: float  # metres, what edge and face contacts hold (contact_thickness.py: the scene's or the rule)
     surface_rules: EdgeRules  # which vertex-triangle and edge-edge pairs are contacts (surface_pairs.py)
     edges: DeviceContactEdges | None
 
@@ -250,11 +249,10 @@ class DeviceModel:
             rules.sewn_offsets = upload(contacts.sewn.offsets, int, device)
             rules.sewn_other = upload(contacts.sewn.other, int, device)
         rules.search_scale = particle_collision.SEARCH_SCALE
-        thickness = contact_thickness.thickness(settings, contacts.max_radius)
         surface = surface_pairs.surface_rules(model, rules, device)
         return ParticleContacts(settings, upload(contacts.radius, float, device), rules, contacts.max_radius,
-                                float(contacts.radius.min()), thickness, surface,
-                                self._contact_edges(model, surface, thickness))
+                                float(contacts.radius.min()), surface,
+                                self._contact_edges(model, surface, settings.thickness))
 
     def surface_rules(self, model: Model) -> EdgeRules:
         """Which vertex-triangle and edge-edge pairs are contacts (surface_pairs.py): particle collision's, or
@@ -263,7 +261,7 @@ class DeviceModel:
             return self.contacts.surface_rules
         return surface_pairs.surface_rules(model, None, self.device)
 
-    def _contact_edges(self, model: Model, rules: EdgeRules, thickness: float) -> DeviceContactEdges | None:
+    def _contact_edges(self, model: Model, rules: EdgeRules, thickness: float | None) -> DeviceContactEdges | None:
         contacts, device = model.contacts, self.device
         edges = contacts.edges
         if edges is None:

@@ -1,6 +1,6 @@
 """Face contacts (issue 34; a scene's ``[collision] thickness``): every vertex kept a thickness in metres
 from the triangles it is not a vertex of, inside the converged solve beside the edge contacts' pass
-(kernels/face_collision.py); the thickness is the one both kinds hold (contact_thickness.py).
+(kernels/face_collision.py); the thickness, the scene's ``[collision] thickness``, is the one both kinds hold.
 
 The simulator makes one ``FaceContacts`` where the scene sets a thickness, and hands it to every plan it
 builds (warp_cloth/plan.py): the particle lists' remake then remakes its candidate lists too
@@ -59,7 +59,7 @@ class FaceContacts:
         n = self.n = model.particle_count
         triangles = model.triangles
         self.triangle_count = len(triangles)
-        self.thickness = contacts.thickness  # the edge contacts' too (contact_thickness.py)
+        self.thickness = contacts.settings.thickness  # the edge contacts' too
         self.inv_mass = device_model.inv_mass
         rest = model.positions[triangles]
         self.longest = float(np.linalg.norm(rest - np.roll(rest, 1, axis=1), axis=2).max(initial=0.0))

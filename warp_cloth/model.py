@@ -591,27 +591,13 @@ def triangle_edges_at_limit(cloth: Cloth, mesh: ClothMesh) -> tuple[np.ndarray, 
     return pairs, (1.0 + cloth.strain_limit.stretch) * np.linalg.norm(mesh.positions[a] - mesh.positions[b], axis=1)
 
 
-def long_triangle_edges(cloth: Cloth, mesh: ClothMesh, radii: np.ndarray,
-                        separation: float) -> tuple[np.ndarray, np.ndarray]:
-    """(k, 2) the cloth's triangle edges that particle contacts cannot keep from passing through one another,
-    and their lengths at the stretch limit: those longer there than sqrt(2) contact distances, since two
-    such crossing at their middles keep every end that far from the other's (on a grid with the seed's
-    radii, the diagonals). A shorter edge crossing a long one is not guarded (on the grid, a structural
-    edge crossing a diagonal at both middles keeps their ends 0.87 cells apart)."""
-    pairs, length = triangle_edges_at_limit(cloth, mesh)
-    long = length > np.sqrt(2.0) * separation * 0.5 * (radii[pairs[:, 0]] + radii[pairs[:, 1]])
-    return pairs[long], length[long]
-
-
 EDGE_OVERSHOOT = 1.1  # the hash's least cells allow edges this much past their stretch limit (a solve's tolerance)
 
 
-def _contact_edges(scene: Scene, meshes, radii, offsets: np.ndarray) -> ContactEdges | None:
-    """The edges that edge contacts hold apart: the long ones (``long_triangle_edges``), or with a surface
-    thickness every triangle edge (surfaces held apart, not points)."""
-    collision = scene.collision
-    found = [triangle_edges_at_limit(c, m) if collision.thickness is not None else
-             long_triangle_edges(c, m, r, collision.separation) for c, m, r in zip(scene.cloths, meshes, radii)]
+def _contact_edges(scene: Scene, meshes, offsets: np.ndarray) -> ContactEdges | None:
+    """The edges that a surface thickness's edge contacts hold apart: every triangle edge (surfaces held
+    apart, not points)."""
+    found = [triangle_edges_at_limit(c, m) for c, m in zip(scene.cloths, meshes)]
     ends = np.concatenate([pairs + o for (pairs, _), o in zip(found, offsets)]).astype(np.int32)
     if len(ends) == 0:
         return None
@@ -626,7 +612,7 @@ def _contacts(scene: Scene, meshes, sewn: SewnPairs | None) -> ParticleContacts 
     radii = [particle_radii(c, m, collision) for c, m in zip(scene.cloths, meshes)]
     radius = np.concatenate(radii).astype(np.float32)
     offsets = np.cumsum([0] + [len(m.positions) for m in meshes])
-    edges = _contact_edges(scene, meshes, radii, offsets) if collision.edge_contacts else None
+    edges = _contact_edges(scene, meshes, offsets) if collision.thickness is not None else None
     adjacent = [rest_adjacent_pairs(m.face_counts, m.face_indices) for m in meshes]
     exclude = np.array([needs_adjacent_exclusion(c, m.positions, a, r, collision.separation)
                         and collision.self_collision

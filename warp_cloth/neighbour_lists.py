@@ -55,6 +55,7 @@ class SurfaceLists(Protocol):
     thickness: float
     allowance: wp.array
     widest: wp.array
+    dropped: wp.array
 
     def ask_if_moved(self, start: wp.array, x: wp.array, bounds: DisplacementBounds, lists: ListState) -> None: ...
 
@@ -101,7 +102,7 @@ class NeighbourLists:
         self.appended = wp.zeros(n if several else 0, dtype=int, device=model.device)
         if self.use_hash:
             load_gathering(gather_neighbors_kernel(self.threads), self.threads, model.device)
-        self.edges = EdgeLists(model, state, self.rebuild_distance, faces) if state.edges is not None else None
+        self.edges = EdgeLists(model, state, faces) if state.edges is not None else None
         if self.edges is not None:
             self.name += "+edges"
         self.faces = faces
@@ -218,23 +219,15 @@ class EdgeLists:
     wide as the longest edge at the remake plus the reach (never narrower than the longest an edge may get,
     ``longest``, plus the reach: the cells of a remake without over-long edges), so that the 27 around an
     edge's midpoint hold every edge within reach.
-    An edge's list holds the edges within the pass's thickness plus both edges' allowances: ``rebuild_distance``
-    each (until a particle has moved that far and the lists are remade, no edge left out can come within it),
-    or with ``faces`` (a thickness's) the face contacts' allowances (kernels/surface_reach.py)."""
+    An edge's list holds the edges within the thickness plus both edges' allowances, the face contacts'
+    (kernels/surface_reach.py)."""
 
-    def __init__(self, model: DeviceModel, state: DeviceState, rebuild_distance: float,
-                 faces: SurfaceLists | None = None) -> None:
+    def __init__(self, model: DeviceModel, state: DeviceState, faces: SurfaceLists) -> None:
         constants = model.contacts.edges
         self.edges = edge_contacts_args(model, state)
         self.thickness = constants.thickness
-        # where a full list counts what it leaves out: with a thickness the surface lists' count, else the
-        # particle lists'
-        self.dropped = faces.dropped if faces is not None else state.contacts.overflow
-        if faces is not None:
-            self.allowance, self.widest = faces.allowance, faces.widest
-        else:
-            self.allowance = wp.full(model.particle_count, rebuild_distance, dtype=float, device=model.device)
-            self.widest = wp.full(1, rebuild_distance, dtype=float, device=model.device)
+        self.dropped = faces.dropped  # where a full list counts what it leaves out: the surface lists' count
+        self.allowance, self.widest = faces.allowance, faces.widest
         self.rules = constants.rules
         self.m = constants.ends.shape[0]
         self.longest = constants.longest

@@ -729,11 +729,7 @@ class Collision:
     particle's candidate pairs are listed within 1.5 contact distances and the lists remade once some
     particle has moved half the margin that leaves, so that no pair left out can touch before. With ``simulation.limit_solve = "converged"`` the passes go on
     (``iterations`` is not used) until no candidate pair is more than ``tolerance`` of its contact distance
-    inside it, and the strain limits hold to theirs. ``edges`` adds edge contacts: triangle edges too long
-    for the particles' spheres to keep from passing through each other (a grid's diagonals, where a cloth
-    folds flat onto itself) are held a quarter of a contact distance apart, by an edge pass before each
-    separating pass of a converged solve, or once before fixed passes (kernels/edge_collision.py); every
-    cloth needs a strain limit.
+    inside it, and the strain limits hold to theirs.
 
     ``thickness`` (metres; None: off) holds surfaces, not points, that far apart whatever the mesh's
     resolution (issue 34): every triangle edge and every vertex-triangle pair sharing no vertex
@@ -743,7 +739,8 @@ class Collision:
     is then at most ``thickness / separation``, so that particle contacts reach no farther than the
     surfaces'; layers that start closer than the thickness are refused. A cloth's own pairs nearer at rest
     than thickness / (1 - its compression limit) are none (warp_cloth/surface_pairs.py), so its triangles may
-    be finer than the thickness. Every cloth needs a strain limit, as with ``edges``.
+    be finer than the thickness. Every cloth needs a strain limit (the edge hash's cells are sized by how far
+    it lets an edge stretch).
     """
 
     self_collision: bool = field(default=True, metadata={"toml": "self"})
@@ -754,7 +751,6 @@ class Collision:
     friction: float = 0.0
     max_neighbors: int = 32
     tolerance: float = 0.05
-    edges: bool = False
     thickness: float | None = None
 
     def __post_init__(self) -> None:
@@ -773,11 +769,6 @@ class Collision:
         if self.thickness is not None:
             _positive(self.thickness, "thickness")
             _within_extent(self.thickness, "thickness")
-
-    @property
-    def edge_contacts(self) -> bool:
-        """Whether triangle edges are held apart: ``edges``, or the surface contacts of ``thickness``."""
-        return self.edges or self.thickness is not None
 
 
 @dataclass(frozen=True)
@@ -969,18 +960,17 @@ class Scene:
                          "has it)", item.name)
 
     def _check_edge_contacts_limited(self) -> None:
-        """Edge contacts find their pairs among edges as long as the stretch limit lets them get; a surface
-        thickness's contacts are held, and checked, in the converged solve."""
-        if self.collision is None or not self.collision.edge_contacts:
+        """A surface thickness's edge contacts find their pairs among edges as long as the stretch limit lets
+        them get; its contacts are held, and checked, in the converged solve."""
+        if self.collision is None or self.collision.thickness is None:
             return
-        key, off, got = (("collision.edges", "false", True) if self.collision.thickness is None else
-                         ("collision.thickness", "no thickness", self.collision.thickness))
+        key, got = "collision.thickness", self.collision.thickness
         for c, cloth in enumerate(self.cloths):
             _require(cloth.strain_limit is not None, key,
-                     f"{off}, or a strain limit on every cloth (cloth[{c}] "
+                     f"no thickness, or a strain limit on every cloth (cloth[{c}] "
                      "has none: edge contacts size their search by how far the limit lets an edge stretch)", got)
-        _require(self.collision.thickness is None or self.simulation.limit_solve == "converged", key,
-                 f"{off}, or simulation.limit_solve = \"converged\" (surface contacts are held, and checked, "
+        _require(self.simulation.limit_solve == "converged", key,
+                 "no thickness, or simulation.limit_solve = \"converged\" (surface contacts are held, and checked, "
                  "in the converged solve)", got)
 
     def _check_seam_sides(self) -> None:

@@ -36,6 +36,8 @@ RETIRED_KEYS = {
     ("Collision", "search_scale"): "candidates are listed within 1.5 contact distances",
     ("Collision", "projection"): "the limits and contacts are projected jointly for a substep's first 200 "
                                  "passes, then sequentially",
+    ("Collision", "edges"): "set [collision] thickness (metres): every triangle edge and vertex-triangle pair "
+                            "held that far apart, under bounds that let no step make a crossing",
     ("Limit", "long_range"): "the converged solve's Chebyshev acceleration or more substeps hold a fine "
                              "cloth's limit",
 }
