@@ -117,7 +117,7 @@ def residual_args(model: DeviceModel, state: DeviceState, settings: LimitSolveSe
     args.contacts = contacts_args(model, state) if model.contacts is not None else model.no_contacts()
     args.contact_tolerance = model.contacts.settings.tolerance if model.contacts is not None else 1.0
     surfaces = contacts and faces is not None
-    args.check_edges = int(surfaces and state.edges is not None)
+    args.check_edges = int(surfaces)  # a thickness brings the edge contacts with the face contacts
     args.edges = edge_contacts_args(model, state) if args.check_edges else EdgeContacts()  # unread where 0
     args.check_faces = int(surfaces)
     args.faces = faces.args if surfaces else FaceContactsArgs()

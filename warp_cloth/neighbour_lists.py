@@ -1,5 +1,5 @@
-"""Particle collision's candidate lists, and edge contacts' where the scene has them (and the face
-contacts' where the scene sets a thickness): remade inside a substep where a particle has moved far enough since
+"""Particle collision's candidate lists, and the edge and face contacts' where the scene sets a thickness:
+remade inside a substep where a particle has moved far enough since
 they were made (or, with a thickness, where one may move past its allowance this substep: face_contacts.py),
 or on demand outside one; and the closest contact they show."""
 
@@ -102,7 +102,7 @@ class NeighbourLists:
         self.appended = wp.zeros(n if several else 0, dtype=int, device=model.device)
         if self.use_hash:
             load_gathering(gather_neighbors_kernel(self.threads), self.threads, model.device)
-        self.edges = EdgeLists(model, state, faces) if state.edges is not None else None
+        self.edges = EdgeLists(model, state, faces) if faces is not None else None  # a thickness brings both
         if self.edges is not None:
             self.name += "+edges"
         self.faces = faces

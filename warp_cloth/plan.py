@@ -101,8 +101,8 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
     the colliders reads them); the seams' allowed lengths; the wind's forces; the integrator's pass; driven pins (oscillating, on
     colliders, on keys); then, with particle collision, the contacts' start (in the integrator's pass where it
     can end with it and nothing comes between), the candidate lists, the projection passes (where the scene
-    has edge contacts, an edge pass before each separating pass of a converged solve, so that its check
-    follows a projection; with fixed passes, one edge pass before them) and the contact velocities; without
+    has a thickness, the edge and face contacts' passes before each separating pass of the converged solve,
+    so that its check follows a projection) and the contact velocities; without
     it, the strain limit's passes or the colliders alone; the clock last, where something moves with it.
     ``solve``: how the limits and contacts are solved; ``threads``: per particle on the gathering passes
     (None: by size); ``lines``: the line solves of the cloths' lines where ``solve.line_rounds`` and a cloth
@@ -165,18 +165,18 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
             passes += [bounds.choose, lists, from_lists]
         else:
             passes += [bounds.measure, lists] if measured_before else [lists]
-        edge_passes = [edge_separation_pass(model, state, chosen, rigid)] if state.edges is not None else []
-        if faces is not None:
-            edge_passes.append(faces.separation_pass(model, chosen, rigid))
+        # a thickness brings both surface kinds, and the converged solve (Scene requires it)
+        surface_passes = [] if faces is None else [edge_separation_pass(model, state, chosen, rigid),
+                                                   faces.separation_pass(model, chosen, rigid)]
         if line_rounds:
-            projection = line_contact_projection(model, state, solve, chosen, rigid, edge_passes, lines, faces)
+            projection = line_contact_projection(model, state, solve, chosen, rigid, surface_passes, lines, faces)
             passes.append(projection)
         elif converged:
-            projection = converged_projection(model, state, solve, chosen, rigid, edge_passes, faces,
+            projection = converged_projection(model, state, solve, chosen, rigid, surface_passes, faces,
                                               [bounds.hold] if held else [])
             passes.append(projection)
         else:
-            passes.extend(edge_passes + projection_passes(model, state, solve, chosen, rigid))
+            passes.extend(projection_passes(model, state, solve, chosen, rigid))
         if from_lists is not None and held and bounds.settings.again > 0:
             passes.append(MeasureAgain(bounds, lists, from_lists, projection))  # its last hold is the clamp
         elif bounds is not None:
@@ -208,7 +208,7 @@ def build_plan(model: DeviceModel, state: DeviceState, integrator: Integrator, s
 
 
 def converged_projection(model: DeviceModel, state: DeviceState, solve: LimitSolveSettings, threads: int,
-                         rigid: RigidColliders | None, edge_passes: list[Pass],
+                         rigid: RigidColliders | None, surface_passes: list[Pass],
                          faces: FaceContacts | None = None,
                          after_passes: list[Pass] | None = None) -> ConvergedProjection:
     """The converged solve of particle collision (with the strain limits where the scene has them: projected
@@ -217,11 +217,12 @@ def converged_projection(model: DeviceModel, state: DeviceState, solve: LimitSol
     displacement bounds' hold, or none) follow each separating pass."""
     after = after_passes or []
     joint_first = model.limits is None or solve.choices.joint_passes > 0
-    first = projection_pair(model, state, threads, rigid, edge_passes, "joint" if joint_first else "sequential", after)
-    counted = lambda body: sum(p not in edge_passes and p not in after for p in body)  # noqa: E731
+    first = projection_pair(model, state, threads, rigid, surface_passes, "joint" if joint_first else "sequential",
+                            after)
+    counted = lambda body: sum(p not in surface_passes and p not in after for p in body)  # noqa: E731
     if model.limits is None or not joint_first:
         return ConvergedProjection(model, state, solve, first, rigid, counted=counted(first), faces=faces)
-    later = projection_pair(model, state, threads, rigid, edge_passes, "sequential", after)
+    later = projection_pair(model, state, threads, rigid, surface_passes, "sequential", after)
     return ConvergedProjection(model, state, solve, first, rigid, counted=counted(first), later_body=later,
                                later_counted=counted(later), switch_at=solve.choices.joint_passes, faces=faces)
 
@@ -251,35 +252,35 @@ def line_projection(model: DeviceModel, state: DeviceState, solve: LimitSolveSet
 
 
 def line_contact_projection(model: DeviceModel, state: DeviceState, solve: LimitSolveSettings, threads: int,
-                            rigid: RigidColliders | None, edge_passes: list[Pass], lines: LineSolves,
+                            rigid: RigidColliders | None, surface_passes: list[Pass], lines: LineSolves,
                             faces: FaceContacts | None = None) -> ConvergedProjection:
     """The converged solve of particle collision with the strain limits by rounds of line solves (the lab's,
     ``solve.choices.line_contacts``): a round, counted as one pass toward the cap, is a line round and then the two
-    separating passes of the contacts' own converged solve (``edge_passes`` before each), reading the resting
+    separating passes of the contacts' own converged solve (``surface_passes`` before each), reading the resting
     marks' first bit, then the other, as ``projection_pair`` does; with ``faces`` (a surface thickness's), the
     check reads the edge and face pairs too. (Two line rounds an iteration, each
     followed by one separating pass, held the speed matrix's self cloth as well at 2.0 rounds a substep
     against 1.0-1.1 and took 14% longer at 64^2 on the CPU.)"""
     body = line_round(model, lines, rigid) + [
-        p for bit in (1, 2) for p in edge_passes + [separation_pass(model, state, threads, rigid, bit)]]
+        p for bit in (1, 2) for p in surface_passes + [separation_pass(model, state, threads, rigid, bit)]]
     return ConvergedProjection(model, state, solve, body, rigid, counted=1, faces=faces)
 
 
 def projection_pair(model: DeviceModel, state: DeviceState, threads: int, rigid: RigidColliders | None,
-                    edge_passes: list[Pass], order: str, after: list[Pass] | None = None) -> list[Pass]:
+                    surface_passes: list[Pass], order: str, after: list[Pass] | None = None) -> list[Pass]:
     """Two projection passes of particle collision (with the strain limits where the scene has them, in
     the ``order`` "joint" or "sequential"), for a converged solve to repeat: each ends with the colliders,
     the first reading the resting marks' first bit, the second the other (see ``projection_passes``);
-    ``edge_passes`` (the edge contacts' pass, or none) come before each pass that separates, so that the
-    solve's check follows a projection, and ``after`` (in place) after it."""
+    ``surface_passes`` (a thickness's edge and face contacts' passes, or none) come before each pass that
+    separates, so that the solve's check follows a projection, and ``after`` (in place) after it."""
     after = after or []
     if model.limits is None:
         return [p for bit in (1, 2)
-                for p in edge_passes + [separation_pass(model, state, threads, rigid, bit)] + after]
+                for p in surface_passes + [separation_pass(model, state, threads, rigid, bit)] + after]
     if order == "joint":
         return [p for bit in (1, 2)
-                for p in edge_passes + [limit_and_separation_pass(model, state, threads, rigid, bit)] + after]
-    return [p for bit in (1, 2) for p in [limit_pass(model, threads, None, None, 1)] + edge_passes
+                for p in surface_passes + [limit_and_separation_pass(model, state, threads, rigid, bit)] + after]
+    return [p for bit in (1, 2) for p in [limit_pass(model, threads, None, None, 1)] + surface_passes
             + [separation_pass(model, state, threads, rigid, bit)] + after]
 
 
