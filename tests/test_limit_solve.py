@@ -101,6 +101,33 @@ def test_where_the_residual_grows_the_estimated_radius_falls_and_the_next_solve_
     assert chebyshev_after_growth(estimated=False) == pytest.approx((0.95, 0.95))  # a fixed radius is kept
 
 
+def test_the_extrapolation_goes_at_most_four_times_the_passes_own_move_beyond_them():
+    """Chebyshev's step, omega = 1.5, of three particles that the passes moved 0, 0.1 and 0.1 m, each 1 m
+    on from the iterate before the last: unbounded, each goes 0.5 (x - x_before) beyond where the passes
+    put it. Bounded, the still one stays, the one going 0.55 m goes 0.4 (4 x 0.1), and a small
+    extrapolation is Chebyshev's own; the velocity takes the extrapolated move over h."""
+    import warp as wp
+
+    from warp_cloth.device_model import no_colliders
+    from warp_cloth.kernels import converged_projection, solve_loop
+
+    h = 0.01
+    x_passes = np.array([[0.0, 0.0, 0.0], [0.1, 0.0, 0.0], [0.1, 0.0, 0.0]], dtype=np.float32)
+    x_start = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]], dtype=np.float32)
+    x_before = np.array([[-1.0, 0.0, 0.0], [-1.0, 0.0, 0.0], [0.04, 0.0, 0.0]], dtype=np.float32)
+    omega = np.zeros(solve_loop.CHEBYSHEV_SLOTS, dtype=np.float32)
+    omega[0], omega[2] = 1.5, 2.0  # an accelerated iteration
+    x, v = wp.array(x_passes, dtype=wp.vec3), wp.zeros(3, dtype=wp.vec3)
+    iterates = [wp.array(a, dtype=wp.vec3) for a in (x_start, x_before)]
+    wp.launch(converged_projection.chebyshev_step_and_colliders, dim=3,
+              inputs=[x, v, wp.ones(3, dtype=float), wp.array(omega, dtype=float), h, no_colliders("cpu"), *iterates])
+    moved = x.numpy()[:, 0] - x_passes[:, 0]
+    assert moved == pytest.approx([0.0, 0.4, 0.5 * (0.1 - 0.04)], abs=1e-6)
+    assert v.numpy()[:, 0] == pytest.approx(moved / h, rel=1e-5, abs=1e-4)
+    assert iterates[0].numpy()[:, 0] == pytest.approx(x.numpy()[:, 0])  # the next iteration starts there
+    assert iterates[1].numpy()[:, 0] == pytest.approx(x_start[:, 0])
+
+
 def test_the_cap_stops_the_solve_and_the_figures_say_it_missed():
     report, stats, _ = worst_over_run(hanging(integrator="implicit", dt=0.04165, limit_max_passes=4), 24)
     assert stats.limit_passes == 4 and stats.limit_residual > 1.0
