@@ -159,17 +159,19 @@ def start_edge_cells(rebuild: wp.array(dtype=int), longest: float, thickness: fl
 def midpoints_and_cell_width(x: wp.array(dtype=wp.vec3), ends: wp.array(dtype=wp.vec2i),
                              rebuild: wp.array(dtype=int), longest: float, thickness: float,
                              widest: wp.array(dtype=float), midpoint: wp.array(dtype=wp.vec3),
-                             inv_width: wp.array(dtype=float)):
-    """Where ``rebuild`` is set, each edge's midpoint, for the hash, and the hash's cells widened to the
-    longest edge longer than ``longest`` plus the largest reach (its inverse width the least over those
-    edges), so that the 27 cells around any edge's midpoint hold every edge within reach of it: two edges'
-    midpoints lie up to half their lengths plus the reach apart."""
+                             half_extent: wp.array(dtype=wp.vec3), inv_width: wp.array(dtype=float)):
+    """Where ``rebuild`` is set, each edge's midpoint, for the hash, and its box's half extent (the box is
+    midpoint -+ it), and the hash's cells widened to the longest edge longer than ``longest`` plus the
+    largest reach (its inverse width the least over those edges), so that the 27 cells around any edge's
+    midpoint hold every edge within reach of it: two edges' midpoints lie up to half their lengths plus the
+    reach apart."""
     if rebuild[0] == 0:
         return
     e = wp.tid()
     ends_e = ends[e]
     p, q = x[ends_e[0]], x[ends_e[1]]
     midpoint[e] = 0.5 * (p + q)
+    half_extent[e] = 0.5 * wp.vec3(wp.abs(q[0] - p[0]), wp.abs(q[1] - p[1]), wp.abs(q[2] - p[2]))
     length = wp.length(q - p)
     if length > longest:
         wp.atomic_min(inv_width, 0, 1.0 / (length + thickness + 2.0 * widest[0]))

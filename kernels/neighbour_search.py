@@ -133,12 +133,15 @@ def launch_gather_neighbors(threads: int, x: wp.array, inputs: list) -> None:
 def gather_edge_candidates(x: wp.array(dtype=wp.vec3), midpoint: wp.array(dtype=wp.vec3),
                            edge_world: wp.array(dtype=int), edges: EdgeContacts, rules: EdgeRules, lists: ListState,
                            allowance: wp.array(dtype=float), widest: wp.array(dtype=float), buckets: Buckets,
-                           gaps: wp.array(dtype=float), dropped: wp.array(dtype=int)):
+                           half_extents: wp.array(dtype=wp.vec3), gaps: wp.array(dtype=float),
+                           dropped: wp.array(dtype=int)):
     """Each edge's candidates from the hash of its midpoint's 27 cells (each bucket once; ``buckets.inv_width``
     the cells' inverse width this remake), where ``rebuild`` is set: edges that may touch it whose segments
     lie within the thickness plus both edges' allowances (surface_reach.py; ``widest[0]`` the largest)
     (``pair_gap``: each lists the other; the nearest where more than fit, the others counted in
-    ``dropped``, their gaps kept in ``gaps`` meanwhile, laid out as the lists), in index order."""
+    ``dropped``, their gaps kept in ``gaps`` meanwhile, laid out as the lists), in index order. Each
+    candidate's box is its midpoint (``buckets.points``) -+ its half extent (``half_extents``, in the buckets'
+    order), both read in a row, so that an edge out of reach costs no look-up of its ends."""
     if lists.rebuild[0] == 0:
         return
     e = wp.tid()
@@ -167,18 +170,17 @@ def gather_edge_candidates(x: wp.array(dtype=wp.vec3), midpoint: wp.array(dtype=
         if first_visit_within(center, world, k, bucket, buckets.mask, width, middle, middle, cells_reach_sq):
             first = buckets.start[bucket]
             for s in range(buckets.count[bucket]):
-                if wp.length_sq(buckets.points[first + s] - middle) < near * near:
+                middle_f = buckets.points[first + s]
+                half_f = half_extents[first + s]
+                if box_gap_sq(low, high, middle_f - half_f, middle_f + half_f) < box_reach_sq:
                     f = buckets.items[first + s]
                     ends_f = edges.ends[f]
-                    p_f = x[ends_f[0]]
-                    q_f = x[ends_f[1]]
-                    if box_gap_sq(low, high, wp.min(p_f, q_f), wp.max(p_f, q_f)) < box_reach_sq:
-                        if f != e and may_touch_but_at_rest(rules, ends_e, ends_f):
-                            gap = pair_gap(edges.ends, x, e, f)
-                            within = gap < own + edge_allowance(allowance, ends_f)
-                            if within and apart_at_rest(rules, ends_e, ends_f):
-                                count = insert_keeping_gaps(edges.neighbors, start, count, edges.max_neighbors, f,
-                                                            gap, dropped, gaps)
+                    if f != e and may_touch_but_at_rest(rules, ends_e, ends_f):
+                        gap = pair_gap(edges.ends, x, e, f)
+                        within = gap < own + edge_allowance(allowance, ends_f)
+                        if within and apart_at_rest(rules, ends_e, ends_f):
+                            count = insert_keeping_gaps(edges.neighbors, start, count, edges.max_neighbors, f,
+                                                        gap, dropped, gaps)
     edges.counts[e] = sort_and_drop_repeats(edges.neighbors, start, count)
 
 

@@ -213,12 +213,29 @@ def count_points(x: wp.array(dtype=wp.vec3), world: wp.array(dtype=int), rebuild
     buckets.rank[i] = wp.atomic_add(buckets.count, bucket, 1)
 
 
+@wp.func
+def place_of(buckets: Buckets, i: int) -> int:
+    """Point i's place in ``items``, after the scan of the counts."""
+    return buckets.start[buckets.bucket[i]] + buckets.rank[i]
+
+
 @wp.kernel
 def place_points(x: wp.array(dtype=wp.vec3), rebuild: wp.array(dtype=int), buckets: Buckets):
     """Each point, and its position, at its place, after the scan of the counts, where ``rebuild`` is set."""
     if rebuild[0] == 0:
         return
     i = wp.tid()
-    slot = buckets.start[buckets.bucket[i]] + buckets.rank[i]
+    slot = place_of(buckets, i)
     buckets.items[slot] = i
     buckets.points[slot] = x[i]
+
+
+@wp.kernel
+def place_values(values: wp.array(dtype=wp.vec3), rebuild: wp.array(dtype=int), buckets: Buckets,
+                 placed: wp.array(dtype=wp.vec3)):
+    """Each point's value at its place, as ``place_points`` puts its position, where ``rebuild`` is set: for
+    a gather to read in a row beside the positions."""
+    if rebuild[0] == 0:
+        return
+    i = wp.tid()
+    placed[place_of(buckets, i)] = values[i]

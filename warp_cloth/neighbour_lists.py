@@ -233,12 +233,14 @@ class EdgeLists:
         self.longest = constants.longest
         self.hash = CountedHash(self.m, edge_hash_table_size(self.m), model.device)
         self.midpoint = wp.zeros(self.m, dtype=wp.vec3, device=model.device)
+        self.half_extent = wp.zeros(self.m, dtype=wp.vec3, device=model.device)
+        self.placed_half_extents = wp.zeros(self.m, dtype=wp.vec3, device=model.device)  # in the buckets' order
         self.world = constants.world
         # the gather's scratch: the listed pairs' gaps while the lists are made, laid out as the lists
         self.gaps = wp.zeros(self.edges.neighbors.shape[0], dtype=float, device=model.device)
 
     kernels = [edge_collision.start_edge_cells, edge_collision.midpoints_and_cell_width, *CountedHash.kernels,
-               gather_edge_candidates]  # as remake_if_asked launches them
+               spatial_hash.place_values, gather_edge_candidates]  # as remake_if_asked launches them
 
     def remake_if_asked(self, x: wp.array, lists: ListState) -> None:
         edges, buckets, device = self.edges, self.hash.buckets, x.device
@@ -247,9 +249,11 @@ class EdgeLists:
                   device=device)
         wp.launch(edge_collision.midpoints_and_cell_width, dim=self.m,
                   inputs=[x, edges.ends, lists.rebuild, self.longest, self.thickness, self.widest],
-                  outputs=[self.midpoint, buckets.inv_width], device=device)
+                  outputs=[self.midpoint, self.half_extent, buckets.inv_width], device=device)
         self.hash.fill(self.midpoint, self.world, lists.rebuild)
+        wp.launch(spatial_hash.place_values, dim=self.m, inputs=[self.half_extent, lists.rebuild, buckets],
+                  outputs=[self.placed_half_extents], device=device)
         wp.launch(gather_edge_candidates, dim=self.m,
                   inputs=[x, self.midpoint, self.world, edges, self.rules, lists, self.allowance, self.widest,
-                          buckets, self.gaps, self.dropped],
+                          buckets, self.placed_half_extents, self.gaps, self.dropped],
                   device=device)
