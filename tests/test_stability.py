@@ -29,11 +29,15 @@ from warp_cloth.kernels.springs import ELASTIC_COMPRESSION, ELASTIC_TENSION
 
 OFF = wc.SpringKind(enabled=False)
 
-# case: (max speed m/s, max strain after the first 12 frames, min closest contact); measured values beside
+# case: (max speed m/s, max strain after the first 12 frames, min closest contact); measured values beside.
+# fast_pins' speed is its hem's whip, whose peak a trajectory meets or misses: eight 0.1 mm jitters of the
+# cloth peaked at 18.4 to 24.3 m/s before the Chebyshev extrapolation was bounded and 19.8 to 25.3 after
+# (medians 21.9 and 22.0), and this unjittered run at 18.3 before and 26.0 after, a corner's snap at frame 41
+# (docs/notebook/layers.md, "The extrapolation bounded"): the bound is the largest peak measured plus 25%.
 BOUNDS = {
     "stiff_implicit": (15.0, 0.105, None),    # measured 11.1 m/s (free fall from 11 m: 14.7), strain 0.009
     "fast_sphere": (40.0, 0.30, 0.9),         # fixed passes: measured 23.4 m/s (the sphere: 20), strain 0.24
-    "fast_pins": (25.0, 0.15, 0.9),           # measured 18.3 m/s (the pins: 3.8, the hem whips), strain 0.114
+    "fast_pins": (32.0, 0.15, 0.9),           # measured 26.0 m/s (the pins: 3.8, the hem whips), strain 0.114
     "twisted": (22.0, 0.15, 0.9),             # measured 12.7 m/s, strain 0.105, contact 0.999
     "heavy_and_light": (10.0, 0.105, 0.9),    # measured 4.1 m/s, strain 0.100, contact 1.000
     "pile": (25.0, 0.15, 0.9),                # measured 19.6 m/s, strain 0.105, contact 0.974
