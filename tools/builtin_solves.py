@@ -13,7 +13,6 @@ import argparse
 import io
 import json
 import platform
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -22,6 +21,7 @@ import warp as wp
 
 import warp_cloth as wc
 from warp_cloth.diagnostics import CheckReport
+from warp_cloth.lab.bench import environment
 
 
 def measure(name: str, device: str, frames: int | None = None, check: bool = False) -> dict:
@@ -52,12 +52,11 @@ def main() -> None:
     parser.add_argument("--check", action="store_true",
                         help="also count crossing triangle pairs and the closest contact every frame (slower)")
     parser.add_argument("--out", type=Path, required=True, help="JSON lines, one a scene (appended)")
-    parser.add_argument("--commit", help="the commit measured (default: git's HEAD; a copied tree has none)")
+    parser.add_argument("--commit", help="the commit measured (default: git's HEAD, or WARP_CLOTH_COMMIT)")
     args = parser.parse_args()
     names = args.scenes or [n for n in wc.builtin_scene_names()
                             if any(c.limit is not None for c in wc.load_scene(n).cloths)]
-    commit = args.commit or subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
-                                           text=True).stdout.strip()
+    commit = args.commit or environment(args.device)["commit"]  # git's, or WARP_CLOTH_COMMIT where no .git travels
     versions = {"warp": wp.config.version, "python": platform.python_version(), "commit": commit}
     args.out.parent.mkdir(parents=True, exist_ok=True)
     print(f"{'scene':<18} {'frames':>6} {'stretch':>8} {'compress':>8} {'passes':>8} {'most':>6} {'ended':>7} {'s':>7}" + ("  crossings closest" if args.check else ""))
