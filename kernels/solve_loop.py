@@ -53,7 +53,8 @@ def chebyshev_extrapolation(i: int, x: wp.array(dtype=wp.vec3), omega: wp.array(
                             x_start: wp.array(dtype=wp.vec3), x_before: wp.array(dtype=wp.vec3)) -> wp.vec3:
     """Chebyshev's semi-iterative acceleration of an iteration that took ``x_start`` to ``x`` (Wang 2015):
     particle i's x' = omega (x - x_before) + x_before; the iterates shift (x_start then holds x'). ``omega``
-    as ``start_chebyshev`` says.
+    as ``start_chebyshev`` says; an accelerated iteration's only (the plain ones only shift the iterates:
+    converged_projection.chebyshev_step_and_colliders).
 
     The extrapolation beyond x is at most EXTRAPOLATION_MOST times the iteration's own move (x - x_start), so
     a particle that the passes leave where it is stays there. Unbounded, it goes on by its earlier moves: a
@@ -64,14 +65,13 @@ def chebyshev_extrapolation(i: int, x: wp.array(dtype=wp.vec3), omega: wp.array(
     reached the cap; at 4, 9.1 (docs/notebook/layers.md, "The extrapolation bounded")."""
     xs = x_start[i]
     xb = x_before[i]
-    if omega[2] < 1.5:
-        xb = xs  # the first iteration has no iterate before it: plain
     xi = x[i]
     xn = omega[0] * (xi - xb) + xb
-    beyond = wp.length(xn - xi)
+    ahead = xn - xi
+    beyond = wp.length(ahead)
     most = EXTRAPOLATION_MOST * wp.length(xi - xs)
     if beyond > most:
-        xn = xi + (xn - xi) * (most / beyond)
+        xn = xi + ahead * (most / beyond)
     x_before[i] = xs
     x_start[i] = xn
     return xn
